@@ -1,0 +1,313 @@
+// bpx bench: times backends side by side on the same boxes, in one run.
+// SPDX-License-Identifier: MIT
+//
+// Method: per scene size, one random scene at constant density (about one overlap per box) moved
+// coherently into a few frames that every variant replays in the same order. Each variant gets
+// warm-up cycles (buffers grow, threads wake), then timed cycles on a monotonic clock; a cycle is
+// what a frame pays: bpx_world_set_boxes + bpx_world_collide. Speed claims are ratios of medians
+// measured in this same run.
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "scenes.h"
+
+enum { FRAME_COUNT = 8, MAX_SIZES = 16, MAX_VARIANTS = 32, WARMUP_CYCLES = 5 };
+
+typedef struct bench_variant {
+    bpx_backend backend;
+    bpx_simd simd;
+    int threads;
+} bench_variant;
+
+typedef struct bench_options {
+    uint32_t sizes[MAX_SIZES];
+    int size_count;
+    int threads;
+    double seconds; // time budget per variant and size
+    int max_cycles;
+    uint64_t seed;
+    const char *csv_path;
+    bool all_simd; // also every narrower SIMD width
+} bench_options;
+
+static double now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
+}
+
+static int compare_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static void print_help(void)
+{
+    printf("usage: bpx bench [--sizes N,N,...] [--threads T] [--seconds S] [--cycles C]\n"
+           "                 [--all-simd] [--seed S] [--csv FILE]\n"
+           "\n"
+           "Times the reference and brute backends side by side on the same random scenes\n"
+           "(constant density, ~1 overlap per box, coherent motion) and prints a Markdown table:\n"
+           "mean, median and 99th-percentile microseconds per cycle (set boxes + collide),\n"
+           "box-pair tests per second, and the speed-up of each variant over reference.\n"
+           "\n"
+           "  --sizes     box counts (default 500,10000)\n"
+           "  --threads   worker threads of the threaded rows (default: online CPUs)\n"
+           "  --seconds   time budget per variant and size (default 0.5)\n"
+           "  --cycles    most timed cycles per variant (default 20000)\n"
+           "  --all-simd  also time every narrower SIMD width this CPU has\n"
+           "  --seed      scene seed (default 1)\n"
+           "  --csv FILE  also write the rows as CSV\n");
+}
+
+static int parse_sizes(const char *text, bench_options *o)
+{
+    o->size_count = 0;
+    const char *p = text;
+    while (*p) {
+        char *end;
+        unsigned long n = strtoul(p, &end, 10);
+        if (end == p || n > 100000000ul || o->size_count == MAX_SIZES)
+            return -1;
+        o->sizes[o->size_count++] = (uint32_t)n;
+        if (*end == ',')
+            end++;
+        else if (*end != '\0')
+            return -1;
+        p = end;
+    }
+    return o->size_count > 0 ? 0 : -1;
+}
+
+static int parse_args(int argc, char **argv, bench_options *o)
+{
+    for (int k = 1; k < argc; k++) {
+        const char *value = NULL;
+        cli_match m;
+        if (cli_is_flag(argv[k], "--all-simd")) {
+            o->all_simd = true;
+        } else if ((m = cli_flag_value(argc, argv, &k, "--sizes", &value)) != CLI_NO_MATCH) {
+            if (m == CLI_MISSING_VALUE || parse_sizes(value, o) != 0)
+                return cli_usage_error("bench", "--sizes wants box counts like 500,10000");
+        } else if ((m = cli_flag_value(argc, argv, &k, "--threads", &value)) != CLI_NO_MATCH) {
+            if (m == CLI_MISSING_VALUE || !cli_parse_int(value, 1, 256, &o->threads))
+                return cli_usage_error("bench", "--threads wants 1..256");
+        } else if ((m = cli_flag_value(argc, argv, &k, "--cycles", &value)) != CLI_NO_MATCH) {
+            if (m == CLI_MISSING_VALUE || !cli_parse_int(value, 1, 100000000, &o->max_cycles))
+                return cli_usage_error("bench", "--cycles wants a positive count");
+        } else if ((m = cli_flag_value(argc, argv, &k, "--seconds", &value)) != CLI_NO_MATCH) {
+            char *end = NULL;
+            o->seconds = m == CLI_MATCH ? strtod(value, &end) : 0;
+            if (m == CLI_MISSING_VALUE || *end != '\0' || !(o->seconds > 0 && o->seconds < 1e4))
+                return cli_usage_error("bench", "--seconds wants a positive number");
+        } else if ((m = cli_flag_value(argc, argv, &k, "--seed", &value)) != CLI_NO_MATCH) {
+            char *end = NULL;
+            o->seed = m == CLI_MATCH ? strtoull(value, &end, 10) : 0;
+            if (m == CLI_MISSING_VALUE || *end != '\0')
+                return cli_usage_error("bench", "--seed wants an unsigned integer");
+        } else if ((m = cli_flag_value(argc, argv, &k, "--csv", &value)) != CLI_NO_MATCH) {
+            if (m == CLI_MISSING_VALUE)
+                return cli_usage_error("bench", "--csv wants a file name");
+            o->csv_path = value;
+        } else {
+            return cli_usage_error("bench", "unknown argument \"%s\"", argv[k]);
+        }
+    }
+    return CLI_EXIT_OK;
+}
+
+static void print_machine(const bench_options *o)
+{
+    char model[256] = "unknown CPU";
+    FILE *f = fopen("/proc/cpuinfo", "r");
+    if (f) {
+        char line[512];
+        while (fgets(line, sizeof line, f))
+            if (strncmp(line, "model name", 10) == 0) {
+                const char *colon = strchr(line, ':');
+                if (colon) {
+                    snprintf(model, sizeof model, "%s", colon + 2);
+                    model[strcspn(model, "\n")] = '\0';
+                }
+                break;
+            }
+        fclose(f);
+    }
+    printf("machine: %s, %ld online CPUs; widest SIMD %s (%d lanes); threads %d; bpx %s\n\n",
+           model, sysconf(_SC_NPROCESSORS_ONLN), bpx_simd_name(bpx_simd_best()),
+           bpx_simd_lanes(BPX_SIMD_AUTO), o->threads, bpx_version());
+}
+
+typedef struct bench_result {
+    double mean_us, median_us, p99_us, min_us;
+    double pairs; // mean per timed cycle
+    uint64_t tests;
+    int cycles;
+} bench_result;
+
+// Runs one variant over the frames. Returns 0, or prints the error and returns -1.
+static int run_variant(const bench_variant *v, bpx_box *const frames[FRAME_COUNT], uint32_t n,
+                       const bench_options *o, double *samples, bench_result *r)
+{
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = v->backend;
+    def.simd = v->simd;
+    def.worker_count = v->threads;
+    def.capacity_hint = n;
+    bpx_world *world;
+    bpx_status status = bpx_world_create(&def, &world);
+    if (status != BPX_OK) {
+        cli_error("bench", "cannot create %s world: %s", bpx_backend_name(v->backend),
+                  bpx_status_string(status));
+        return -1;
+    }
+    int cycles = 0;
+    double spent = 0, pairs = 0;
+    for (int c = 0; c < WARMUP_CYCLES + o->max_cycles && spent < o->seconds; c++) {
+        double start = now_s();
+        status = bpx_world_set_boxes(world, frames[c % FRAME_COUNT], n);
+        if (status == BPX_OK)
+            status = bpx_world_collide(world);
+        double elapsed = now_s() - start;
+        if (status != BPX_OK) {
+            cli_error("bench", "%s", bpx_world_error(world)->message);
+            bpx_world_destroy(world);
+            return -1;
+        }
+        if (c >= WARMUP_CYCLES) {
+            samples[cycles++] = elapsed * 1e6;
+            spent += elapsed;
+            pairs += (double)bpx_world_stats(world).pair_count;
+        }
+    }
+    bpx_world_destroy(world);
+
+    double sum = 0;
+    for (int c = 0; c < cycles; c++)
+        sum += samples[c];
+    qsort(samples, (size_t)cycles, sizeof *samples, compare_double);
+    *r = (bench_result){
+        .mean_us = sum / cycles,
+        .median_us = cycles % 2 ? samples[cycles / 2]
+                                : 0.5 * (samples[cycles / 2 - 1] + samples[cycles / 2]),
+        .p99_us = samples[(int)ceil(0.99 * cycles) - 1],
+        .min_us = samples[0],
+        .pairs = pairs / cycles,
+        .tests = (uint64_t)n * (n > 0 ? n - 1 : 0) / 2,
+        .cycles = cycles,
+    };
+    return 0;
+}
+
+static int list_variants(const bench_options *o, bench_variant *out)
+{
+    int count = 0;
+    out[count++] = (bench_variant){BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1};
+    bpx_simd best = bpx_simd_best();
+    for (int s = BPX_SIMD_COUNT - 1; s > BPX_SIMD_AUTO; s--) {
+        if (!bpx_simd_supported((bpx_simd)s) || (!o->all_simd && s != (int)best))
+            continue;
+        out[count++] = (bench_variant){BPX_BACKEND_BRUTE, (bpx_simd)s, 1};
+        if (o->threads > 1)
+            out[count++] = (bench_variant){BPX_BACKEND_BRUTE, (bpx_simd)s, o->threads};
+    }
+    return count;
+}
+
+int cmd_bench(int argc, char **argv)
+{
+    for (int k = 1; k < argc; k++)
+        if (cli_is_help(argv[k])) {
+            print_help();
+            return CLI_EXIT_OK;
+        }
+    long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+    bench_options o = {
+        .sizes = {500, 10000},
+        .size_count = 2,
+        .threads = cpus > 0 ? (int)(cpus < 256 ? cpus : 256) : 1,
+        .seconds = 0.5,
+        .max_cycles = 20000,
+        .seed = 1,
+    };
+    int code = parse_args(argc, argv, &o);
+    if (code != CLI_EXIT_OK)
+        return code;
+
+    FILE *csv = NULL;
+    if (o.csv_path) {
+        csv = fopen(o.csv_path, "w");
+        if (!csv) {
+            cli_error("bench", "cannot write %s", o.csv_path);
+            return CLI_EXIT_ERROR;
+        }
+        fprintf(csv, "n,backend,simd,threads,cycles,pairs,mean_us,median_us,p99_us,min_us,"
+                     "gtests_per_s,speedup_vs_reference\n");
+    }
+    print_machine(&o);
+    printf("| n | backend | simd | threads | pairs/cycle | mean us | median us | p99 us | "
+           "G tests/s | vs reference |\n"
+           "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
+
+    bench_variant variants[MAX_VARIANTS];
+    int variant_count = list_variants(&o, variants);
+    double *samples = malloc(sizeof(double) * ((size_t)o.max_cycles + WARMUP_CYCLES));
+    code = samples ? CLI_EXIT_OK : CLI_EXIT_ERROR;
+    for (int s = 0; s < o.size_count && code == CLI_EXIT_OK; s++) {
+        uint32_t n = o.sizes[s];
+        bpx_box *frames[FRAME_COUNT] = {0};
+        for (int f = 0; f < FRAME_COUNT; f++)
+            if (!(frames[f] = malloc(sizeof(bpx_box) * (n ? n : 1))))
+                code = CLI_EXIT_ERROR;
+        if (code == CLI_EXIT_OK) {
+            scene_uniform_density(n, 1.0f, o.seed, frames[0]);
+            scene_rng rng;
+            scene_rng_seed(&rng, o.seed ^ 0x9e3779b97f4a7c15ull);
+            for (int f = 1; f < FRAME_COUNT; f++) {
+                memcpy(frames[f], frames[f - 1], sizeof(bpx_box) * n);
+                scene_move(frames[f], n, 0.05f, &rng);
+            }
+        }
+        double reference_median = 0;
+        for (int v = 0; v < variant_count && code == CLI_EXIT_OK; v++) {
+            bench_result r;
+            if (run_variant(&variants[v], frames, n, &o, samples, &r) != 0) {
+                code = CLI_EXIT_ERROR;
+                break;
+            }
+            if (variants[v].backend == BPX_BACKEND_REFERENCE)
+                reference_median = r.median_us;
+            double gtests = r.median_us > 0 ? (double)r.tests / r.median_us * 1e-3 : 0;
+            double speedup = r.median_us > 0 ? reference_median / r.median_us : 0;
+            const char *simd = variants[v].backend == BPX_BACKEND_BRUTE
+                                   ? bpx_simd_name(variants[v].simd)
+                                   : "-";
+            printf("| %u | %s | %s | %d | %.1f | %.2f | %.2f | %.2f | %.2f | %.1fx |\n", n,
+                   bpx_backend_name(variants[v].backend), simd, variants[v].threads,
+                   r.pairs, r.mean_us, r.median_us, r.p99_us, gtests,
+                   speedup);
+            fflush(stdout);
+            if (csv)
+                fprintf(csv, "%u,%s,%s,%d,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.4f,%.3f\n", n,
+                        bpx_backend_name(variants[v].backend), simd, variants[v].threads,
+                        r.cycles, r.pairs, r.mean_us, r.median_us, r.p99_us,
+                        r.min_us, gtests, speedup);
+        }
+        for (int f = 0; f < FRAME_COUNT; f++)
+            free(frames[f]);
+    }
+    free(samples);
+    if (csv && fclose(csv) != 0) {
+        cli_error("bench", "cannot write %s", o.csv_path);
+        code = CLI_EXIT_ERROR;
+    }
+    return code;
+}

@@ -1,0 +1,141 @@
+// bpx: broad-phase collision detection. SPDX-License-Identifier: MIT
+//
+// The one header to include. The library follows the paper's pipeline (Woulfe, Dingliana &
+// Manzke 2007):
+//   updater    boxes from origin-centred extents + per-cycle centres, or set directly
+//   comparator the pair test, in backends (reference, brute SIMD/threads, ...)
+//   emitter    per-lane/per-thread hits merged into one stream ordered by (i, j)
+//   interface  the world: state between cycles, counts and per-stage timings
+//
+// Typical frame loop:
+//   bpx_world_def def = bpx_default_world_def();
+//   def.worker_count = 4;
+//   bpx_world *world;
+//   if (bpx_world_create(&def, &world) != BPX_OK) ...
+//   bpx_world_load_extents(world, minima, n);          // once: origin-centred minima
+//   each frame:
+//     bpx_world_update_centres(world, centres);        // 3 floats per object
+//     bpx_world_collide(world);
+//     size_t count; const bpx_pair *pairs = bpx_world_pairs(world, &count);
+//   bpx_world_destroy(world);
+//
+// Threading: a world is used by one thread at a time; different worlds are independent.
+#pragma once
+
+#include "base.h"
+#include "overlap.h"
+#include "types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct bpx_world bpx_world;
+
+/// A world definition with every field at its default.
+BPX_API bpx_world_def bpx_default_world_def(void);
+
+/// Creates a world. On success *out_world owns threads and memory until bpx_world_destroy.
+/// Errors: NULL_ARGUMENT, INVALID_ARGUMENT (worker_count, hooks given singly),
+/// BACKEND_UNAVAILABLE (backend or forced SIMD width not usable here), OUT_OF_MEMORY.
+/// On error *out_world is NULL and nothing is leaked.
+BPX_API bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world);
+
+/// Joins the world's threads and frees all its memory. NULL is allowed.
+BPX_API void bpx_world_destroy(bpx_world *world);
+
+/// The world's last error (status BPX_OK when the last call succeeded). Valid until the next call
+/// on this world; do not free.
+BPX_API const bpx_error *bpx_world_error(const bpx_world *world);
+
+// ---------------------------------------------------------------------------------------------
+// Updater
+
+/// Initialisation phase: loads n objects' origin-centred boxes as their minima (x, y, z per
+/// object, 3n floats). Maxima are the negated minima, so each minimum must be finite and <= 0.
+/// The world's box count becomes n and, until the first bpx_world_update_centres, every box sits
+/// at the origin ([minimum, -minimum]).
+/// Errors: NULL_ARGUMENT (minima NULL with n > 0), TOO_MANY_BOXES, NOT_FINITE,
+/// MIN_GREATER_THAN_MAX (a minimum > 0), OUT_OF_MEMORY. On error the world is unchanged.
+BPX_API bpx_status bpx_world_load_extents(bpx_world *world, const float *minima, uint32_t n);
+
+/// Updating phase: current centres (x, y, z per object, 3n floats for the n loaded extents).
+/// Box i becomes [centre_i + minimum_i, centre_i - minimum_i] per axis.
+/// Errors: BAD_STATE (no extents loaded), NULL_ARGUMENT, NOT_FINITE (a centre, or a box
+/// coordinate that overflowed). On error the world keeps its previous boxes.
+BPX_API bpx_status bpx_world_update_centres(bpx_world *world, const float *centres);
+
+/// General mode: sets the n current boxes directly (any shape each cycle; rotating objects).
+/// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, NOT_FINITE, MIN_GREATER_THAN_MAX, OUT_OF_MEMORY;
+/// the error names the first offending box. On error the world keeps its previous boxes.
+BPX_API bpx_status bpx_world_set_boxes(bpx_world *world, const bpx_box *boxes, uint32_t n);
+
+/// Number of boxes in the world (the paper's n register).
+BPX_API uint32_t bpx_world_box_count(const bpx_world *world);
+
+// ---------------------------------------------------------------------------------------------
+// Comparator + collision emitter
+
+/// Finds every overlapping pair among the current boxes into the world's own buffer, which grows
+/// as needed and is kept between cycles (after the first cycles, no allocation).
+/// Errors: OUT_OF_MEMORY (the pair set does not fit in memory; no partial result is reported).
+BPX_API bpx_status bpx_world_collide(bpx_world *world);
+
+/// The pairs of the last successful collide, sorted by (i, j). *count receives their number
+/// (may be NULL). Owned by the world; valid until the next call that changes the world.
+BPX_API const bpx_pair *bpx_world_pairs(bpx_world *world, size_t *count);
+
+/// Like bpx_world_collide, but the emitter writes straight into caller memory.
+/// *count receives the number of pairs found. If it exceeds capacity, returns BPX_ERR_CAPACITY,
+/// writes nothing to out, and loses nothing: the full set is readable with bpx_world_pairs() or
+/// bpx_world_copy_pairs() without running the cycle again.
+BPX_API bpx_status bpx_world_collide_into(bpx_world *world, bpx_pair *out, size_t capacity,
+                                          size_t *count);
+
+/// Copies the last cycle's pairs into out. Returns CAPACITY (and the needed count) if too small.
+BPX_API bpx_status bpx_world_copy_pairs(const bpx_world *world, bpx_pair *out, size_t capacity,
+                                        size_t *count);
+
+/// Counts and timings of the last cycle.
+BPX_API bpx_cycle_stats bpx_world_stats(const bpx_world *world);
+
+/// The backend the world resolved to (never AUTO) and its SIMD width.
+BPX_API bpx_backend bpx_world_backend(const bpx_world *world);
+BPX_API bpx_simd bpx_world_simd(const bpx_world *world);
+
+// ---------------------------------------------------------------------------------------------
+// One-shot
+
+/// All overlapping pairs of an array of boxes, on the calling thread, with the given backend.
+/// Writes at most capacity pairs to out and sets *count to the number found. Returns CAPACITY
+/// when count > capacity (out untouched; call again with a buffer of *count pairs).
+/// err (may be NULL) receives the detail of any error, e.g. the first invalid box.
+BPX_API bpx_status bpx_find_pairs(const bpx_box *boxes, uint32_t n, bpx_backend backend,
+                                  bpx_pair *out, size_t capacity, size_t *count, bpx_error *err);
+
+/// Checks boxes as every entry point does: first non-finite coordinate, else first min > max.
+BPX_API bpx_status bpx_validate_boxes(const bpx_box *boxes, uint32_t n, bpx_error *err);
+
+// ---------------------------------------------------------------------------------------------
+// Backends and SIMD
+
+/// "auto", "reference", "brute", ... NULL for out-of-range values.
+BPX_API const char *bpx_backend_name(bpx_backend backend);
+/// Parses a backend name. UNKNOWN_BACKEND if none matches.
+BPX_API bpx_status bpx_backend_from_name(const char *name, bpx_backend *out);
+/// Whether a backend is usable here, why not, and details (ISA, lanes).
+BPX_API bpx_backend_info bpx_backend_query(bpx_backend backend);
+
+/// "auto", "scalar", "sse2", "avx2", "avx512", "neon". NULL for out-of-range values.
+BPX_API const char *bpx_simd_name(bpx_simd simd);
+BPX_API bpx_status bpx_simd_from_name(const char *name, bpx_simd *out);
+/// Lanes of one comparator step (the paper's 2m - 1 pairs per step).
+BPX_API int bpx_simd_lanes(bpx_simd simd);
+/// Whether this build and this CPU can run the width.
+BPX_API bool bpx_simd_supported(bpx_simd simd);
+/// The widest supported width: what BPX_SIMD_AUTO resolves to.
+BPX_API bpx_simd bpx_simd_best(void);
+
+#ifdef __cplusplus
+}
+#endif

@@ -1,0 +1,123 @@
+// bpx: broad-phase collision detection. SPDX-License-Identifier: MIT
+//
+// Plain data types: boxes, pairs, backends, world definition, statistics.
+#pragma once
+
+#include <stdbool.h>
+
+#include "base.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/// Largest box count a world or one-shot call accepts. Pair indices are 32-bit and pair counts
+/// 64-bit (size_t), so this is a sanity bound, not a format limit.
+#define BPX_MAX_BOXES (1u << 30)
+
+/// An axis-aligned bounding box: six IEEE single-precision floats, in this order in memory
+/// (min x, min y, min z, max x, max y, max z). Closed: a box with min == max is a point or a plane,
+/// and boxes that touch overlap. Valid when every coordinate is finite and min <= max per axis.
+typedef struct bpx_box {
+    float min[3];
+    float max[3];
+} bpx_box;
+
+/// One overlapping pair: indices into the box array, i < j. Pair lists are always sorted by
+/// (i, j) ascending: the same bytes from every backend, SIMD width and thread count.
+typedef struct bpx_pair {
+    uint32_t i;
+    uint32_t j;
+} bpx_pair;
+
+/// The backends, each keeping the same contract (see bpx_overlap in overlap.h).
+/// Names for the command line: bpx_backend_name() / bpx_backend_from_name().
+typedef enum bpx_backend {
+    BPX_BACKEND_AUTO = 0,  ///< "auto": the best available for the scene (today: brute)
+    BPX_BACKEND_REFERENCE, ///< "reference": Algorithm 1 verbatim, scalar, one thread. The oracle.
+    BPX_BACKEND_BRUTE,     ///< "brute": the paper's comparator on CPU SIMD lanes and threads
+    BPX_BACKEND_COUNT
+} bpx_backend;
+
+/// SIMD instruction set of the brute-force comparator. AUTO picks the widest the CPU supports;
+/// forcing a narrower one is for tests and benchmarks. Lanes: scalar 1, SSE2/NEON 4, AVX2 8,
+/// AVX-512 16.
+typedef enum bpx_simd {
+    BPX_SIMD_AUTO = 0,
+    BPX_SIMD_SCALAR,
+    BPX_SIMD_SSE2,
+    BPX_SIMD_AVX2,
+    BPX_SIMD_AVX512,
+    BPX_SIMD_NEON,
+    BPX_SIMD_COUNT
+} bpx_simd;
+
+/// Task system hooks, so a host engine can run bpx's parallel work on its own scheduler.
+///
+/// bpx splits a job into `item_count` independent items and calls enqueue once per job. The host
+/// runs task(begin, end, worker, task_context) over ranges [begin, end) that together cover
+/// [0, item_count) exactly once, each range at least `min_range` long where possible, with
+/// worker in [0, worker_count). It returns a handle that bpx passes to finish, which must block
+/// until every range has run. It may instead run everything inline and return NULL.
+/// The output never depends on how the host splits the items.
+typedef void bpx_task_fn(int begin, int end, int worker, void *task_context);
+typedef void *bpx_enqueue_task_fn(bpx_task_fn *task, int item_count, int min_range,
+                                  void *task_context, void *user_context);
+typedef void bpx_finish_task_fn(void *user_task, void *user_context);
+
+/// How a world is made. Get one from bpx_default_world_def(), change fields, pass it to
+/// bpx_world_create(). A zero field means its default.
+typedef struct bpx_world_def {
+    /// Comparator backend. Default BPX_BACKEND_AUTO.
+    bpx_backend backend;
+    /// SIMD width for brute; default BPX_SIMD_AUTO (widest supported). Forcing one this build or
+    /// CPU lacks fails creation with BPX_ERR_BACKEND_UNAVAILABLE, whatever the backend.
+    bpx_simd simd;
+    /// Threads working on one cycle, the caller's included. 0 or 1: the calling thread only.
+    /// With no task hooks, bpx starts worker_count - 1 threads of its own. Range 0..256.
+    int worker_count;
+    /// Microseconds a built-in worker spins waiting for the next cycle before it sleeps
+    /// (0 = default 200; negative = never spin). Spinning trades CPU for wake-up latency.
+    int spin_us;
+    /// Boxes to reserve memory for up front (0 = grow on demand). Purely a hint.
+    uint32_t capacity_hint;
+    /// Optional task system; both or neither. When set, worker_count tells how many workers
+    /// it has and no threads are started.
+    bpx_enqueue_task_fn *enqueue_task;
+    bpx_finish_task_fn *finish_task;
+    void *user_task_context;
+} bpx_world_def;
+
+/// Per-cycle figures, like the paper's registers (n, collision count) plus stage timings.
+/// Times are wall-clock nanoseconds of the last cycle on a monotonic clock.
+typedef struct bpx_cycle_stats {
+    uint32_t box_count;     ///< n, the boxes in the world
+    uint64_t pair_count;    ///< collisions found by the last bpx_world_collide*
+    uint64_t pair_tests;    ///< box-pair tests the comparator made (incl. discarded padding lanes)
+    uint64_t update_ns;     ///< updater: last set_boxes / update_centres (validation included)
+    uint64_t compare_ns;    ///< comparator: the pair tests, all workers
+    uint64_t emit_ns;       ///< collision emitter: merging per-block hits into one ordered stream
+    uint64_t cycle_count;   ///< completed bpx_world_collide* calls since creation
+} bpx_cycle_stats;
+
+/// Detail of an error from a call that has no world (one-shot). index is the first offending
+/// box (or UINT32_MAX when no box is involved), axis 0..2 (or -1).
+typedef struct bpx_error {
+    bpx_status status;
+    uint32_t index;
+    int axis;
+    char message[192];
+} bpx_error;
+
+/// What a backend is on this machine.
+typedef struct bpx_backend_info {
+    bpx_backend backend;
+    const char *name;   ///< "brute"
+    bool available;     ///< usable on this machine and build
+    const char *reason; ///< why not, when unavailable ("" otherwise)
+    char detail[96];    ///< e.g. "avx512, 16 lanes" (m = lanes)
+} bpx_backend_info;
+
+#ifdef __cplusplus
+}
+#endif

@@ -1,0 +1,99 @@
+// The collision emitter: per-block hit lists (filled in parallel) merged into one ordered stream.
+#include <string.h>
+
+#include "alloc.h"
+#include "world.h"
+
+enum {
+    BLOCK_TARGET_TESTS = 32768, // about 5 us of scalar work: big enough to amortise a claim
+    BLOCK_MAX = 1024,
+    ROW_OVERHEAD_TESTS = 16, // a row's fixed cost (broadcasts, first partial vector), in tests
+};
+
+bpx_status bpx__emitter_plan(bpx_world *w, bool single)
+{
+    uint32_t n = w->n;
+    uint64_t total = 0;
+    for (uint32_t i = 0; i < n; i++)
+        total += (uint64_t)(n - 1 - i) + ROW_OVERHEAD_TESTS;
+    uint64_t target = total / BLOCK_MAX + 1;
+    if (target < BLOCK_TARGET_TESTS)
+        target = BLOCK_TARGET_TESTS;
+    int wanted = single ? 1 : (int)(total / target) + 1;
+
+    if (wanted > w->block_capacity) {
+        size_t old_size = sizeof(bpx_block) * (size_t)w->block_capacity;
+        size_t new_size = sizeof(bpx_block) * (size_t)wanted;
+        if (!bpx__grow((void **)&w->blocks, old_size, new_size))
+            return BPX_ERR_OUT_OF_MEMORY;
+        memset((char *)w->blocks + old_size, 0, new_size - old_size);
+        w->block_capacity = wanted;
+    }
+
+    // Cut rows where the running cost crosses each multiple of the per-block share.
+    int b = 0;
+    uint64_t share = total / (uint64_t)wanted + 1, cost = 0;
+    w->blocks[0].row_begin = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        cost += (uint64_t)(n - 1 - i) + ROW_OVERHEAD_TESTS;
+        if (cost >= share * (uint64_t)(b + 1) && b + 1 < wanted && i + 1 < n) {
+            w->blocks[b].row_end = i + 1;
+            w->blocks[++b].row_begin = i + 1;
+        }
+    }
+    w->blocks[b].row_end = n;
+    w->block_count = b + 1;
+    w->planned_n = n;
+    return BPX_OK;
+}
+
+bool bpx__block_reserve(bpx_block *block, size_t extra)
+{
+    if (block->capacity - block->count >= extra)
+        return true;
+    size_t capacity = block->capacity ? block->capacity : 64;
+    while (capacity - block->count < extra) {
+        if (capacity > SIZE_MAX / 2 / sizeof(bpx_pair))
+            return false;
+        capacity *= 2;
+    }
+    if (!bpx__grow((void **)&block->pairs, block->capacity * sizeof(bpx_pair),
+                   capacity * sizeof(bpx_pair)))
+        return false;
+    block->capacity = capacity;
+    return true;
+}
+
+bpx_status bpx__emitter_total(const bpx_world *w, size_t *total)
+{
+    size_t sum = 0;
+    for (int b = 0; b < w->block_count; b++) {
+        if (w->blocks[b].status != BPX_OK)
+            return w->blocks[b].status;
+        sum += w->blocks[b].count;
+    }
+    *total = sum;
+    return BPX_OK;
+}
+
+void bpx__emitter_merge(const bpx_world *w, bpx_pair *out)
+{
+    for (int b = 0; b < w->block_count; b++) {
+        const bpx_block *block = &w->blocks[b];
+        if (block->count)
+            memcpy(out, block->pairs, block->count * sizeof(bpx_pair));
+        out += block->count;
+    }
+}
+
+void bpx__emitter_free(bpx_world *w)
+{
+    for (int b = 0; b < w->block_capacity; b++)
+        bpx__free(w->blocks[b].pairs, w->blocks[b].capacity * sizeof(bpx_pair));
+    bpx__free(w->blocks, sizeof(bpx_block) * (size_t)w->block_capacity);
+    bpx__free(w->pairs, w->pair_capacity * sizeof(bpx_pair));
+    w->blocks = NULL;
+    w->pairs = NULL;
+    w->block_capacity = w->block_count = 0;
+    w->pair_capacity = w->pair_count = 0;
+}

@@ -1,0 +1,502 @@
+// The interface (world lifetime, counts, timings) and the updater (boxes in SoA form).
+#include "world.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "alloc.h"
+#include "clock.h"
+#include "validate.h"
+
+static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
+    [BPX_BACKEND_REFERENCE] = &bpx__reference_backend,
+    [BPX_BACKEND_BRUTE] = &bpx__brute_backend,
+};
+
+enum { MAX_WORKERS = 256, DEFAULT_SPIN_US = 200 };
+
+bpx_world_def bpx_default_world_def(void)
+{
+    return (bpx_world_def){.backend = BPX_BACKEND_AUTO, .simd = BPX_SIMD_AUTO, .worker_count = 1};
+}
+
+// ---------------------------------------------------------------------------------------------
+// Backends
+
+const char *bpx_backend_name(bpx_backend backend)
+{
+    if (backend == BPX_BACKEND_AUTO)
+        return "auto";
+    if ((unsigned)backend >= BPX_BACKEND_COUNT || !backends[backend])
+        return NULL;
+    return backends[backend]->name;
+}
+
+bpx_status bpx_backend_from_name(const char *name, bpx_backend *out)
+{
+    if (!name || !out)
+        return BPX_ERR_NULL_ARGUMENT;
+    for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
+        const char *candidate = bpx_backend_name((bpx_backend)b);
+        if (candidate && strcmp(candidate, name) == 0) {
+            *out = (bpx_backend)b;
+            return BPX_OK;
+        }
+    }
+    return BPX_ERR_UNKNOWN_BACKEND;
+}
+
+// AUTO: brute force is the best backend this version has for every n; later ones join the rule.
+static bpx_backend resolve_auto(const bpx_world_def *def)
+{
+    const char *reason;
+    char detail[96];
+    if (bpx__brute_backend.query(def, &reason, detail, sizeof detail))
+        return BPX_BACKEND_BRUTE;
+    return BPX_BACKEND_REFERENCE;
+}
+
+static bpx_backend_info query_with(bpx_backend backend, const bpx_world_def *def)
+{
+    bpx_backend_info info = {.backend = backend, .name = bpx_backend_name(backend), .reason = ""};
+    if (!info.name) {
+        info.name = "?";
+        info.reason = "no such backend";
+        return info;
+    }
+    bpx_backend resolved = backend == BPX_BACKEND_AUTO ? resolve_auto(def) : backend;
+    const bpx_backend_impl *impl = backends[resolved];
+    info.available = impl->query(def, &info.reason, info.detail, sizeof info.detail);
+    if (backend == BPX_BACKEND_AUTO) {
+        char inner[sizeof info.detail];
+        memcpy(inner, info.detail, sizeof inner);
+        snprintf(info.detail, sizeof info.detail, "picks %s (%.70s)", impl->name, inner);
+    }
+    return info;
+}
+
+bpx_backend_info bpx_backend_query(bpx_backend backend)
+{
+    bpx_world_def def = bpx_default_world_def();
+    return query_with(backend, &def);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Lifetime
+
+static void free_boxes(bpx_world *w)
+{
+    for (int a = 0; a < 3; a++) {
+        bpx__free(w->lo[a], sizeof(float) * w->box_capacity);
+        bpx__free(w->hi[a], sizeof(float) * w->box_capacity);
+        bpx__free(w->minima[a], sizeof(float) * w->extent_capacity);
+        w->lo[a] = w->hi[a] = w->minima[a] = NULL;
+    }
+    w->box_capacity = w->extent_capacity = 0;
+}
+
+static uint32_t padded(uint32_t n)
+{
+    return (n + BPX_PAD_LANES - 1) / BPX_PAD_LANES * BPX_PAD_LANES;
+}
+
+// Makes the SoA arrays hold n boxes plus padding; contents are not kept.
+static bool reserve_boxes(bpx_world *w, uint32_t n)
+{
+    uint32_t capacity = padded(n) ? padded(n) : BPX_PAD_LANES;
+    if (capacity <= w->box_capacity)
+        return true;
+    float *arrays[6] = {0};
+    for (int k = 0; k < 6; k++)
+        if (!(arrays[k] = bpx__alloc(sizeof(float) * capacity))) {
+            for (int f = 0; f < k; f++)
+                bpx__free(arrays[f], sizeof(float) * capacity);
+            return false;
+        }
+    for (int a = 0; a < 3; a++) {
+        bpx__free(w->lo[a], sizeof(float) * w->box_capacity);
+        bpx__free(w->hi[a], sizeof(float) * w->box_capacity);
+        w->lo[a] = arrays[a];
+        w->hi[a] = arrays[3 + a];
+    }
+    w->box_capacity = capacity;
+    return true;
+}
+
+// Padding boxes can never overlap anything: min = +inf fails every `min_j <= max_i`.
+static void pad_boxes(bpx_world *w)
+{
+    for (uint32_t i = w->n; i < padded(w->n); i++)
+        for (int a = 0; a < 3; a++) {
+            w->lo[a][i] = INFINITY;
+            w->hi[a][i] = -INFINITY;
+        }
+}
+
+bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
+{
+    if (!out_world)
+        return BPX_ERR_NULL_ARGUMENT;
+    *out_world = NULL;
+    if (!def)
+        return BPX_ERR_NULL_ARGUMENT;
+    if (def->worker_count < 0 || def->worker_count > MAX_WORKERS ||
+        (unsigned)def->backend >= BPX_BACKEND_COUNT || (unsigned)def->simd >= BPX_SIMD_COUNT ||
+        !def->enqueue_task != !def->finish_task || def->capacity_hint > BPX_MAX_BOXES)
+        return BPX_ERR_INVALID_ARGUMENT;
+
+    bpx_backend resolved = def->backend == BPX_BACKEND_AUTO ? resolve_auto(def) : def->backend;
+    const char *reason;
+    char detail[96];
+    if (!bpx_simd_supported(def->simd) || !backends[resolved]->query(def, &reason, detail, sizeof detail))
+        return BPX_ERR_BACKEND_UNAVAILABLE;
+
+    bpx_world *w = bpx__alloc(sizeof *w);
+    if (!w)
+        return BPX_ERR_OUT_OF_MEMORY;
+    *w = (bpx_world){.def = *def, .backend = backends[resolved], .planned_n = UINT32_MAX};
+    w->def.worker_count = def->worker_count ? def->worker_count : 1;
+    w->def.spin_us = def->spin_us ? def->spin_us : DEFAULT_SPIN_US;
+    w->simd = def->simd == BPX_SIMD_AUTO ? bpx_simd_best() : def->simd;
+    bpx__error_clear(&w->error);
+    w->executor = (bpx_executor){
+        .worker_count = w->def.worker_count,
+        .enqueue_task = def->enqueue_task,
+        .finish_task = def->finish_task,
+        .user_task_context = def->user_task_context,
+    };
+    bool ok = reserve_boxes(w, def->capacity_hint);
+    if (ok && !def->enqueue_task && w->def.worker_count > 1)
+        ok = (w->executor.pool = bpx__pool_create(w->def.worker_count - 1, w->def.spin_us));
+    if (!ok) {
+        bpx_world_destroy(w);
+        return BPX_ERR_OUT_OF_MEMORY;
+    }
+    pad_boxes(w);
+    *out_world = w;
+    return BPX_OK;
+}
+
+void bpx_world_destroy(bpx_world *w)
+{
+    if (!w)
+        return;
+    bpx__pool_destroy(w->executor.pool);
+    bpx__emitter_free(w);
+    free_boxes(w);
+    bpx__free(w, sizeof *w);
+}
+
+const bpx_error *bpx_world_error(const bpx_world *w)
+{
+    static const bpx_error null_world = {BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "world is NULL"};
+    return w ? &w->error : &null_world;
+}
+
+uint32_t bpx_world_box_count(const bpx_world *w)
+{
+    return w ? w->n : 0;
+}
+
+bpx_backend bpx_world_backend(const bpx_world *w)
+{
+    return w ? w->backend->id : BPX_BACKEND_AUTO;
+}
+
+bpx_simd bpx_world_simd(const bpx_world *w)
+{
+    return w ? w->simd : BPX_SIMD_AUTO;
+}
+
+bpx_cycle_stats bpx_world_stats(const bpx_world *w)
+{
+    return w ? w->stats : (bpx_cycle_stats){0};
+}
+
+// ---------------------------------------------------------------------------------------------
+// Updater
+
+bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    uint64_t start = bpx__now_ns();
+    if (n > BPX_MAX_BOXES)
+        return bpx__error(&w->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
+                          "%u boxes exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
+    if (!boxes && n > 0)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "boxes is NULL");
+    bpx_status status = bpx__check_boxes(boxes, n, &w->error);
+    if (status != BPX_OK)
+        return status;
+    if (!reserve_boxes(w, n))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u boxes", n);
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            w->lo[a][i] = boxes[i].min[a];
+            w->hi[a][i] = boxes[i].max[a];
+        }
+    w->n = n;
+    pad_boxes(w);
+    w->stats.box_count = n;
+    w->stats.update_ns = bpx__now_ns() - start;
+    return BPX_OK;
+}
+
+bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    if (n > BPX_MAX_BOXES)
+        return bpx__error(&w->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
+                          "%u objects exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
+    if (!minima && n > 0)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "minima is NULL");
+    bpx_status status = bpx__check_minima(minima, n, &w->error);
+    if (status != BPX_OK)
+        return status;
+    if (n > w->extent_capacity) {
+        float *arrays[3] = {0};
+        for (int a = 0; a < 3; a++)
+            if (!(arrays[a] = bpx__alloc(sizeof(float) * n))) {
+                for (int f = 0; f < a; f++)
+                    bpx__free(arrays[f], sizeof(float) * n);
+                return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                                  "no memory for %u extents", n);
+            }
+        for (int a = 0; a < 3; a++) {
+            bpx__free(w->minima[a], sizeof(float) * w->extent_capacity);
+            w->minima[a] = arrays[a];
+        }
+        w->extent_capacity = n;
+    }
+    // Reserve the boxes now so that update_centres never allocates.
+    if (!reserve_boxes(w, n))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u boxes", n);
+    // Until the first centres arrive, every object sits at the origin (the paper's n register
+    // is set at initialisation).
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            float m = minima[3 * (size_t)i + a];
+            w->minima[a][i] = m;
+            w->lo[a][i] = m;
+            w->hi[a][i] = -m;
+        }
+    w->extent_count = n;
+    w->extents_loaded = true;
+    w->n = n;
+    pad_boxes(w);
+    w->stats.box_count = n;
+    return BPX_OK;
+}
+
+bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    uint64_t start = bpx__now_ns();
+    if (!w->extents_loaded)
+        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          "update_centres before load_extents");
+    uint32_t n = w->extent_count;
+    if (!centres && n > 0)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "centres is NULL");
+    const float *const minima[3] = {w->minima[0], w->minima[1], w->minima[2]};
+    bpx_status status = bpx__check_centres(centres, minima, n, &w->error);
+    if (status != BPX_OK)
+        return status;
+    // The paper's updater: min = centre + stored minimum, max = centre - stored minimum.
+    for (int a = 0; a < 3; a++) {
+        float *lo = w->lo[a], *hi = w->hi[a];
+        const float *m = minima[a];
+        for (uint32_t i = 0; i < n; i++) {
+            float c = centres[3 * (size_t)i + a];
+            lo[i] = c + m[i];
+            hi[i] = c - m[i];
+        }
+    }
+    w->n = n;
+    pad_boxes(w);
+    w->stats.box_count = n;
+    w->stats.update_ns = bpx__now_ns() - start;
+    return BPX_OK;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Comparator + emitter
+
+static bool reserve_pairs(bpx_world *w, size_t count)
+{
+    if (count <= w->pair_capacity)
+        return true;
+    size_t capacity = w->pair_capacity ? w->pair_capacity : 256;
+    while (capacity < count) {
+        if (capacity > SIZE_MAX / 2 / sizeof(bpx_pair))
+            return false;
+        capacity *= 2;
+    }
+    bpx_pair *pairs = bpx__alloc(capacity * sizeof(bpx_pair));
+    if (!pairs)
+        return false;
+    bpx__free(w->pairs, w->pair_capacity * sizeof(bpx_pair));
+    w->pairs = pairs;
+    w->pair_capacity = capacity;
+    return true;
+}
+
+// Runs the comparator into the blocks. On success *total is the number of pairs.
+static bpx_status compare(bpx_world *w, size_t *total)
+{
+    w->merged = false;
+    w->stats.pair_count = 0;
+    uint64_t start = bpx__now_ns();
+    bpx_status status = w->backend->compare(w);
+    if (status == BPX_OK)
+        status = bpx__emitter_total(w, total);
+    w->stats.compare_ns = bpx__now_ns() - start;
+    w->result_valid = status == BPX_OK; // nothing partial is ever reported
+    if (status != BPX_OK) {
+        return bpx__error(&w->error, status, UINT32_MAX, -1, "%s: %s", w->backend->name,
+                          bpx_status_string(status));
+    }
+    uint64_t tests = 0;
+    for (int b = 0; b < w->block_count; b++)
+        tests += w->blocks[b].tests;
+    w->stats.pair_tests = tests;
+    w->stats.pair_count = *total;
+    w->stats.cycle_count++;
+    return BPX_OK;
+}
+
+bpx_status bpx_world_collide(bpx_world *w)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    size_t total = 0;
+    bpx_status status = compare(w, &total);
+    if (status != BPX_OK)
+        return status;
+    uint64_t start = bpx__now_ns();
+    if (!reserve_pairs(w, total)) {
+        w->result_valid = false;
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %zu pairs", total);
+    }
+    bpx__emitter_merge(w, w->pairs);
+    w->pair_count = total;
+    w->merged = true;
+    w->stats.emit_ns = bpx__now_ns() - start;
+    return BPX_OK;
+}
+
+bpx_status bpx_world_collide_into(bpx_world *w, bpx_pair *out, size_t capacity, size_t *count)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    if (!count || (!out && capacity > 0))
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
+                          "count is NULL, or out is NULL with capacity > 0");
+    size_t total = 0;
+    bpx_status status = compare(w, &total);
+    *count = total;
+    if (status != BPX_OK)
+        return status;
+    if (total > capacity)
+        return bpx__error(&w->error, BPX_ERR_CAPACITY, UINT32_MAX, -1,
+                          "%zu pairs found, capacity %zu", total, capacity);
+    uint64_t start = bpx__now_ns();
+    bpx__emitter_merge(w, out);
+    w->stats.emit_ns = bpx__now_ns() - start;
+    return BPX_OK;
+}
+
+// The blocks keep the last cycle's pairs until the next compare, so the world's own merged copy
+// is made only when asked for (after collide_into).
+const bpx_pair *bpx_world_pairs(bpx_world *w, size_t *count)
+{
+    if (count)
+        *count = 0;
+    if (!w)
+        return NULL;
+    size_t total = 0;
+    if (!w->result_valid || bpx__emitter_total(w, &total) != BPX_OK)
+        return NULL;
+    if (!w->merged) {
+        if (!reserve_pairs(w, total)) {
+            bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                       "no memory to merge %zu pairs", total);
+            return NULL;
+        }
+        bpx__emitter_merge(w, w->pairs);
+        w->pair_count = total;
+        w->merged = true;
+    }
+    if (count)
+        *count = total;
+    return w->pairs;
+}
+
+bpx_status bpx_world_copy_pairs(const bpx_world *w, bpx_pair *out, size_t capacity,
+                                size_t *count)
+{
+    if (!w || !count || (!out && capacity > 0))
+        return BPX_ERR_NULL_ARGUMENT;
+    size_t total = 0;
+    if (!w->result_valid || bpx__emitter_total(w, &total) != BPX_OK)
+        total = 0;
+    *count = total;
+    if (total > capacity)
+        return BPX_ERR_CAPACITY;
+    if (total > 0)
+        bpx__emitter_merge(w, out);
+    return BPX_OK;
+}
+
+// ---------------------------------------------------------------------------------------------
+// One-shot
+
+bpx_status bpx_validate_boxes(const bpx_box *boxes, uint32_t n, bpx_error *err)
+{
+    bpx__error_clear(err);
+    if (n > BPX_MAX_BOXES)
+        return bpx__error(err, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
+                          "%u boxes exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
+    if (!boxes && n > 0)
+        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "boxes is NULL");
+    return bpx__check_boxes(boxes, n, err);
+}
+
+bpx_status bpx_find_pairs(const bpx_box *boxes, uint32_t n, bpx_backend backend, bpx_pair *out,
+                          size_t capacity, size_t *count, bpx_error *err)
+{
+    bpx__error_clear(err);
+    if (!count || (!out && capacity > 0))
+        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
+                          "count is NULL, or out is NULL with capacity > 0");
+    *count = 0;
+    bpx_status status = bpx_validate_boxes(boxes, n, err);
+    if (status != BPX_OK)
+        return status;
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = backend;
+    def.capacity_hint = n;
+    bpx_world *w;
+    status = bpx_world_create(&def, &w);
+    if (status != BPX_OK)
+        return bpx__error(err, status, UINT32_MAX, -1, "%s", bpx_status_string(status));
+    status = bpx_world_set_boxes(w, boxes, n);
+    if (status == BPX_OK)
+        status = bpx_world_collide_into(w, out, capacity, count);
+    if (status != BPX_OK && err)
+        *err = w->error;
+    bpx_world_destroy(w);
+    return status;
+}

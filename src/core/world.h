@@ -1,0 +1,91 @@
+// The world's private state, shared by the interface, the updater, the backends and the emitter.
+#pragma once
+
+#include "bpx/bpx.h"
+#include "parallel/pool.h"
+
+/// Widest SIMD step in lanes. Box arrays are padded to a multiple of it with boxes that can never
+/// overlap anything (min = +inf, max = -inf), so every comparator reads whole vectors.
+#define BPX_PAD_LANES 16
+
+/// Boxes in structure-of-arrays form: lo[axis][i], hi[axis][i], 64-byte aligned, padded.
+typedef struct bpx_soa {
+    const float *lo[3];
+    const float *hi[3];
+    uint32_t n;
+} bpx_soa;
+
+/// One slot of the collision emitter: a run of comparator rows [row_begin, row_end) and the hits
+/// found there, in (i, j) order. Slots depend on n only, never on threads, and are concatenated
+/// in order, so the output is the same for any thread count or schedule.
+typedef struct bpx_block {
+    uint32_t row_begin;
+    uint32_t row_end;
+    bpx_pair *pairs;
+    size_t count;
+    size_t capacity;
+    uint64_t tests;
+    bpx_status status;
+} bpx_block;
+
+/// A comparator backend: fills the world's blocks for its current boxes.
+typedef struct bpx_backend_impl {
+    bpx_backend id;
+    const char *name;
+    /// Whether usable here; on false, *reason says why. detail gets ISA / lanes / device.
+    bool (*query)(const bpx_world_def *def, const char **reason, char *detail, size_t size);
+    bpx_status (*compare)(bpx_world *world);
+} bpx_backend_impl;
+
+struct bpx_world {
+    bpx_world_def def;
+    const bpx_backend_impl *backend;
+    bpx_simd simd;
+    bpx_executor executor;
+
+    // Current boxes (updater output, comparator input).
+    uint32_t n;
+    uint32_t box_capacity; // allocated floats per array (multiple of BPX_PAD_LANES)
+    float *lo[3];
+    float *hi[3];
+
+    // Initialisation-phase data: origin-centred minima, one array per axis.
+    uint32_t extent_count;
+    uint32_t extent_capacity;
+    bool extents_loaded;
+    float *minima[3];
+
+    // Collision emitter.
+    bpx_block *blocks;
+    int block_count;
+    int block_capacity;
+    uint32_t planned_n; // n the blocks were planned for (UINT32_MAX: none)
+    bpx_pair *pairs;    // merged output owned by the world
+    size_t pair_count;
+    bool merged;       // pairs[] holds the last cycle (else only the blocks do)
+    bool result_valid; // the blocks hold a complete last cycle
+    size_t pair_capacity;
+
+    bpx_cycle_stats stats;
+    bpx_error error;
+};
+
+static inline bpx_soa bpx__world_soa(const bpx_world *w)
+{
+    return (bpx_soa){{w->lo[0], w->lo[1], w->lo[2]}, {w->hi[0], w->hi[1], w->hi[2]}, w->n};
+}
+
+// Emitter (emitter.c).
+/// Splits rows 0..n-1 into blocks of about equal pair tests; one block when `single`.
+bpx_status bpx__emitter_plan(bpx_world *w, bool single);
+/// Makes room for `extra` more pairs in block b (grows geometrically; kept across cycles).
+bool bpx__block_reserve(bpx_block *b, size_t extra);
+/// Total hits over blocks, or the first block error.
+bpx_status bpx__emitter_total(const bpx_world *w, size_t *total);
+/// Concatenates the blocks, in order, into out (which holds at least the total).
+void bpx__emitter_merge(const bpx_world *w, bpx_pair *out);
+void bpx__emitter_free(bpx_world *w);
+
+// Backends.
+extern const bpx_backend_impl bpx__reference_backend;
+extern const bpx_backend_impl bpx__brute_backend;
