@@ -5,7 +5,7 @@
 #include "world.h"
 
 enum {
-    BLOCK_TARGET_TESTS = 32768, // about 5 us of scalar work: big enough to amortise a claim
+    BLOCK_TARGET_TESTS = 4096, // about 5 us of scalar work: big enough to amortise a claim
     BLOCK_MAX = 1024,
     ROW_OVERHEAD_TESTS = 16, // a row's fixed cost (broadcasts, first partial vector), in tests
 };

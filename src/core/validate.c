@@ -1,5 +1,6 @@
 #include "validate.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -32,33 +33,40 @@ void bpx__error_clear(bpx_error *err)
     err->message[0] = '\0';
 }
 
-// The scan is branch-free per box so that the common (valid) case costs one pass of loads;
-// only a box that fails is looked at again to name the culprit.
+// Names the first problem of a box known to have one.
+static bpx_status describe_bad_box(const bpx_box *b, uint32_t i, bpx_error *err)
+{
+    for (int a = 0; a < 3; a++) {
+        if (!isfinite(b->min[a]))
+            return bpx__error(err, BPX_ERR_NOT_FINITE, i, a, "box %u: min %c is %g", i,
+                              axis_names[a], (double)b->min[a]);
+        if (!isfinite(b->max[a]))
+            return bpx__error(err, BPX_ERR_NOT_FINITE, i, a, "box %u: max %c is %g", i,
+                              axis_names[a], (double)b->max[a]);
+    }
+    for (int a = 0; a < 3; a++)
+        if (!(b->min[a] <= b->max[a]))
+            return bpx__error(err, BPX_ERR_MIN_GREATER_THAN_MAX, i, a,
+                              "box %u: min %c (%.9g) > max %c (%.9g)", i, axis_names[a],
+                              (double)b->min[a], axis_names[a], (double)b->max[a]);
+    return BPX_OK;
+}
+
+// Valid iff -FLT_MAX <= min <= max <= FLT_MAX on each axis: any NaN fails a comparison, and an
+// infinity fails a bound (min = +inf would need max = +inf, which fails the upper bound).
+static inline int box_is_valid(const bpx_box *b)
+{
+    int ok = 1;
+    for (int a = 0; a < 3; a++)
+        ok &= (-FLT_MAX <= b->min[a]) & (b->min[a] <= b->max[a]) & (b->max[a] <= FLT_MAX);
+    return ok;
+}
+
 bpx_status bpx__check_boxes(const bpx_box *boxes, uint32_t n, bpx_error *err)
 {
-    for (uint32_t i = 0; i < n; i++) {
-        const bpx_box *b = &boxes[i];
-        int finite = 1, ordered = 1;
-        for (int a = 0; a < 3; a++) {
-            finite &= isfinite(b->min[a]) & isfinite(b->max[a]);
-            ordered &= b->min[a] <= b->max[a];
-        }
-        if (finite & ordered)
-            continue;
-        for (int a = 0; a < 3; a++) {
-            if (!isfinite(b->min[a]))
-                return bpx__error(err, BPX_ERR_NOT_FINITE, i, a, "box %u: min %c is %g", i,
-                                  axis_names[a], (double)b->min[a]);
-            if (!isfinite(b->max[a]))
-                return bpx__error(err, BPX_ERR_NOT_FINITE, i, a, "box %u: max %c is %g", i,
-                                  axis_names[a], (double)b->max[a]);
-        }
-        for (int a = 0; a < 3; a++)
-            if (!(b->min[a] <= b->max[a]))
-                return bpx__error(err, BPX_ERR_MIN_GREATER_THAN_MAX, i, a,
-                                  "box %u: min %c (%.9g) > max %c (%.9g)", i, axis_names[a],
-                                  (double)b->min[a], axis_names[a], (double)b->max[a]);
-    }
+    for (uint32_t i = 0; i < n; i++)
+        if (!box_is_valid(&boxes[i]))
+            return describe_bad_box(&boxes[i], i, err);
     return BPX_OK;
 }
 

@@ -1,6 +1,7 @@
 // The interface (world lifetime, counts, timings) and the updater (boxes in SoA form).
 #include "world.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -85,53 +86,72 @@ bpx_backend_info bpx_backend_query(bpx_backend backend)
 // ---------------------------------------------------------------------------------------------
 // Lifetime
 
+static void free_arrays(bpx_box_arrays *b)
+{
+    for (int a = 0; a < 3; a++) {
+        bpx__free(b->lo[a], sizeof(float) * b->capacity);
+        bpx__free(b->hi[a], sizeof(float) * b->capacity);
+    }
+    *b = (bpx_box_arrays){0};
+}
+
 static void free_boxes(bpx_world *w)
 {
+    free_arrays(&w->boxes);
+    free_arrays(&w->spare);
     for (int a = 0; a < 3; a++) {
-        bpx__free(w->lo[a], sizeof(float) * w->box_capacity);
-        bpx__free(w->hi[a], sizeof(float) * w->box_capacity);
         bpx__free(w->minima[a], sizeof(float) * w->extent_capacity);
-        w->lo[a] = w->hi[a] = w->minima[a] = NULL;
+        w->minima[a] = NULL;
     }
-    w->box_capacity = w->extent_capacity = 0;
+    w->extent_capacity = 0;
 }
 
+// Boxes plus padding: n rounded up to whole groups, plus one more group, because a row's
+// first group starts at the vector holding i + 1 and may run past the rounded end.
 static uint32_t padded(uint32_t n)
 {
-    return (n + BPX_PAD_LANES - 1) / BPX_PAD_LANES * BPX_PAD_LANES;
+    return (n + BPX_PAD_LANES - 1) / BPX_PAD_LANES * BPX_PAD_LANES + BPX_PAD_LANES;
 }
 
-// Makes the SoA arrays hold n boxes plus padding; contents are not kept.
-static bool reserve_boxes(bpx_world *w, uint32_t n)
+// Makes b hold n boxes plus padding; contents are not kept.
+static bool reserve_arrays(bpx_box_arrays *b, uint32_t n)
 {
-    uint32_t capacity = padded(n) ? padded(n) : BPX_PAD_LANES;
-    if (capacity <= w->box_capacity)
+    uint32_t capacity = padded(n);
+    if (capacity <= b->capacity)
         return true;
-    float *arrays[6] = {0};
-    for (int k = 0; k < 6; k++)
-        if (!(arrays[k] = bpx__alloc(sizeof(float) * capacity))) {
-            for (int f = 0; f < k; f++)
-                bpx__free(arrays[f], sizeof(float) * capacity);
+    bpx_box_arrays grown = {.capacity = capacity};
+    for (int a = 0; a < 3; a++) {
+        grown.lo[a] = bpx__alloc(sizeof(float) * capacity);
+        grown.hi[a] = bpx__alloc(sizeof(float) * capacity);
+        if (!grown.lo[a] || !grown.hi[a]) {
+            free_arrays(&grown); // frees what was allocated (NULL is fine)
             return false;
         }
-    for (int a = 0; a < 3; a++) {
-        bpx__free(w->lo[a], sizeof(float) * w->box_capacity);
-        bpx__free(w->hi[a], sizeof(float) * w->box_capacity);
-        w->lo[a] = arrays[a];
-        w->hi[a] = arrays[3 + a];
     }
-    w->box_capacity = capacity;
+    free_arrays(b);
+    *b = grown;
     return true;
 }
 
 // Padding boxes can never overlap anything: min = +inf fails every `min_j <= max_i`.
-static void pad_boxes(bpx_world *w)
+static void pad_arrays(bpx_box_arrays *b, uint32_t n)
 {
-    for (uint32_t i = w->n; i < padded(w->n); i++)
+    for (uint32_t i = n; i < padded(n); i++)
         for (int a = 0; a < 3; a++) {
-            w->lo[a][i] = INFINITY;
-            w->hi[a][i] = -INFINITY;
+            b->lo[a][i] = INFINITY;
+            b->hi[a][i] = -INFINITY;
         }
+}
+
+// The spare set becomes current.
+static void swap_in_spare(bpx_world *w, uint32_t n)
+{
+    bpx_box_arrays current = w->boxes;
+    w->boxes = w->spare;
+    w->spare = current;
+    w->n = n;
+    pad_arrays(&w->boxes, n);
+    w->stats.box_count = n;
 }
 
 bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
@@ -166,14 +186,15 @@ bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
         .finish_task = def->finish_task,
         .user_task_context = def->user_task_context,
     };
-    bool ok = reserve_boxes(w, def->capacity_hint);
+    bool ok = reserve_arrays(&w->boxes, def->capacity_hint) &&
+              reserve_arrays(&w->spare, def->capacity_hint);
     if (ok && !def->enqueue_task && w->def.worker_count > 1)
         ok = (w->executor.pool = bpx__pool_create(w->def.worker_count - 1, w->def.spin_us));
     if (!ok) {
         bpx_world_destroy(w);
         return BPX_ERR_OUT_OF_MEMORY;
     }
-    pad_boxes(w);
+    pad_arrays(&w->boxes, 0);
     *out_world = w;
     return BPX_OK;
 }
@@ -228,20 +249,25 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
                           "%u boxes exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
     if (!boxes && n > 0)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "boxes is NULL");
-    bpx_status status = bpx__check_boxes(boxes, n, &w->error);
-    if (status != BPX_OK)
-        return status;
-    if (!reserve_boxes(w, n))
+    if (!reserve_arrays(&w->spare, n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u boxes", n);
-    for (uint32_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            w->lo[a][i] = boxes[i].min[a];
-            w->hi[a][i] = boxes[i].max[a];
-        }
-    w->n = n;
-    pad_boxes(w);
-    w->stats.box_count = n;
+    // One pass: transpose into the spare set and check every box, without branching on data.
+    // Valid iff -FLT_MAX <= min <= max <= FLT_MAX: NaN fails a comparison, infinity a bound.
+    float *lx = w->spare.lo[0], *ly = w->spare.lo[1], *lz = w->spare.lo[2];
+    float *hx = w->spare.hi[0], *hy = w->spare.hi[1], *hz = w->spare.hi[2];
+    int ok = 1;
+    for (uint32_t i = 0; i < n; i++) {
+        const bpx_box *box = &boxes[i];
+        for (int a = 0; a < 3; a++)
+            ok &= (-FLT_MAX <= box->min[a]) & (box->min[a] <= box->max[a]) &
+                  (box->max[a] <= FLT_MAX);
+        lx[i] = box->min[0], ly[i] = box->min[1], lz[i] = box->min[2];
+        hx[i] = box->max[0], hy[i] = box->max[1], hz[i] = box->max[2];
+    }
+    if (!ok)
+        return bpx__check_boxes(boxes, n, &w->error); // names the first bad box
+    swap_in_spare(w, n);
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }
@@ -275,7 +301,7 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
         w->extent_capacity = n;
     }
     // Reserve the boxes now so that update_centres never allocates.
-    if (!reserve_boxes(w, n))
+    if (!reserve_arrays(&w->spare, n) || !reserve_arrays(&w->boxes, n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u boxes", n);
     // Until the first centres arrive, every object sits at the origin (the paper's n register
@@ -284,14 +310,12 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
         for (int a = 0; a < 3; a++) {
             float m = minima[3 * (size_t)i + a];
             w->minima[a][i] = m;
-            w->lo[a][i] = m;
-            w->hi[a][i] = -m;
+            w->spare.lo[a][i] = m;
+            w->spare.hi[a][i] = -m;
         }
     w->extent_count = n;
     w->extents_loaded = true;
-    w->n = n;
-    pad_boxes(w);
-    w->stats.box_count = n;
+    swap_in_spare(w, n);
     return BPX_OK;
 }
 
@@ -307,23 +331,26 @@ bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
     uint32_t n = w->extent_count;
     if (!centres && n > 0)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "centres is NULL");
-    const float *const minima[3] = {w->minima[0], w->minima[1], w->minima[2]};
-    bpx_status status = bpx__check_centres(centres, minima, n, &w->error);
-    if (status != BPX_OK)
-        return status;
-    // The paper's updater: min = centre + stored minimum, max = centre - stored minimum.
+    // The paper's updater: min = centre + stored minimum, max = centre - stored minimum, into
+    // the spare set. min <= max holds by construction (rounding is monotone and minimum <= 0), so
+    // only finiteness is checked: a NaN or infinite centre, or an overflow, fails a bound.
+    bpx_box_arrays *b = &w->spare;
+    int ok = 1;
     for (int a = 0; a < 3; a++) {
-        float *lo = w->lo[a], *hi = w->hi[a];
-        const float *m = minima[a];
+        float *lo = b->lo[a], *hi = b->hi[a];
+        const float *m = w->minima[a];
         for (uint32_t i = 0; i < n; i++) {
             float c = centres[3 * (size_t)i + a];
             lo[i] = c + m[i];
             hi[i] = c - m[i];
+            ok &= (-FLT_MAX <= lo[i]) & (hi[i] <= FLT_MAX);
         }
     }
-    w->n = n;
-    pad_boxes(w);
-    w->stats.box_count = n;
+    if (!ok) {
+        const float *const minima[3] = {w->minima[0], w->minima[1], w->minima[2]};
+        return bpx__check_centres(centres, minima, n, &w->error); // names the first bad one
+    }
+    swap_in_spare(w, n);
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }

@@ -4,9 +4,10 @@
 #include "bpx/bpx.h"
 #include "parallel/pool.h"
 
-/// Widest SIMD step in lanes. Box arrays are padded to a multiple of it with boxes that can never
-/// overlap anything (min = +inf, max = -inf), so every comparator reads whole vectors.
-#define BPX_PAD_LANES 16
+/// Box arrays are padded (to a multiple of this many boxes, plus this many) with boxes that can
+/// never overlap anything (min = +inf, max = -inf), so comparators read whole groups of vectors
+/// (4 steps of the widest, 16 lanes) from any vector-aligned start and need no tail loop.
+#define BPX_PAD_LANES 64
 
 /// Boxes in structure-of-arrays form: lo[axis][i], hi[axis][i], 64-byte aligned, padded.
 typedef struct bpx_soa {
@@ -14,6 +15,13 @@ typedef struct bpx_soa {
     const float *hi[3];
     uint32_t n;
 } bpx_soa;
+
+/// Six SoA arrays with their capacity in boxes (padding included).
+typedef struct bpx_box_arrays {
+    float *lo[3];
+    float *hi[3];
+    uint32_t capacity;
+} bpx_box_arrays;
 
 /// One slot of the collision emitter: a run of comparator rows [row_begin, row_end) and the hits
 /// found there, in (i, j) order. Slots depend on n only, never on threads, and are concatenated
@@ -43,11 +51,11 @@ struct bpx_world {
     bpx_simd simd;
     bpx_executor executor;
 
-    // Current boxes (updater output, comparator input).
+    // Current boxes (updater output, comparator input), and a spare set the updater writes and
+    // checks in one pass before swapping it in, so that bad input leaves the world unchanged.
     uint32_t n;
-    uint32_t box_capacity; // allocated floats per array (multiple of BPX_PAD_LANES)
-    float *lo[3];
-    float *hi[3];
+    bpx_box_arrays boxes;
+    bpx_box_arrays spare;
 
     // Initialisation-phase data: origin-centred minima, one array per axis.
     uint32_t extent_count;
@@ -72,7 +80,8 @@ struct bpx_world {
 
 static inline bpx_soa bpx__world_soa(const bpx_world *w)
 {
-    return (bpx_soa){{w->lo[0], w->lo[1], w->lo[2]}, {w->hi[0], w->hi[1], w->hi[2]}, w->n};
+    const bpx_box_arrays *b = &w->boxes;
+    return (bpx_soa){{b->lo[0], b->lo[1], b->lo[2]}, {b->hi[0], b->hi[1], b->hi[2]}, w->n};
 }
 
 // Emitter (emitter.c).
