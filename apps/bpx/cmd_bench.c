@@ -253,9 +253,9 @@ int cmd_bench(int argc, char **argv)
                      "gtests_per_s,speedup_vs_reference\n");
     }
     print_machine(&o);
-    printf("| n | backend | simd | threads | pairs/cycle | mean us | median us | p99 us | "
+    printf("| n | backend | simd | threads | pairs/cycle | mean us | median us | p99 us | min us | "
            "G tests/s | vs reference |\n"
-           "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
+           "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
 
     bench_variant variants[MAX_VARIANTS];
     int variant_count = list_variants(&o, variants);
@@ -290,10 +290,9 @@ int cmd_bench(int argc, char **argv)
             const char *simd = variants[v].backend == BPX_BACKEND_BRUTE
                                    ? bpx_simd_name(variants[v].simd)
                                    : "-";
-            printf("| %u | %s | %s | %d | %.1f | %.2f | %.2f | %.2f | %.2f | %.1fx |\n", n,
-                   bpx_backend_name(variants[v].backend), simd, variants[v].threads,
-                   r.pairs, r.mean_us, r.median_us, r.p99_us, gtests,
-                   speedup);
+            printf("| %u | %s | %s | %d | %.1f | %.2f | %.2f | %.2f | %.2f | %.2f | %.1fx |\n", n,
+                   bpx_backend_name(variants[v].backend), simd, variants[v].threads, r.pairs,
+                   r.mean_us, r.median_us, r.p99_us, r.min_us, gtests, speedup);
             fflush(stdout);
             if (csv)
                 fprintf(csv, "%u,%s,%s,%d,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.4f,%.3f\n", n,

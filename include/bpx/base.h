@@ -36,7 +36,7 @@ BPX_API const char *bpx_version(void);
 /// Error policy: no bpx function crashes, aborts, exits or leaks on bad input. Each validates its
 /// arguments and data before changing any state and returns the first problem it finds as a
 /// status. A world keeps a message naming what and where (box index, axis, value) for its last
-/// error, readable with bpx_world_last_error(); one-shot calls fill an optional bpx_error.
+/// error, readable with bpx_world_error(); one-shot calls fill an optional bpx_error.
 #define BPX_STATUS_LIST(X)                                                                         \
     X(BPX_OK, "ok")                                                                                \
     X(BPX_ERR_NULL_ARGUMENT, "a required pointer argument is null")                                \

@@ -113,7 +113,8 @@ BPX_API bpx_simd bpx_world_simd(const bpx_world *world);
 BPX_API bpx_status bpx_find_pairs(const bpx_box *boxes, uint32_t n, bpx_backend backend,
                                   bpx_pair *out, size_t capacity, size_t *count, bpx_error *err);
 
-/// Checks boxes as every entry point does: first non-finite coordinate, else first min > max.
+/// Checks boxes as every entry point does and reports the first invalid box; within that box a
+/// non-finite coordinate is reported before a min > max.
 BPX_API bpx_status bpx_validate_boxes(const bpx_box *boxes, uint32_t n, bpx_error *err);
 
 // ---------------------------------------------------------------------------------------------

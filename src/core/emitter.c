@@ -5,7 +5,7 @@
 #include "world.h"
 
 enum {
-    BLOCK_TARGET_TESTS = 4096, // about 5 us of scalar work: big enough to amortise a claim
+    BLOCK_TARGET_TESTS = 8192, // a few us of work: claims stay rare, 2+ threads share n = 500
     BLOCK_MAX = 1024,
     ROW_OVERHEAD_TESTS = 16, // a row's fixed cost (broadcasts, first partial vector), in tests
 };
@@ -47,21 +47,38 @@ bpx_status bpx__emitter_plan(bpx_world *w, bool single)
     return BPX_OK;
 }
 
-bool bpx__block_reserve(bpx_block *block, size_t extra)
+bool bpx__list_reserve(bpx_pair_list *list, size_t extra)
 {
-    if (block->capacity - block->count >= extra)
+    if (list->capacity - list->count >= extra)
         return true;
-    size_t capacity = block->capacity ? block->capacity : 64;
-    while (capacity - block->count < extra) {
+    size_t capacity = list->capacity ? list->capacity : 64;
+    while (capacity - list->count < extra) {
         if (capacity > SIZE_MAX / 2 / sizeof(bpx_pair))
             return false;
         capacity *= 2;
     }
-    if (!bpx__grow((void **)&block->pairs, block->capacity * sizeof(bpx_pair),
+    if (!bpx__grow((void **)&list->pairs, list->capacity * sizeof(bpx_pair),
                    capacity * sizeof(bpx_pair)))
         return false;
-    block->capacity = capacity;
+    list->capacity = capacity;
     return true;
+}
+
+bool bpx__list_append(bpx_pair_list *dst, const bpx_pair_list *src)
+{
+    if (!src->count)
+        return true;
+    if (!bpx__list_reserve(dst, src->count))
+        return false;
+    memcpy(dst->pairs + dst->count, src->pairs, src->count * sizeof(bpx_pair));
+    dst->count += src->count;
+    return true;
+}
+
+static void list_free(bpx_pair_list *list)
+{
+    bpx__free(list->pairs, list->capacity * sizeof(bpx_pair));
+    *list = (bpx_pair_list){0};
 }
 
 bpx_status bpx__emitter_total(const bpx_world *w, size_t *total)
@@ -70,7 +87,7 @@ bpx_status bpx__emitter_total(const bpx_world *w, size_t *total)
     for (int b = 0; b < w->block_count; b++) {
         if (w->blocks[b].status != BPX_OK)
             return w->blocks[b].status;
-        sum += w->blocks[b].count;
+        sum += w->blocks[b].hits.count;
     }
     *total = sum;
     return BPX_OK;
@@ -80,16 +97,18 @@ void bpx__emitter_merge(const bpx_world *w, bpx_pair *out)
 {
     for (int b = 0; b < w->block_count; b++) {
         const bpx_block *block = &w->blocks[b];
-        if (block->count)
-            memcpy(out, block->pairs, block->count * sizeof(bpx_pair));
-        out += block->count;
+        if (block->hits.count)
+            memcpy(out, block->hits.pairs, block->hits.count * sizeof(bpx_pair));
+        out += block->hits.count;
     }
 }
 
 void bpx__emitter_free(bpx_world *w)
 {
-    for (int b = 0; b < w->block_capacity; b++)
-        bpx__free(w->blocks[b].pairs, w->blocks[b].capacity * sizeof(bpx_pair));
+    for (int b = 0; b < w->block_capacity; b++) {
+        list_free(&w->blocks[b].hits);
+        list_free(&w->blocks[b].stage);
+    }
     bpx__free(w->blocks, sizeof(bpx_block) * (size_t)w->block_capacity);
     bpx__free(w->pairs, w->pair_capacity * sizeof(bpx_pair));
     w->blocks = NULL;

@@ -23,15 +23,22 @@ typedef struct bpx_box_arrays {
     uint32_t capacity;
 } bpx_box_arrays;
 
-/// One slot of the collision emitter: a run of comparator rows [row_begin, row_end) and the hits
-/// found there, in (i, j) order. Slots depend on n only, never on threads, and are concatenated
-/// in order, so the output is the same for any thread count or schedule.
-typedef struct bpx_block {
-    uint32_t row_begin;
-    uint32_t row_end;
+/// A growable list of pairs; memory is kept between cycles.
+typedef struct bpx_pair_list {
     bpx_pair *pairs;
     size_t count;
     size_t capacity;
+} bpx_pair_list;
+
+/// One slot of the collision emitter: a run of comparator rows [row_begin, row_end) and the hits
+/// found there, in (i, j) order. Slots depend on n only, never on threads, and are concatenated
+/// in order, so the output is the same for any thread count or schedule. `stage` is scratch for
+/// a comparator that finds hits of several rows at once and must put them back in row order.
+typedef struct bpx_block {
+    uint32_t row_begin;
+    uint32_t row_end;
+    bpx_pair_list hits;
+    bpx_pair_list stage;
     uint64_t tests;
     bpx_status status;
 } bpx_block;
@@ -87,8 +94,10 @@ static inline bpx_soa bpx__world_soa(const bpx_world *w)
 // Emitter (emitter.c).
 /// Splits rows 0..n-1 into blocks of about equal pair tests; one block when `single`.
 bpx_status bpx__emitter_plan(bpx_world *w, bool single);
-/// Makes room for `extra` more pairs in block b (grows geometrically; kept across cycles).
-bool bpx__block_reserve(bpx_block *b, size_t extra);
+/// Makes room for `extra` more pairs (grows geometrically; kept across cycles).
+bool bpx__list_reserve(bpx_pair_list *list, size_t extra);
+/// Appends src to dst; false when memory ran out.
+bool bpx__list_append(bpx_pair_list *dst, const bpx_pair_list *src);
 /// Total hits over blocks, or the first block error.
 bpx_status bpx__emitter_total(const bpx_world *w, size_t *total);
 /// Concatenates the blocks, in order, into out (which holds at least the total).

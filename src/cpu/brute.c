@@ -128,7 +128,7 @@ static void brute_task(int begin, int end, int worker, void *context)
     brute_job *job = context;
     for (int b = begin; b < end; b++) {
         bpx_block *block = &job->world->blocks[b];
-        block->count = 0;
+        block->hits.count = 0;
         block->tests = 0;
         block->status = BPX_OK;
         job->rows(&job->soa, block->row_begin, block->row_end, block);

@@ -28,7 +28,7 @@ static bpx_status reference_compare(bpx_world *w)
     }
     bpx_soa s = bpx__world_soa(w);
     bpx_block *out = &w->blocks[0];
-    out->count = 0;
+    out->hits.count = 0;
     out->tests = 0;
     out->status = BPX_OK;
     for (uint32_t i = 0; i < s.n; i++) {
@@ -36,9 +36,9 @@ static bpx_status reference_compare(bpx_world *w)
         for (uint32_t j = i + 1; j < s.n; j++) {
             bpx_box b = box_at(&s, j);
             if (bpx_overlap(&a, &b)) {
-                if (!bpx__block_reserve(out, 1))
+                if (!bpx__list_reserve(&out->hits, 1))
                     return BPX_ERR_OUT_OF_MEMORY;
-                out->pairs[out->count++] = (bpx_pair){i, j};
+                out->hits.pairs[out->hits.count++] = (bpx_pair){i, j};
             }
         }
         out->tests += s.n - 1 - i;
