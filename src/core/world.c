@@ -10,6 +10,15 @@
 #include "clock.h"
 #include "validate.h"
 
+// Names of every backend id; an id whose implementation is not in this build has no entry in
+// `backends` and reports itself unavailable.
+static const char *const backend_names[BPX_BACKEND_COUNT] = {
+    [BPX_BACKEND_AUTO] = "auto",   [BPX_BACKEND_REFERENCE] = "reference",
+    [BPX_BACKEND_BRUTE] = "brute", [BPX_BACKEND_PRUNE] = "prune",
+    [BPX_BACKEND_SAP] = "sap",     [BPX_BACKEND_GRID] = "grid",
+    [BPX_BACKEND_MODEL] = "model", [BPX_BACKEND_OPENCL] = "opencl",
+};
+
 static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_REFERENCE] = &bpx__reference_backend,
     [BPX_BACKEND_BRUTE] = &bpx__brute_backend,
@@ -27,11 +36,7 @@ bpx_world_def bpx_default_world_def(void)
 
 const char *bpx_backend_name(bpx_backend backend)
 {
-    if (backend == BPX_BACKEND_AUTO)
-        return "auto";
-    if ((unsigned)backend >= BPX_BACKEND_COUNT || !backends[backend])
-        return NULL;
-    return backends[backend]->name;
+    return (unsigned)backend < BPX_BACKEND_COUNT ? backend_names[backend] : NULL;
 }
 
 bpx_status bpx_backend_from_name(const char *name, bpx_backend *out)
@@ -68,6 +73,10 @@ static bpx_backend_info query_with(bpx_backend backend, const bpx_world_def *def
     }
     bpx_backend resolved = backend == BPX_BACKEND_AUTO ? resolve_auto(def) : backend;
     const bpx_backend_impl *impl = backends[resolved];
+    if (!impl) {
+        info.reason = "not in this build";
+        return info;
+    }
     info.available = impl->query(def, &info.reason, info.detail, sizeof info.detail);
     if (backend == BPX_BACKEND_AUTO) {
         char inner[sizeof info.detail];
@@ -169,7 +178,8 @@ bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
     bpx_backend resolved = def->backend == BPX_BACKEND_AUTO ? resolve_auto(def) : def->backend;
     const char *reason;
     char detail[96];
-    if (!bpx_simd_supported(def->simd) || !backends[resolved]->query(def, &reason, detail, sizeof detail))
+    if (!backends[resolved] || !bpx_simd_supported(def->simd) ||
+        !backends[resolved]->query(def, &reason, detail, sizeof detail))
         return BPX_ERR_BACKEND_UNAVAILABLE;
 
     bpx_world *w = bpx__alloc(sizeof *w);
