@@ -163,3 +163,10 @@ static inline uint64_t check_fnv1a(const void *data, size_t size)
     }
     return h;
 }
+
+/// Backends whose kernels come in one build per SIMD width (bpx_world_def.simd selects it):
+/// tests run them at every width the machine has.
+static inline bool check_backend_has_simd(bpx_backend backend)
+{
+    return backend == BPX_BACKEND_BRUTE || backend == BPX_BACKEND_PRUNE;
+}

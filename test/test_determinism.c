@@ -413,7 +413,8 @@ int main(void)
         }
         for (int s = 0; s < BPX_SIMD_COUNT; s++) {
             bool forced = s != BPX_SIMD_AUTO;
-            if (forced && (b != BPX_BACKEND_BRUTE || !bpx_simd_supported((bpx_simd)s))) {
+            if (forced && (!check_backend_has_simd((bpx_backend)b) ||
+                           !bpx_simd_supported((bpx_simd)s))) {
                 continue;
             }
             for (int m = 0; m < HOOKS_MODE_COUNT; m++) {

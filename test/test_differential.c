@@ -72,7 +72,7 @@ static bpx_world *make_world(bpx_backend backend, bpx_simd simd, int workers)
     if (backend != BPX_BACKEND_AUTO) {
         CHECK(bpx_world_backend(world) == backend);
     }
-    if (backend == BPX_BACKEND_BRUTE) {
+    if (check_backend_has_simd(backend)) {
         bpx_simd want = simd == BPX_SIMD_AUTO ? bpx_simd_best() : simd;
         CHECK_MSG(bpx_world_simd(world) == want, "world simd %s, want %s",
                   name_or(bpx_simd_name(bpx_world_simd(world))), name_or(bpx_simd_name(want)));
@@ -95,7 +95,8 @@ static int build_configs(config *cfgs)
         }
         for (int s = 0; s < BPX_SIMD_COUNT; s++) {
             bool forced = s != BPX_SIMD_AUTO;
-            if (forced && (b != BPX_BACKEND_BRUTE || !bpx_simd_supported((bpx_simd)s))) {
+            if (forced && (!check_backend_has_simd((bpx_backend)b) ||
+                           !bpx_simd_supported((bpx_simd)s))) {
                 continue;
             }
             for (size_t w = 0; w < sizeof worker_counts / sizeof worker_counts[0]; w++) {

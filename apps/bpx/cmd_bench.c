@@ -219,6 +219,9 @@ static int list_variants(const bench_options *o, bench_variant *out)
         if (o->threads > 1)
             out[count++] = (bench_variant){BPX_BACKEND_BRUTE, (bpx_simd)s, o->threads};
     }
+    out[count++] = (bench_variant){BPX_BACKEND_PRUNE, BPX_SIMD_AUTO, 1};
+    if (o->threads > 1)
+        out[count++] = (bench_variant){BPX_BACKEND_PRUNE, BPX_SIMD_AUTO, o->threads};
     return count;
 }
 
@@ -287,9 +290,11 @@ int cmd_bench(int argc, char **argv)
                 reference_median = r.median_us;
             double gtests = r.median_us > 0 ? (double)r.tests / r.median_us * 1e-3 : 0;
             double speedup = r.median_us > 0 ? reference_median / r.median_us : 0;
-            const char *simd = variants[v].backend == BPX_BACKEND_BRUTE
-                                   ? bpx_simd_name(variants[v].simd)
-                                   : "-";
+            const char *simd = variants[v].backend == BPX_BACKEND_REFERENCE
+                                   ? "-"
+                                   : bpx_simd_name(variants[v].simd == BPX_SIMD_AUTO
+                                                       ? bpx_simd_best()
+                                                       : variants[v].simd);
             printf("| %u | %s | %s | %d | %.1f | %.2f | %.2f | %.2f | %.2f | %.2f | %.1fx |\n", n,
                    bpx_backend_name(variants[v].backend), simd, variants[v].threads, r.pairs,
                    r.mean_us, r.median_us, r.p99_us, r.min_us, gtests, speedup);

@@ -10,6 +10,37 @@ enum {
     ROW_OVERHEAD_TESTS = 16, // a row's fixed cost (broadcasts, first partial vector), in tests
 };
 
+static bpx_status reserve_blocks(bpx_world *w, int wanted)
+{
+    if (wanted <= w->block_capacity)
+        return BPX_OK;
+    size_t old_size = sizeof(bpx_block) * (size_t)w->block_capacity;
+    size_t new_size = sizeof(bpx_block) * (size_t)wanted;
+    if (!bpx__grow((void **)&w->blocks, old_size, new_size))
+        return BPX_ERR_OUT_OF_MEMORY;
+    memset((char *)w->blocks + old_size, 0, new_size - old_size);
+    w->block_capacity = wanted;
+    return BPX_OK;
+}
+
+bpx_status bpx__emitter_plan_rows(bpx_world *w, uint32_t rows)
+{
+    uint32_t n = w->n;
+    int wanted = (int)((n + rows - 1) / rows);
+    if (wanted < 1)
+        wanted = 1;
+    bpx_status status = reserve_blocks(w, wanted);
+    if (status != BPX_OK)
+        return status;
+    for (int b = 0; b < wanted; b++) {
+        w->blocks[b].row_begin = (uint32_t)b * rows;
+        w->blocks[b].row_end = (uint32_t)b * rows + rows < n ? (uint32_t)b * rows + rows : n;
+    }
+    w->block_count = wanted;
+    w->planned_n = n;
+    return BPX_OK;
+}
+
 bpx_status bpx__emitter_plan(bpx_world *w, bool single)
 {
     uint32_t n = w->n;
@@ -21,14 +52,9 @@ bpx_status bpx__emitter_plan(bpx_world *w, bool single)
         target = BLOCK_TARGET_TESTS;
     int wanted = single ? 1 : (int)(total / target) + 1;
 
-    if (wanted > w->block_capacity) {
-        size_t old_size = sizeof(bpx_block) * (size_t)w->block_capacity;
-        size_t new_size = sizeof(bpx_block) * (size_t)wanted;
-        if (!bpx__grow((void **)&w->blocks, old_size, new_size))
-            return BPX_ERR_OUT_OF_MEMORY;
-        memset((char *)w->blocks + old_size, 0, new_size - old_size);
-        w->block_capacity = wanted;
-    }
+    bpx_status status = reserve_blocks(w, wanted);
+    if (status != BPX_OK)
+        return status;
 
     // Cut rows where the running cost crosses each multiple of the per-block share.
     int b = 0;

@@ -22,6 +22,7 @@ static const char *const backend_names[BPX_BACKEND_COUNT] = {
 static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_REFERENCE] = &bpx__reference_backend,
     [BPX_BACKEND_BRUTE] = &bpx__brute_backend,
+    [BPX_BACKEND_PRUNE] = &bpx__prune_backend,
 };
 
 enum { MAX_WORKERS = 256, DEFAULT_SPIN_US = 200 };
@@ -214,6 +215,8 @@ void bpx_world_destroy(bpx_world *w)
     if (!w)
         return;
     bpx__pool_destroy(w->executor.pool);
+    if (w->backend && w->backend->destroy)
+        w->backend->destroy(w);
     bpx__emitter_free(w);
     free_boxes(w);
     bpx__free(w, sizeof *w);

@@ -43,6 +43,15 @@ typedef struct bpx_block {
     bpx_status status;
 } bpx_block;
 
+/// Boxes sorted by min x, in SoA form, with the original index of each; padded after n with
+/// boxes whose min x is +inf, so a sweep stops there without a bounds check.
+typedef struct bpx_sorted {
+    const float *lo[3];
+    const float *hi[3];
+    const uint32_t *id;
+    uint32_t n;
+} bpx_sorted;
+
 /// A comparator backend: fills the world's blocks for its current boxes.
 typedef struct bpx_backend_impl {
     bpx_backend id;
@@ -50,6 +59,8 @@ typedef struct bpx_backend_impl {
     /// Whether usable here; on false, *reason says why. detail gets ISA / lanes / device.
     bool (*query)(const bpx_world_def *def, const char **reason, char *detail, size_t size);
     bpx_status (*compare)(bpx_world *world);
+    /// Frees world->backend_state (may be NULL when the backend keeps none).
+    void (*destroy)(bpx_world *world);
 } bpx_backend_impl;
 
 struct bpx_world {
@@ -81,6 +92,8 @@ struct bpx_world {
     bool result_valid; // the blocks hold a complete last cycle
     size_t pair_capacity;
 
+    void *backend_state; // owned by the backend, freed by its destroy hook
+
     bpx_cycle_stats stats;
     bpx_error error;
 };
@@ -94,6 +107,9 @@ static inline bpx_soa bpx__world_soa(const bpx_world *w)
 // Emitter (emitter.c).
 /// Splits rows 0..n-1 into blocks of about equal pair tests; one block when `single`.
 bpx_status bpx__emitter_plan(bpx_world *w, bool single);
+/// Splits rows 0..n-1 into blocks of `rows` rows each (for comparators whose rows cost about
+/// the same; blocks are claimed dynamically, which evens out the rest).
+bpx_status bpx__emitter_plan_rows(bpx_world *w, uint32_t rows);
 /// Makes room for `extra` more pairs (grows geometrically; kept across cycles).
 bool bpx__list_reserve(bpx_pair_list *list, size_t extra);
 /// Appends src to dst; false when memory ran out.
@@ -107,3 +123,4 @@ void bpx__emitter_free(bpx_world *w);
 // Backends.
 extern const bpx_backend_impl bpx__reference_backend;
 extern const bpx_backend_impl bpx__brute_backend;
+extern const bpx_backend_impl bpx__prune_backend;

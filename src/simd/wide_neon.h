@@ -9,6 +9,7 @@ typedef float32x4_t bpx_wf;
 typedef uint32x4_t bpx_wm;
 
 static inline bpx_wf bpx_wf_load(const float *p) { return vld1q_f32(p); }
+static inline bpx_wf bpx_wf_loadu(const float *p) { return vld1q_f32(p); }
 static inline bpx_wf bpx_wf_set1(float x) { return vdupq_n_f32(x); }
 static inline bpx_wm bpx_wm_le(bpx_wf a, bpx_wf b) { return vcleq_f32(a, b); }
 static inline bpx_wm bpx_wm_le_and(bpx_wm m, bpx_wf a, bpx_wf b)

@@ -9,6 +9,7 @@ typedef __m128 bpx_wf;
 typedef __m128 bpx_wm;
 
 static inline bpx_wf bpx_wf_load(const float *p) { return _mm_load_ps(p); }
+static inline bpx_wf bpx_wf_loadu(const float *p) { return _mm_loadu_ps(p); }
 static inline bpx_wf bpx_wf_set1(float x) { return _mm_set1_ps(x); }
 static inline bpx_wm bpx_wm_le(bpx_wf a, bpx_wf b) { return _mm_cmple_ps(a, b); }
 static inline bpx_wm bpx_wm_le_and(bpx_wm m, bpx_wf a, bpx_wf b)

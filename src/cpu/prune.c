@@ -1,0 +1,274 @@
+// The prune backend: single-axis sort and sweep ("box pruning", Terdiman), SIMD and threads.
+//
+// Each cycle: (1) order the boxes by min x — the order of the last cycle, mended by insertion
+// sort, when the scene is coherent; a radix sort when it is not (first cycle, new n, or too many
+// swaps); (2) gather the boxes into sorted SoA arrays; (3) sweep sorted positions in blocks on
+// the workers (prune_kernel.h); (4) put the hits in (i, j) order with two stable counting sorts
+// (by j, then by i) — O(n + pairs), the same bytes whatever the thread count.
+#include <stdio.h>
+#include <string.h>
+
+#include "core/alloc.h"
+#include "core/clock.h"
+#include "core/world.h"
+#include "cpu_features.h"
+#include "sort.h"
+
+typedef void prune_rows_fn(const bpx_sorted *s, uint32_t row_begin, uint32_t row_end,
+                           bpx_block *out);
+
+prune_rows_fn bpx__prune_rows_scalar;
+#if BPX_HAVE_SSE2
+prune_rows_fn bpx__prune_rows_sse2;
+#endif
+#if BPX_HAVE_AVX2
+prune_rows_fn bpx__prune_rows_avx2;
+#endif
+#if BPX_HAVE_AVX512
+prune_rows_fn bpx__prune_rows_avx512;
+#endif
+#if BPX_HAVE_NEON
+prune_rows_fn bpx__prune_rows_neon;
+#endif
+
+static prune_rows_fn *rows_for(bpx_simd simd)
+{
+    switch (simd) {
+#if BPX_HAVE_SSE2
+    case BPX_SIMD_SSE2:
+        return bpx__prune_rows_sse2;
+#endif
+#if BPX_HAVE_AVX2
+    case BPX_SIMD_AVX2:
+        return bpx__prune_rows_avx2;
+#endif
+#if BPX_HAVE_AVX512
+    case BPX_SIMD_AVX512:
+        return bpx__prune_rows_avx512;
+#endif
+#if BPX_HAVE_NEON
+    case BPX_SIMD_NEON:
+        return bpx__prune_rows_neon;
+#endif
+    default:
+        return bpx__prune_rows_scalar;
+    }
+}
+
+enum {
+    ROWS_PER_BLOCK = 1024, // sweep rows cost about the same; claims even out the rest
+    PAD = BPX_PAD_LANES,   // sentinel boxes after n in the sorted arrays
+};
+
+typedef struct prune_state {
+    uint32_t capacity; // boxes the arrays below hold (plus PAD)
+    uint32_t *order;   // box ids by min x (persistent between cycles)
+    uint32_t *keys;    // sortable min x of order[k]
+    uint32_t *scratch_keys;
+    uint32_t *scratch_ids;
+    float *lo[3], *hi[3]; // sorted SoA
+    uint32_t *ids;        // == order, padded
+    uint32_t *counts;     // n + 1, for the counting sorts of pairs
+    uint32_t ordered_n;   // n that `order` is valid for (UINT32_MAX: none)
+    bpx_pair_list sorted; // the cycle's pairs, (i, j) order
+    bpx_pair_list spare;  // counting-sort scratch
+} prune_state;
+
+static void free_arrays(prune_state *st)
+{
+    size_t words = (size_t)st->capacity + PAD;
+    uint32_t **u32s[] = {&st->order, &st->keys, &st->scratch_keys, &st->scratch_ids, &st->ids,
+                         &st->counts};
+    for (size_t k = 0; k < sizeof u32s / sizeof u32s[0]; k++) {
+        bpx__free(*u32s[k], words * sizeof(uint32_t));
+        *u32s[k] = NULL;
+    }
+    for (int a = 0; a < 3; a++) {
+        bpx__free(st->lo[a], words * sizeof(float));
+        bpx__free(st->hi[a], words * sizeof(float));
+        st->lo[a] = st->hi[a] = NULL;
+    }
+    st->capacity = 0;
+}
+
+static void prune_destroy(bpx_world *w)
+{
+    prune_state *st = w->backend_state;
+    if (!st)
+        return;
+    free_arrays(st);
+    bpx__free(st->sorted.pairs, st->sorted.capacity * sizeof(bpx_pair));
+    bpx__free(st->spare.pairs, st->spare.capacity * sizeof(bpx_pair));
+    bpx__free(st, sizeof *st);
+    w->backend_state = NULL;
+}
+
+static bool reserve_state(bpx_world *w, uint32_t n)
+{
+    prune_state *st = w->backend_state;
+    if (!st) {
+        if (!(st = bpx__alloc(sizeof *st)))
+            return false;
+        *st = (prune_state){.ordered_n = UINT32_MAX};
+        w->backend_state = st;
+    }
+    if (n <= st->capacity && st->order)
+        return true;
+    free_arrays(st);
+    st->ordered_n = UINT32_MAX;
+    size_t words = (size_t)n + PAD;
+    st->capacity = n;
+    uint32_t **u32s[] = {&st->order, &st->keys, &st->scratch_keys, &st->scratch_ids, &st->ids,
+                         &st->counts};
+    bool ok = true;
+    for (size_t k = 0; k < sizeof u32s / sizeof u32s[0]; k++)
+        ok &= (*u32s[k] = bpx__alloc(words * sizeof(uint32_t))) != NULL;
+    for (int a = 0; a < 3; a++) {
+        ok &= (st->lo[a] = bpx__alloc(words * sizeof(float))) != NULL;
+        ok &= (st->hi[a] = bpx__alloc(words * sizeof(float))) != NULL;
+    }
+    if (!ok)
+        free_arrays(st);
+    return ok;
+}
+
+// Orders st->order by min x: mend last cycle's order when possible, else radix sort.
+static void sort_by_min_x(bpx_world *w, prune_state *st)
+{
+    uint32_t n = w->n;
+    const float *lx = w->boxes.lo[0];
+    if (st->ordered_n == n) {
+        for (uint32_t k = 0; k < n; k++)
+            st->keys[k] = bpx__float_key(lx[st->order[k]]);
+        // Coherent motion moves few boxes past few others; give up when it gets expensive.
+        if (bpx__insertion_sort(st->keys, st->order, n, 4 * (uint64_t)n + 1024))
+            return;
+    } else {
+        for (uint32_t k = 0; k < n; k++)
+            st->order[k] = k;
+    }
+    for (uint32_t k = 0; k < n; k++)
+        st->keys[k] = bpx__float_key(lx[st->order[k]]);
+    bpx__radix_sort(st->keys, st->order, st->scratch_keys, st->scratch_ids, n);
+    st->ordered_n = n;
+}
+
+static void gather(const bpx_world *w, prune_state *st)
+{
+    uint32_t n = w->n;
+    for (int a = 0; a < 3; a++) {
+        const float *lo = w->boxes.lo[a], *hi = w->boxes.hi[a];
+        float *slo = st->lo[a], *shi = st->hi[a];
+        for (uint32_t k = 0; k < n; k++) {
+            slo[k] = lo[st->order[k]];
+            shi[k] = hi[st->order[k]];
+        }
+        for (uint32_t k = n; k < n + PAD; k++) {
+            slo[k] = 1.0f / 0.0f;
+            shi[k] = -1.0f / 0.0f;
+        }
+    }
+    memcpy(st->ids, st->order, sizeof(uint32_t) * n);
+    memset(st->ids + n, 0, sizeof(uint32_t) * PAD);
+}
+
+// Stable counting sort of src into dst by the i (by_i) or j field; counts has n + 1 words.
+static void counting_sort(const bpx_pair *src, bpx_pair *dst, size_t count, uint32_t n,
+                          uint32_t *counts, bool by_i)
+{
+    memset(counts, 0, sizeof(uint32_t) * ((size_t)n + 1));
+    for (size_t k = 0; k < count; k++)
+        counts[(by_i ? src[k].i : src[k].j) + 1]++;
+    for (uint32_t v = 0; v < n; v++)
+        counts[v + 1] += counts[v];
+    for (size_t k = 0; k < count; k++)
+        dst[counts[by_i ? src[k].i : src[k].j]++] = src[k];
+}
+
+typedef struct prune_job {
+    bpx_world *world;
+    bpx_sorted sorted;
+    prune_rows_fn *rows;
+} prune_job;
+
+static void prune_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    prune_job *job = context;
+    for (int b = begin; b < end; b++) {
+        bpx_block *block = &job->world->blocks[b];
+        block->hits.count = 0;
+        block->tests = 0;
+        block->status = BPX_OK;
+        job->rows(&job->sorted, block->row_begin, block->row_end, block);
+    }
+}
+
+static bpx_status prune_compare(bpx_world *w)
+{
+    uint32_t n = w->n;
+    if (!reserve_state(w, n))
+        return BPX_ERR_OUT_OF_MEMORY;
+    prune_state *st = w->backend_state;
+    if (w->planned_n != n) {
+        bpx_status status = bpx__emitter_plan_rows(w, ROWS_PER_BLOCK);
+        if (status != BPX_OK)
+            return status;
+    }
+    sort_by_min_x(w, st);
+    gather(w, st);
+
+    prune_job job = {w,
+                     {{st->lo[0], st->lo[1], st->lo[2]}, {st->hi[0], st->hi[1], st->hi[2]},
+                      st->ids, n},
+                     rows_for(w->simd)};
+    bpx__parallel_for(&w->executor, prune_task, w->block_count, &job);
+
+    // Collect the blocks' hits, then order them (j first, then i: stable, so (i, j) order).
+    size_t total = 0;
+    bpx_status status = bpx__emitter_total(w, &total);
+    if (status != BPX_OK)
+        return status;
+    st->spare.count = st->sorted.count = 0;
+    if (!bpx__list_reserve(&st->spare, total) || !bpx__list_reserve(&st->sorted, total))
+        return BPX_ERR_OUT_OF_MEMORY;
+    bpx__emitter_merge(w, st->spare.pairs);
+    counting_sort(st->spare.pairs, st->sorted.pairs, total, n, st->counts, false);
+    counting_sort(st->sorted.pairs, st->spare.pairs, total, n, st->counts, true);
+    st->spare.count = total;
+
+    // Hand the ordered list to the emitter as block 0 (the others emptied): swap, not copy.
+    uint64_t tests = 0;
+    for (int b = 0; b < w->block_count; b++) {
+        tests += w->blocks[b].tests;
+        w->blocks[b].hits.count = 0;
+        w->blocks[b].tests = 0;
+    }
+    bpx_pair_list block0 = w->blocks[0].hits;
+    w->blocks[0].hits = st->spare;
+    w->blocks[0].tests = tests;
+    st->spare = block0;
+    return BPX_OK;
+}
+
+static bool prune_query(const bpx_world_def *def, const char **reason, char *detail,
+                        size_t size)
+{
+    bpx_simd simd = def->simd == BPX_SIMD_AUTO ? bpx_simd_best() : def->simd;
+    *reason = "";
+    if (!bpx_simd_supported(simd)) {
+        *reason = "SIMD width not supported here";
+        return false;
+    }
+    snprintf(detail, size, "sort on x + sweep, %s, %d lanes, threads", bpx_simd_name(simd),
+             bpx_simd_lanes(simd));
+    return true;
+}
+
+const bpx_backend_impl bpx__prune_backend = {
+    .id = BPX_BACKEND_PRUNE,
+    .name = "prune",
+    .query = prune_query,
+    .compare = prune_compare,
+    .destroy = prune_destroy,
+};
