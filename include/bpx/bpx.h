@@ -70,8 +70,43 @@ BPX_API bpx_status bpx_world_update_centres(bpx_world *world, const float *centr
 /// the error names the first offending box. On error the world keeps its previous boxes.
 BPX_API bpx_status bpx_world_set_boxes(bpx_world *world, const bpx_box *boxes, uint32_t n);
 
-/// Number of boxes in the world (the paper's n register).
+/// Number of boxes in the world (the paper's n register): the highest id in use + 1 when boxes
+/// were added and removed one by one.
 BPX_API uint32_t bpx_world_box_count(const bpx_world *world);
+
+// ---------------------------------------------------------------------------------------------
+// Objects added and removed between cycles (general mode, like a physics engine's proxies)
+//
+// A box's id is its index in pairs. Ids are dense and stable: removing a box frees its id, and
+// a freed id is handed out again only after the next collide has reported the removed box's
+// pairs as ended, so events never confuse an old object with a new one. These calls change
+// the current boxes in place; bpx_world_set_boxes replaces them all (ids 0 .. n-1).
+
+/// Adds count boxes; out_ids receives their ids (freed ids first, then new ones at the end).
+/// Errors: NULL_ARGUMENT, NOT_FINITE / MIN_GREATER_THAN_MAX (naming the box's position in the
+/// batch), TOO_MANY_BOXES, OUT_OF_MEMORY, BAD_STATE in the two-phase mode (load_extents).
+BPX_API bpx_status bpx_world_add_boxes(bpx_world *world, const bpx_box *boxes, uint32_t count,
+                                       uint32_t *out_ids);
+/// Removes boxes by id. Errors: NULL_ARGUMENT, INVALID_ARGUMENT (an id not in use, or twice in
+/// the batch; the error's index is its position in ids). Nothing is removed on error.
+BPX_API bpx_status bpx_world_remove_boxes(bpx_world *world, const uint32_t *ids, uint32_t count);
+/// Moves boxes: boxes[k] becomes the box of ids[k]. Errors as add and remove.
+BPX_API bpx_status bpx_world_move_boxes(bpx_world *world, const uint32_t *ids,
+                                        const bpx_box *boxes, uint32_t count);
+
+/// Collision filtering, applied inside the broad phase (no filtered pair is ever emitted or
+/// counted): boxes a and b can pair only if (category_a & mask_b) && (category_b & mask_a).
+/// Every box starts with category 1 and mask 0xFFFFFFFF (pairs with everything). ids may be
+/// NULL for ids 0 .. count-1. Errors: NULL_ARGUMENT, INVALID_ARGUMENT (an id not in use),
+/// OUT_OF_MEMORY.
+BPX_API bpx_status bpx_world_set_filters(bpx_world *world, const uint32_t *ids,
+                                         const uint32_t *categories, const uint32_t *masks,
+                                         uint32_t count);
+
+/// The pairs that began and ended with the last collide (def.track_events must be set, else
+/// BAD_STATE). The first collide reports every pair as began. Lists are owned by the world and
+/// valid until the next call that changes it.
+BPX_API bpx_status bpx_world_pair_events(const bpx_world *world, bpx_pair_events *events);
 
 // ---------------------------------------------------------------------------------------------
 // Comparator + collision emitter

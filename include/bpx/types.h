@@ -70,6 +70,20 @@ typedef void *bpx_enqueue_task_fn(bpx_task_fn *task, int item_count, int min_ran
                                   void *task_context, void *user_context);
 typedef void bpx_finish_task_fn(void *user_task, void *user_context);
 
+/// OpenCL device types, for bpx_world_def.opencl_device_type (a mask; 0 = any).
+enum {
+    BPX_OPENCL_GPU = 1,
+    BPX_OPENCL_CPU = 2,
+    BPX_OPENCL_ACCELERATOR = 4, ///< FPGAs and other accelerators
+};
+
+/// OpenCL comparator paths, for bpx_world_def.opencl_method.
+enum {
+    BPX_OPENCL_AUTO = 0,  ///< brute force for small n, sort and sweep for large n
+    BPX_OPENCL_BRUTE = 1, ///< the paper's comparator: every pair, tiles in local memory
+    BPX_OPENCL_SWEEP = 2, ///< device radix sort of the min-x keys, then a sweep
+};
+
 /// How a world is made. Get one from bpx_default_world_def(), change fields, pass it to
 /// bpx_world_create(). A zero field means its default.
 typedef struct bpx_world_def {
@@ -91,7 +105,40 @@ typedef struct bpx_world_def {
     bpx_enqueue_task_fn *enqueue_task;
     bpx_finish_task_fn *finish_task;
     void *user_task_context;
+    /// Keep the pair set between cycles and report the pairs that began and ended with each
+    /// collide (bpx_world_pair_events). Costs one pass over the pairs per cycle. Default false.
+    bool track_events;
+    /// OpenCL backend: the platform, numbered from 1 in clGetPlatformIDs order (`bpx devices`
+    /// shows P:D from 0, so P:D there is P+1, D+1 here); 0 = any platform (default).
+    int opencl_platform;
+    /// OpenCL backend: the device within the platform, from 1; 0 = the best one allowed: the
+    /// first GPU, else accelerator, else CPU, platforms in order (default).
+    int opencl_device;
+    /// OpenCL backend: device types allowed, BPX_OPENCL_GPU | _CPU | _ACCELERATOR; 0 = any.
+    int opencl_device_type;
+    /// OpenCL backend: comparator path, BPX_OPENCL_AUTO (default: by n), _BRUTE or _SWEEP.
+    int opencl_method;
+    /// OpenCL backend: device memory this world may use, in bytes; 0 = half of the device's
+    /// global memory. Boxes beyond it are streamed in blocks and pairs read out in windows.
+    uint64_t opencl_memory_limit;
+    /// OpenCL backend: most boxes per streamed block (0 = as many as the memory limit allows;
+    /// rounded down to whole tiles). Smaller values force streaming (tests, shared devices).
+    uint32_t opencl_block_boxes;
+    /// OpenCL backend: first capacity of the device's pair buffer, in pairs (0 = 65536). A
+    /// cycle that finds more grows it and emits again: no pair is ever lost.
+    uint32_t opencl_pair_capacity;
+    /// OpenCL backend: extra options for the kernel build (an FPGA toolchain's, say); NULL for
+    /// none. Never needed for correctness; fast-math options are refused.
+    const char *opencl_build_options;
 } bpx_world_def;
+
+/// The change in the pair set made by the last collide, both lists sorted by (i, j).
+typedef struct bpx_pair_events {
+    const bpx_pair *began; ///< in this cycle's set and not in the previous one's
+    size_t began_count;
+    const bpx_pair *ended; ///< in the previous cycle's set and not in this one's
+    size_t ended_count;
+} bpx_pair_events;
 
 /// Per-cycle figures, like the paper's registers (n, collision count) plus stage timings.
 /// Times are wall-clock nanoseconds of the last cycle on a monotonic clock.
@@ -103,6 +150,16 @@ typedef struct bpx_cycle_stats {
     uint64_t compare_ns;    ///< comparator: the pair tests, all workers
     uint64_t emit_ns;       ///< collision emitter: merging per-block hits into one ordered stream
     uint64_t cycle_count;   ///< completed bpx_world_collide* calls since creation
+    /// OpenCL backend (others leave these 0), last cycle, on the device's clock: time spent
+    /// moving data to the device (centres or boxes), from the device (the count register and
+    /// the pairs), and running kernels (updater, comparator, emitter, sort). The paper's
+    /// communication share is (in + out) / (in + out + device).
+    uint64_t transfer_in_ns;
+    uint64_t transfer_out_ns;
+    uint64_t device_ns;
+    uint64_t bytes_in;  ///< OpenCL: bytes sent to the device last cycle (12 per object in the
+                        ///< two-phase mode once the extents are there, 24 per box otherwise)
+    uint64_t bytes_out; ///< OpenCL: bytes read back last cycle (8 per pair + the register)
 } bpx_cycle_stats;
 
 /// Detail of an error from a call that has no world (one-shot). index is the first offending

@@ -23,6 +23,9 @@ static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_REFERENCE] = &bpx__reference_backend,
     [BPX_BACKEND_BRUTE] = &bpx__brute_backend,
     [BPX_BACKEND_PRUNE] = &bpx__prune_backend,
+#if BPX_HAVE_OPENCL
+    [BPX_BACKEND_OPENCL] = &bpx__opencl_backend,
+#endif
 };
 
 enum { MAX_WORKERS = 256, DEFAULT_SPIN_US = 200 };
@@ -153,6 +156,36 @@ static void pad_arrays(bpx_box_arrays *b, uint32_t n)
         }
 }
 
+bool bpx__boxes_resize(bpx_world *w, uint32_t n)
+{
+    if (padded(n) > w->boxes.capacity) {
+        if (!reserve_arrays(&w->spare, n))
+            return false;
+        for (int a = 0; a < 3; a++) {
+            memcpy(w->spare.lo[a], w->boxes.lo[a], sizeof(float) * w->n);
+            memcpy(w->spare.hi[a], w->boxes.hi[a], sizeof(float) * w->n);
+        }
+        bpx_box_arrays current = w->boxes;
+        w->boxes = w->spare;
+        w->spare = current;
+    }
+    for (uint32_t i = w->n; i < n; i++)
+        bpx__box_make_inert(w, i);
+    w->n = n;
+    pad_arrays(&w->boxes, n);
+    w->stats.box_count = n;
+    w->planned_n = UINT32_MAX;
+    return true;
+}
+
+void bpx__box_make_inert(bpx_world *w, uint32_t id)
+{
+    for (int a = 0; a < 3; a++) {
+        w->boxes.lo[a][id] = INFINITY;
+        w->boxes.hi[a][id] = -INFINITY;
+    }
+}
+
 // The spare set becomes current.
 static void swap_in_spare(bpx_world *w, uint32_t n)
 {
@@ -218,6 +251,7 @@ void bpx_world_destroy(bpx_world *w)
     if (w->backend && w->backend->destroy)
         w->backend->destroy(w);
     bpx__emitter_free(w);
+    bpx__objects_free(w);
     free_boxes(w);
     bpx__free(w, sizeof *w);
 }
@@ -280,7 +314,12 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
     }
     if (!ok)
         return bpx__check_boxes(boxes, n, &w->error); // names the first bad box
+    if (!bpx__objects_reset(w, n))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u objects", n);
     swap_in_spare(w, n);
+    if (w->backend->boxes_set)
+        w->backend->boxes_set(w, NULL);
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }
@@ -326,9 +365,14 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
             w->spare.lo[a][i] = m;
             w->spare.hi[a][i] = -m;
         }
+    if (!bpx__objects_reset(w, n))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u objects", n);
     w->extent_count = n;
     w->extents_loaded = true;
     swap_in_spare(w, n);
+    if (w->backend->boxes_set)
+        w->backend->boxes_set(w, NULL);
     return BPX_OK;
 }
 
@@ -364,6 +408,9 @@ bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
         return bpx__check_centres(centres, minima, n, &w->error); // names the first bad one
     }
     swap_in_spare(w, n);
+    bpx__objects_reinert(w); // removed objects stay out of the broad phase
+    if (w->backend->boxes_set)
+        w->backend->boxes_set(w, centres);
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }
@@ -397,8 +444,10 @@ static bpx_status compare(bpx_world *w, size_t *total)
     w->stats.pair_count = 0;
     uint64_t start = bpx__now_ns();
     bpx_status status = w->backend->compare(w);
-    if (status == BPX_OK)
+    if (status == BPX_OK) {
+        bpx__filter_blocks(w);
         status = bpx__emitter_total(w, total);
+    }
     w->stats.compare_ns = bpx__now_ns() - start;
     w->result_valid = status == BPX_OK; // nothing partial is ever reported
     if (status != BPX_OK) {
@@ -432,7 +481,12 @@ bpx_status bpx_world_collide(bpx_world *w)
     bpx__emitter_merge(w, w->pairs);
     w->pair_count = total;
     w->merged = true;
+    status = bpx__objects_after_collide(w, w->pairs, total);
     w->stats.emit_ns = bpx__now_ns() - start;
+    if (status != BPX_OK) {
+        w->result_valid = false;
+        return bpx__error(&w->error, status, UINT32_MAX, -1, "no memory for pair events");
+    }
     return BPX_OK;
 }
 
@@ -449,6 +503,17 @@ bpx_status bpx_world_collide_into(bpx_world *w, bpx_pair *out, size_t capacity, 
     *count = total;
     if (status != BPX_OK)
         return status;
+    if (w->def.track_events || w->pending_count) {
+        // Events need the whole ordered set; the world's own copy serves them.
+        if (!bpx_world_pairs(w, NULL) && total > 0)
+            status = BPX_ERR_OUT_OF_MEMORY;
+        if (status == BPX_OK)
+            status = bpx__objects_after_collide(w, w->pairs, total);
+        if (status != BPX_OK) {
+            w->result_valid = false;
+            return bpx__error(&w->error, status, UINT32_MAX, -1, "no memory for pair events");
+        }
+    }
     if (total > capacity)
         return bpx__error(&w->error, BPX_ERR_CAPACITY, UINT32_MAX, -1,
                           "%zu pairs found, capacity %zu", total, capacity);

@@ -61,6 +61,10 @@ typedef struct bpx_backend_impl {
     bpx_status (*compare)(bpx_world *world);
     /// Frees world->backend_state (may be NULL when the backend keeps none).
     void (*destroy)(bpx_world *world);
+    /// Optional: told after set_boxes / load_extents (centres NULL) or update_centres (the
+    /// cycle's 3n validated centres) changed the boxes, for a backend that runs the updater
+    /// itself (opencl: only the centres cross the link). Must not fail; may ignore the call.
+    void (*boxes_set)(bpx_world *world, const float *centres);
 } bpx_backend_impl;
 
 struct bpx_world {
@@ -94,6 +98,24 @@ struct bpx_world {
 
     void *backend_state; // owned by the backend, freed by its destroy hook
 
+    // Objects added and removed one by one (objects.c). Removed ids hold inert boxes (min +inf,
+    // max -inf, like the padding) until reused; ids wait in `pending` until the next collide
+    // has reported their pairs as ended, then in `free` for reuse.
+    uint32_t object_capacity; // length of the per-id arrays below
+    uint8_t *dead;            // per id: 0 live, 1 removed
+    uint32_t *pending_ids;
+    uint32_t pending_count;
+    uint32_t *free_ids;
+    uint32_t free_count;
+    uint32_t *category; // per id; NULL until filters are first set
+    uint32_t *mask;
+
+    // Events (track_events): the previous cycle's pairs, and what changed.
+    bpx_pair_list previous;
+    bpx_pair_list began;
+    bpx_pair_list ended;
+    bool events_valid;
+
     bpx_cycle_stats stats;
     bpx_error error;
 };
@@ -103,6 +125,23 @@ static inline bpx_soa bpx__world_soa(const bpx_world *w)
     const bpx_box_arrays *b = &w->boxes;
     return (bpx_soa){{b->lo[0], b->lo[1], b->lo[2]}, {b->hi[0], b->hi[1], b->hi[2]}, w->n};
 }
+
+// Box storage (world.c).
+/// Resizes the current boxes to n, keeping boxes below min(n, old n); new slots are inert.
+bool bpx__boxes_resize(bpx_world *w, uint32_t n);
+/// Makes box id inert (never overlaps anything).
+void bpx__box_make_inert(bpx_world *w, uint32_t id);
+
+// Objects, filters and events (objects.c).
+/// Every id below n live, none pending or free, filters kept for ids below n (set_boxes, load).
+bool bpx__objects_reset(bpx_world *w, uint32_t n);
+/// Re-inerts removed ids after the updater rewrote every box.
+void bpx__objects_reinert(bpx_world *w);
+/// Drops filtered-out hits from the blocks (no-op without filters).
+void bpx__filter_blocks(bpx_world *w);
+/// After a successful collide: events from the merged pairs, then pending ids become free.
+bpx_status bpx__objects_after_collide(bpx_world *w, const bpx_pair *pairs, size_t count);
+void bpx__objects_free(bpx_world *w);
 
 // Emitter (emitter.c).
 /// Splits rows 0..n-1 into blocks of about equal pair tests; one block when `single`.
@@ -124,3 +163,4 @@ void bpx__emitter_free(bpx_world *w);
 extern const bpx_backend_impl bpx__reference_backend;
 extern const bpx_backend_impl bpx__brute_backend;
 extern const bpx_backend_impl bpx__prune_backend;
+extern const bpx_backend_impl bpx__opencl_backend;
