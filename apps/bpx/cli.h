@@ -20,6 +20,9 @@ typedef int cli_command_fn(int argc, char **argv);
 cli_command_fn cmd_pairs;
 cli_command_fn cmd_backends;
 cli_command_fn cmd_bench;
+cli_command_fn cmd_model;
+cli_command_fn cmd_devices;
+cli_command_fn cmd_demo;
 
 #if defined(__GNUC__)
 #define CLI_PRINTF(fmt_index, first_arg) __attribute__((format(printf, fmt_index, first_arg)))

@@ -23,6 +23,7 @@ typedef struct bench_variant {
     bpx_backend backend;
     bpx_simd simd;
     int threads;
+    bool centres; // opencl: the two-phase updater (centres cross the link, not boxes)
 } bench_variant;
 
 typedef struct bench_options {
@@ -33,7 +34,8 @@ typedef struct bench_options {
     int max_cycles;
     uint64_t seed;
     const char *csv_path;
-    bool all_simd; // also every narrower SIMD width
+    bool all_simd;                      // also every narrower SIMD width
+    int opencl_platform, opencl_device; // --device P:D, as bpx_world_def (from 1; 0 = best)
 } bench_options;
 
 static double now_s(void)
@@ -65,7 +67,13 @@ static void print_help(void)
            "  --cycles    most timed cycles per variant (default 20000)\n"
            "  --all-simd  also time every narrower SIMD width this CPU has\n"
            "  --seed      scene seed (default 1)\n"
-           "  --csv FILE  also write the rows as CSV\n");
+           "  --csv FILE  also write the rows as CSV\n"
+           "  --device P:D  OpenCL platform and device of the opencl rows (as `bpx devices`)\n"
+           "\n"
+           "Where the opencl backend is available, its rows follow (simd column: what crosses\n"
+           "the link each cycle, \"boxes\" or \"centres\" for the two-phase updater), and a\n"
+           "second table gives their device times: transfers in and out, kernels, and the share\n"
+           "of communication in them, like Table 2 of the paper.\n");
 }
 
 static int parse_sizes(const char *text, bench_options *o)
@@ -113,6 +121,14 @@ static int parse_args(int argc, char **argv, bench_options *o)
             o->seed = m == CLI_MATCH ? strtoull(value, &end, 10) : 0;
             if (m == CLI_MISSING_VALUE || *end != '\0')
                 return cli_usage_error("bench", "--seed wants an unsigned integer");
+        } else if ((m = cli_flag_value(argc, argv, &k, "--device", &value)) != CLI_NO_MATCH) {
+            int platform = -1, device = -1, used = 0;
+            if (m == CLI_MISSING_VALUE ||
+                sscanf(value, "%d:%d%n", &platform, &device, &used) != 2 || value[used] != '\0' ||
+                platform < 0 || device < 0)
+                return cli_usage_error("bench", "--device wants PLATFORM:DEVICE like 0:0");
+            o->opencl_platform = platform + 1;
+            o->opencl_device = device + 1;
         } else if ((m = cli_flag_value(argc, argv, &k, "--csv", &value)) != CLI_NO_MATCH) {
             if (m == CLI_MISSING_VALUE)
                 return cli_usage_error("bench", "--csv wants a file name");
@@ -151,6 +167,8 @@ typedef struct bench_result {
     double pairs; // mean per timed cycle
     uint64_t tests;
     int cycles;
+    // opencl: device-clock means per timed cycle (other backends: 0).
+    double in_us, out_us, device_us, bytes_in, bytes_out;
 } bench_result;
 
 // Runs one variant over the frames. Returns 0, or prints the error and returns -1.
@@ -162,6 +180,8 @@ static int run_variant(const bench_variant *v, bpx_box *const frames[FRAME_COUNT
     def.simd = v->simd;
     def.worker_count = v->threads;
     def.capacity_hint = n;
+    def.opencl_platform = o->opencl_platform;
+    def.opencl_device = o->opencl_device;
     bpx_world *world;
     bpx_status status = bpx_world_create(&def, &world);
     if (status != BPX_OK) {
@@ -169,11 +189,38 @@ static int run_variant(const bench_variant *v, bpx_box *const frames[FRAME_COUNT
                   bpx_status_string(status));
         return -1;
     }
+    // The two-phase updater: each frame's boxes as origin-centred minima (loaded once, from the
+    // first frame: motion keeps sizes) and per-frame centres.
+    float *centres = NULL;
+    if (v->centres) {
+        float *minima = malloc(sizeof(float) * 3 * (n ? n : 1));
+        centres = malloc(sizeof(float) * 3 * FRAME_COUNT * (n ? n : 1));
+        status = minima && centres ? BPX_OK : BPX_ERR_OUT_OF_MEMORY;
+        for (int f = 0; f < FRAME_COUNT && status == BPX_OK; f++)
+            for (uint32_t i = 0; i < n; i++)
+                for (int a = 0; a < 3; a++) {
+                    float half = (frames[f][i].max[a] - frames[f][i].min[a]) * 0.5f;
+                    centres[((size_t)f * n + i) * 3 + a] = frames[f][i].min[a] + half;
+                    if (f == 0)
+                        minima[(size_t)i * 3 + a] = -half;
+                }
+        if (status == BPX_OK)
+            status = bpx_world_load_extents(world, minima, n);
+        free(minima);
+        if (status != BPX_OK) {
+            cli_error("bench", "cannot load extents: %s", bpx_status_string(status));
+            free(centres);
+            bpx_world_destroy(world);
+            return -1;
+        }
+    }
     int cycles = 0;
-    double spent = 0, pairs = 0;
+    double spent = 0, pairs = 0, link[5] = {0};
     for (int c = 0; c < WARMUP_CYCLES + o->max_cycles && spent < o->seconds; c++) {
         double start = now_s();
-        status = bpx_world_set_boxes(world, frames[c % FRAME_COUNT], n);
+        status = centres
+                     ? bpx_world_update_centres(world, centres + (size_t)(c % FRAME_COUNT) * 3 * n)
+                     : bpx_world_set_boxes(world, frames[c % FRAME_COUNT], n);
         if (status == BPX_OK)
             status = bpx_world_collide(world);
         double elapsed = now_s() - start;
@@ -186,9 +233,16 @@ static int run_variant(const bench_variant *v, bpx_box *const frames[FRAME_COUNT
             samples[cycles++] = elapsed * 1e6;
             spent += elapsed;
             pairs += (double)bpx_world_stats(world).pair_count;
+            bpx_cycle_stats stats = bpx_world_stats(world);
+            link[0] += (double)stats.transfer_in_ns * 1e-3;
+            link[1] += (double)stats.transfer_out_ns * 1e-3;
+            link[2] += (double)stats.device_ns * 1e-3;
+            link[3] += (double)stats.bytes_in;
+            link[4] += (double)stats.bytes_out;
         }
     }
     bpx_world_destroy(world);
+    free(centres);
 
     double sum = 0;
     for (int c = 0; c < cycles; c++)
@@ -203,26 +257,70 @@ static int run_variant(const bench_variant *v, bpx_box *const frames[FRAME_COUNT
         .pairs = pairs / cycles,
         .tests = (uint64_t)n * (n > 0 ? n - 1 : 0) / 2,
         .cycles = cycles,
+        .in_us = link[0] / cycles,
+        .out_us = link[1] / cycles,
+        .device_us = link[2] / cycles,
+        .bytes_in = link[3] / cycles,
+        .bytes_out = link[4] / cycles,
     };
     return 0;
 }
 
-static int list_variants(const bench_options *o, bench_variant *out)
+// Quadratic backends stop where one cycle would take seconds.
+enum { REFERENCE_MAX_N = 20000, BRUTE_MAX_N = 200000, OPENCL_MAX_N = 200000 };
+
+static int list_variants(const bench_options *o, uint32_t n, bench_variant *out)
 {
     int count = 0;
-    out[count++] = (bench_variant){BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1};
+    if (n <= REFERENCE_MAX_N)
+        out[count++] = (bench_variant){BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1, false};
     bpx_simd best = bpx_simd_best();
     for (int s = BPX_SIMD_COUNT - 1; s > BPX_SIMD_AUTO; s--) {
-        if (!bpx_simd_supported((bpx_simd)s) || (!o->all_simd && s != (int)best))
+        if (!bpx_simd_supported((bpx_simd)s) || (!o->all_simd && s != (int)best) ||
+            n > BRUTE_MAX_N)
             continue;
-        out[count++] = (bench_variant){BPX_BACKEND_BRUTE, (bpx_simd)s, 1};
+        out[count++] = (bench_variant){BPX_BACKEND_BRUTE, (bpx_simd)s, 1, false};
         if (o->threads > 1)
-            out[count++] = (bench_variant){BPX_BACKEND_BRUTE, (bpx_simd)s, o->threads};
+            out[count++] = (bench_variant){BPX_BACKEND_BRUTE, (bpx_simd)s, o->threads, false};
     }
-    out[count++] = (bench_variant){BPX_BACKEND_PRUNE, BPX_SIMD_AUTO, 1};
-    if (o->threads > 1)
-        out[count++] = (bench_variant){BPX_BACKEND_PRUNE, BPX_SIMD_AUTO, o->threads};
+    static const bpx_backend scalable[] = {BPX_BACKEND_PRUNE, BPX_BACKEND_GRID};
+    for (size_t k = 0; k < sizeof scalable / sizeof scalable[0]; k++) {
+        out[count++] = (bench_variant){scalable[k], BPX_SIMD_AUTO, 1, false};
+        if (o->threads > 1)
+            out[count++] = (bench_variant){scalable[k], BPX_SIMD_AUTO, o->threads, false};
+    }
+    // The coprocessor: boxes over the link, then only centres (the paper's updater).
+    if (n <= OPENCL_MAX_N && bpx_backend_query(BPX_BACKEND_OPENCL).available) {
+        out[count++] = (bench_variant){BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, false};
+        out[count++] = (bench_variant){BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true};
+    }
     return count;
+}
+
+// The opencl rows again, as Table 2 of the paper: where a cycle's device time goes.
+enum { MAX_LINK_ROWS = 2 * MAX_SIZES };
+typedef struct link_row {
+    uint32_t n;
+    bool centres;
+    bench_result r;
+} link_row;
+
+static void print_link_table(const link_row *rows, int count)
+{
+    bpx_backend_info info = bpx_backend_query(BPX_BACKEND_OPENCL);
+    printf("\nopencl on %s; device-clock means per cycle (transfers as the device's events see "
+           "them):\n\n"
+           "| n | link | bytes in | bytes out | in us | out us | kernels us | "
+           "communication share | cycle median us |\n"
+           "|---:|---|---:|---:|---:|---:|---:|---:|---:|\n",
+           info.detail);
+    for (int k = 0; k < count; k++) {
+        const bench_result *r = &rows[k].r;
+        double link = r->in_us + r->out_us, total = link + r->device_us;
+        printf("| %u | %s | %.0f | %.0f | %.2f | %.2f | %.2f | %.1f %% | %.2f |\n", rows[k].n,
+               rows[k].centres ? "centres" : "boxes", r->bytes_in, r->bytes_out, r->in_us,
+               r->out_us, r->device_us, total > 0 ? 100.0 * link / total : 0.0, r->median_us);
+    }
 }
 
 int cmd_bench(int argc, char **argv)
@@ -253,15 +351,16 @@ int cmd_bench(int argc, char **argv)
             return CLI_EXIT_ERROR;
         }
         fprintf(csv, "n,backend,simd,threads,cycles,pairs,mean_us,median_us,p99_us,min_us,"
-                     "gtests_per_s,speedup_vs_reference\n");
+                     "gtests_per_s,speedup_vs_first_row\n");
     }
     print_machine(&o);
     printf("| n | backend | simd | threads | pairs/cycle | mean us | median us | p99 us | min us | "
-           "G tests/s | vs reference |\n"
+           "G tests/s | vs first row |\n"
            "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
 
     bench_variant variants[MAX_VARIANTS];
-    int variant_count = list_variants(&o, variants);
+    link_row link_rows[MAX_LINK_ROWS];
+    int link_count = 0;
     double *samples = malloc(sizeof(double) * ((size_t)o.max_cycles + WARMUP_CYCLES));
     code = samples ? CLI_EXIT_OK : CLI_EXIT_ERROR;
     for (int s = 0; s < o.size_count && code == CLI_EXIT_OK; s++) {
@@ -279,6 +378,7 @@ int cmd_bench(int argc, char **argv)
                 scene_move(frames[f], n, 0.05f, &rng);
             }
         }
+        int variant_count = list_variants(&o, n, variants);
         double reference_median = 0;
         for (int v = 0; v < variant_count && code == CLI_EXIT_OK; v++) {
             bench_result r;
@@ -286,11 +386,14 @@ int cmd_bench(int argc, char **argv)
                 code = CLI_EXIT_ERROR;
                 break;
             }
-            if (variants[v].backend == BPX_BACKEND_REFERENCE)
-                reference_median = r.median_us;
             double gtests = r.median_us > 0 ? (double)r.tests / r.median_us * 1e-3 : 0;
+            // Against the first variant of this size (reference where it runs, else brute).
+            if (v == 0)
+                reference_median = r.median_us;
             double speedup = r.median_us > 0 ? reference_median / r.median_us : 0;
-            const char *simd = variants[v].backend == BPX_BACKEND_REFERENCE
+            const char *simd = variants[v].backend == BPX_BACKEND_OPENCL
+                                   ? (variants[v].centres ? "centres" : "boxes")
+                               : variants[v].backend == BPX_BACKEND_REFERENCE
                                    ? "-"
                                    : bpx_simd_name(variants[v].simd == BPX_SIMD_AUTO
                                                        ? bpx_simd_best()
@@ -299,6 +402,8 @@ int cmd_bench(int argc, char **argv)
                    bpx_backend_name(variants[v].backend), simd, variants[v].threads, r.pairs,
                    r.mean_us, r.median_us, r.p99_us, r.min_us, gtests, speedup);
             fflush(stdout);
+            if (variants[v].backend == BPX_BACKEND_OPENCL && link_count < MAX_LINK_ROWS)
+                link_rows[link_count++] = (link_row){n, variants[v].centres, r};
             if (csv)
                 fprintf(csv, "%u,%s,%s,%d,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.4f,%.3f\n", n,
                         bpx_backend_name(variants[v].backend), simd, variants[v].threads,
@@ -309,6 +414,8 @@ int cmd_bench(int argc, char **argv)
             free(frames[f]);
     }
     free(samples);
+    if (code == CLI_EXIT_OK && link_count > 0)
+        print_link_table(link_rows, link_count);
     if (csv && fclose(csv) != 0) {
         cli_error("bench", "cannot write %s", o.csv_path);
         code = CLI_EXIT_ERROR;

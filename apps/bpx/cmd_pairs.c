@@ -22,12 +22,14 @@ typedef struct pairs_options {
     bool count_only;
     bpx_backend backend;
     bpx_simd simd;
-    int threads; // 0: not given, keep the library default
+    int threads;                        // 0: not given, keep the library default
+    int opencl_platform, opencl_device; // --device P:D, as bpx_world_def (from 1; 0 = best)
 } pairs_options;
 
 static void print_help(void)
 {
     printf("usage: bpx pairs FILE [--count] [--backend NAME] [--threads N] [--simd NAME]\n"
+           "                 [--device P:D]\n"
            "\n"
            "Prints every pair of overlapping boxes as \"i j\", one pair per line: 0-based box\n"
            "numbers in input order, i < j, sorted by i then j. Boxes are closed, so boxes that\n"
@@ -55,6 +57,8 @@ static void print_help(void)
                s == BPX_SIMD_AUTO ? " (default)" : "");
     }
     printf("\n"
+           "  --device P:D     OpenCL platform and device for --backend opencl (see\n"
+           "                   `bpx devices`; default: the first GPU, else any device)\n"
            "  -h, --help       show this help\n"
            "\n"
            "Options may come before or after FILE, as --flag VALUE or --flag=VALUE.\n"
@@ -93,6 +97,15 @@ static int parse_args(int argc, char **argv, pairs_options *opt)
                 if (cli_parse_simd(command, value, &opt->simd) != CLI_EXIT_OK) {
                     return CLI_EXIT_USAGE;
                 }
+            } else if ((match = cli_flag_value(argc, argv, &i, "--device", &value))) {
+                int platform = -1, device = -1, used = 0;
+                if (match == CLI_MISSING_VALUE ||
+                    sscanf(value, "%d:%d%n", &platform, &device, &used) != 2 ||
+                    value[used] != '\0' || platform < 0 || device < 0) {
+                    return cli_usage_error(command, "--device wants PLATFORM:DEVICE like 0:0");
+                }
+                opt->opencl_platform = platform + 1;
+                opt->opencl_device = device + 1;
             } else if ((match = cli_flag_value(argc, argv, &i, "--threads", &value))) {
                 if (match == CLI_MISSING_VALUE) {
                     return cli_usage_error(command, "--threads needs a value");
@@ -197,6 +210,8 @@ static int find_and_print(const pairs_options *opt, const char *input_name,
         def.worker_count = opt->threads;
     }
     def.capacity_hint = (uint32_t)boxes->count; // box_csv_read caps it at BPX_MAX_BOXES
+    def.opencl_platform = opt->opencl_platform;
+    def.opencl_device = opt->opencl_device;
 
     bpx_world *world = NULL;
     bpx_status status = bpx_world_create(&def, &world);
@@ -248,7 +263,7 @@ static int find_and_print(const pairs_options *opt, const char *input_name,
 
 int cmd_pairs(int argc, char **argv)
 {
-    pairs_options opt = {NULL, false, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 0};
+    pairs_options opt = {NULL, false, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 0, 0, 0};
     int parsed = parse_args(argc, argv, &opt);
     if (parsed != PARSE_CONTINUE) {
         return parsed;

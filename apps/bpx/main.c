@@ -20,7 +20,10 @@ typedef struct cli_command {
 static const cli_command commands[] = {
     {"pairs", cmd_pairs, "print the overlapping pairs of boxes read from a CSV file"},
     {"backends", cmd_backends, "list the backends and SIMD widths usable on this machine"},
+    {"devices", cmd_devices, "list the OpenCL devices (P:D for --device) of the opencl backend"},
     {"bench", cmd_bench, "time brute against reference side by side (the main job)"},
+    {"model", cmd_model, "the paper's FPGA clock by clock: timings, Table 1 schedule, Table 2"},
+    {"demo", cmd_demo, "the paper's test scenario: spheres in a box, timed, pictures, trace"},
 };
 
 enum { COMMAND_COUNT = sizeof commands / sizeof commands[0] };

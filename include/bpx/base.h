@@ -48,7 +48,7 @@ BPX_API const char *bpx_version(void);
     X(BPX_ERR_CAPACITY, "the output buffer is too small; the needed count was reported")           \
     X(BPX_ERR_UNKNOWN_BACKEND, "no backend has that name")                                         \
     X(BPX_ERR_BACKEND_UNAVAILABLE, "the backend is not compiled in or not supported here")         \
-    X(BPX_ERR_BAD_STATE, "the call is not valid in the world's current state")                 \
+    X(BPX_ERR_BAD_STATE, "the call is not valid in the world's current state")                     \
     X(BPX_ERR_DEVICE, "the compute device failed (driver error, kernel build, lost device)")       \
     X(BPX_ERR_DEVICE_MEMORY, "the device is out of memory, or opencl_memory_limit is too low")
 

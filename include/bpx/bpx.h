@@ -23,6 +23,7 @@
 #pragma once
 
 #include "base.h"
+#include "model.h"
 #include "overlap.h"
 #include "types.h"
 

@@ -33,7 +33,7 @@ typedef struct bpx_pair {
 /// The backends, each keeping the same contract (see bpx_overlap in overlap.h).
 /// Names for the command line: bpx_backend_name() / bpx_backend_from_name().
 typedef enum bpx_backend {
-    BPX_BACKEND_AUTO = 0,  ///< "auto": the best available for the scene (today: brute)
+    BPX_BACKEND_AUTO = 0,  ///< "auto": each cycle, brute, prune or grid by n (the default)
     BPX_BACKEND_REFERENCE, ///< "reference": Algorithm 1 verbatim, scalar, one thread. The oracle.
     BPX_BACKEND_BRUTE,     ///< "brute": the paper's comparator on CPU SIMD lanes and threads
     BPX_BACKEND_PRUNE,     ///< "prune": single-axis sort and sweep (box pruning), SIMD, threads
@@ -128,7 +128,8 @@ typedef struct bpx_world_def {
     /// cycle that finds more grows it and emits again: no pair is ever lost.
     uint32_t opencl_pair_capacity;
     /// OpenCL backend: extra options for the kernel build (an FPGA toolchain's, say); NULL for
-    /// none. Never needed for correctness; fast-math options are refused.
+    /// none. Never needed for correctness; fast-math options are refused. The string must live
+    /// as long as the world (it is read again when the world first uses the device).
     const char *opencl_build_options;
 } bpx_world_def;
 

@@ -10,7 +10,7 @@ enum {
     ROW_OVERHEAD_TESTS = 16, // a row's fixed cost (broadcasts, first partial vector), in tests
 };
 
-static bpx_status reserve_blocks(bpx_world *w, int wanted)
+bpx_status bpx__emitter_reserve_blocks(bpx_world *w, int wanted)
 {
     if (wanted <= w->block_capacity)
         return BPX_OK;
@@ -29,7 +29,7 @@ bpx_status bpx__emitter_plan_rows(bpx_world *w, uint32_t rows)
     int wanted = (int)((n + rows - 1) / rows);
     if (wanted < 1)
         wanted = 1;
-    bpx_status status = reserve_blocks(w, wanted);
+    bpx_status status = bpx__emitter_reserve_blocks(w, wanted);
     if (status != BPX_OK)
         return status;
     for (int b = 0; b < wanted; b++) {
@@ -52,7 +52,7 @@ bpx_status bpx__emitter_plan(bpx_world *w, bool single)
         target = BLOCK_TARGET_TESTS;
     int wanted = single ? 1 : (int)(total / target) + 1;
 
-    bpx_status status = reserve_blocks(w, wanted);
+    bpx_status status = bpx__emitter_reserve_blocks(w, wanted);
     if (status != BPX_OK)
         return status;
 
@@ -127,6 +127,49 @@ void bpx__emitter_merge(const bpx_world *w, bpx_pair *out)
             memcpy(out, block->hits.pairs, block->hits.count * sizeof(bpx_pair));
         out += block->hits.count;
     }
+}
+
+// Stable counting sort of src into dst by the i (by_i) or j field; counts has n + 1 words.
+static void counting_sort(const bpx_pair *src, bpx_pair *dst, size_t count, uint32_t n,
+                          uint32_t *counts, bool by_i)
+{
+    memset(counts, 0, sizeof(uint32_t) * ((size_t)n + 1));
+    for (size_t k = 0; k < count; k++)
+        counts[(by_i ? src[k].i : src[k].j) + 1]++;
+    for (uint32_t v = 0; v < n; v++)
+        counts[v + 1] += counts[v];
+    for (size_t k = 0; k < count; k++)
+        dst[counts[by_i ? src[k].i : src[k].j]++] = src[k];
+}
+
+bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_list *b,
+                                    uint32_t *counts)
+{
+    size_t total = 0;
+    bpx_status status = bpx__emitter_total(w, &total);
+    if (status != BPX_OK)
+        return status;
+    a->count = b->count = 0;
+    if (!bpx__list_reserve(a, total) || !bpx__list_reserve(b, total))
+        return BPX_ERR_OUT_OF_MEMORY;
+    bpx__emitter_merge(w, a->pairs);
+    // By j, then (stably) by i: (i, j) order.
+    counting_sort(a->pairs, b->pairs, total, w->n, counts, false);
+    counting_sort(b->pairs, a->pairs, total, w->n, counts, true);
+    a->count = total;
+
+    // Block 0 takes the ordered list (a swap, not a copy); its old list becomes scratch.
+    uint64_t tests = 0;
+    for (int k = 0; k < w->block_count; k++) {
+        tests += w->blocks[k].tests;
+        w->blocks[k].hits.count = 0;
+        w->blocks[k].tests = 0;
+    }
+    bpx_pair_list block0 = w->blocks[0].hits;
+    w->blocks[0].hits = *a;
+    w->blocks[0].tests = tests;
+    *a = block0;
+    return BPX_OK;
 }
 
 void bpx__emitter_free(bpx_world *w)

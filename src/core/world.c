@@ -20,9 +20,12 @@ static const char *const backend_names[BPX_BACKEND_COUNT] = {
 };
 
 static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
+    [BPX_BACKEND_AUTO] = &bpx__auto_backend,
     [BPX_BACKEND_REFERENCE] = &bpx__reference_backend,
     [BPX_BACKEND_BRUTE] = &bpx__brute_backend,
     [BPX_BACKEND_PRUNE] = &bpx__prune_backend,
+    [BPX_BACKEND_GRID] = &bpx__grid_backend,
+    [BPX_BACKEND_MODEL] = &bpx__model_backend,
 #if BPX_HAVE_OPENCL
     [BPX_BACKEND_OPENCL] = &bpx__opencl_backend,
 #endif
@@ -57,16 +60,6 @@ bpx_status bpx_backend_from_name(const char *name, bpx_backend *out)
     return BPX_ERR_UNKNOWN_BACKEND;
 }
 
-// AUTO: brute force is the best backend this version has for every n; later ones join the rule.
-static bpx_backend resolve_auto(const bpx_world_def *def)
-{
-    const char *reason;
-    char detail[96];
-    if (bpx__brute_backend.query(def, &reason, detail, sizeof detail))
-        return BPX_BACKEND_BRUTE;
-    return BPX_BACKEND_REFERENCE;
-}
-
 static bpx_backend_info query_with(bpx_backend backend, const bpx_world_def *def)
 {
     bpx_backend_info info = {.backend = backend, .name = bpx_backend_name(backend), .reason = ""};
@@ -75,18 +68,12 @@ static bpx_backend_info query_with(bpx_backend backend, const bpx_world_def *def
         info.reason = "no such backend";
         return info;
     }
-    bpx_backend resolved = backend == BPX_BACKEND_AUTO ? resolve_auto(def) : backend;
-    const bpx_backend_impl *impl = backends[resolved];
+    const bpx_backend_impl *impl = backends[backend];
     if (!impl) {
         info.reason = "not in this build";
         return info;
     }
     info.available = impl->query(def, &info.reason, info.detail, sizeof info.detail);
-    if (backend == BPX_BACKEND_AUTO) {
-        char inner[sizeof info.detail];
-        memcpy(inner, info.detail, sizeof inner);
-        snprintf(info.detail, sizeof info.detail, "picks %s (%.70s)", impl->name, inner);
-    }
     return info;
 }
 
@@ -209,7 +196,7 @@ bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
         !def->enqueue_task != !def->finish_task || def->capacity_hint > BPX_MAX_BOXES)
         return BPX_ERR_INVALID_ARGUMENT;
 
-    bpx_backend resolved = def->backend == BPX_BACKEND_AUTO ? resolve_auto(def) : def->backend;
+    bpx_backend resolved = def->backend;
     const char *reason;
     char detail[96];
     if (!backends[resolved] || !bpx_simd_supported(def->simd) ||
@@ -269,7 +256,9 @@ uint32_t bpx_world_box_count(const bpx_world *w)
 
 bpx_backend bpx_world_backend(const bpx_world *w)
 {
-    return w ? w->backend->id : BPX_BACKEND_AUTO;
+    if (!w)
+        return BPX_BACKEND_AUTO;
+    return w->backend->id == BPX_BACKEND_AUTO ? bpx__auto_choice(w->n) : w->backend->id;
 }
 
 bpx_simd bpx_world_simd(const bpx_world *w)

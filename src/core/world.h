@@ -144,6 +144,8 @@ bpx_status bpx__objects_after_collide(bpx_world *w, const bpx_pair *pairs, size_
 void bpx__objects_free(bpx_world *w);
 
 // Emitter (emitter.c).
+/// Makes room for `count` blocks (new ones zeroed), for comparators that lay out their own.
+bpx_status bpx__emitter_reserve_blocks(bpx_world *w, int count);
 /// Splits rows 0..n-1 into blocks of about equal pair tests; one block when `single`.
 bpx_status bpx__emitter_plan(bpx_world *w, bool single);
 /// Splits rows 0..n-1 into blocks of `rows` rows each (for comparators whose rows cost about
@@ -155,6 +157,12 @@ bool bpx__list_reserve(bpx_pair_list *list, size_t extra);
 bool bpx__list_append(bpx_pair_list *dst, const bpx_pair_list *src);
 /// Total hits over blocks, or the first block error.
 bpx_status bpx__emitter_total(const bpx_world *w, size_t *total);
+/// For comparators whose hits come out of order (sweeps, grids): gathers every block's hits,
+/// puts them in (i, j) order (two stable counting sorts, O(n + pairs); counts holds n + 1
+/// words) and hands the result to block 0, the other blocks left empty. a and b are scratch
+/// lists kept by the caller between cycles.
+bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_list *b,
+                                    uint32_t *counts);
 /// Concatenates the blocks, in order, into out (which holds at least the total).
 void bpx__emitter_merge(const bpx_world *w, bpx_pair *out);
 void bpx__emitter_free(bpx_world *w);
@@ -163,4 +171,9 @@ void bpx__emitter_free(bpx_world *w);
 extern const bpx_backend_impl bpx__reference_backend;
 extern const bpx_backend_impl bpx__brute_backend;
 extern const bpx_backend_impl bpx__prune_backend;
+extern const bpx_backend_impl bpx__grid_backend;
+extern const bpx_backend_impl bpx__auto_backend;
+/// The backend auto runs for n boxes.
+bpx_backend bpx__auto_choice(uint32_t n);
+extern const bpx_backend_impl bpx__model_backend;
 extern const bpx_backend_impl bpx__opencl_backend;

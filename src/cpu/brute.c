@@ -1,59 +1,79 @@
 // The brute backend: the paper's comparator on CPU SIMD lanes and threads.
 // Rows are split into blocks of about equal work (emitter.c); each block is one task; the
-// kernel for the world's SIMD width (brute_<isa>.c) is picked at run time.
+// kernel for the world's SIMD width (kernels_<isa>.c) is picked at run time.
 #include <stdio.h>
 #include <string.h>
 
 #include "core/world.h"
 #include "cpu_features.h"
+#include "kernels.h"
 
-typedef void brute_rows_fn(const bpx_soa *s, uint32_t row_begin, uint32_t row_end,
-                           bpx_block *out);
-
-brute_rows_fn bpx__brute_rows_scalar;
+#define BPX_DECLARE_KERNELS(isa)                                                                  \
+    bpx_brute_rows_fn bpx__brute_rows_##isa;                                                       \
+    bpx_prune_rows_fn bpx__prune_rows_##isa;
+BPX_DECLARE_KERNELS(scalar)
 #if BPX_HAVE_SSE2
-brute_rows_fn bpx__brute_rows_sse2;
+BPX_DECLARE_KERNELS(sse2)
 #endif
 #if BPX_HAVE_AVX2
-brute_rows_fn bpx__brute_rows_avx2;
+BPX_DECLARE_KERNELS(avx2)
 #endif
 #if BPX_HAVE_AVX512
-brute_rows_fn bpx__brute_rows_avx512;
+BPX_DECLARE_KERNELS(avx512)
 #endif
 #if BPX_HAVE_NEON
-brute_rows_fn bpx__brute_rows_neon;
+BPX_DECLARE_KERNELS(neon)
 #endif
 
 typedef struct simd_variant {
     const char *name;
     int lanes;
-    brute_rows_fn *rows; // NULL: not compiled into this build
+    bpx_brute_rows_fn *brute; // NULL: not compiled into this build
+    bpx_prune_rows_fn *prune;
 } simd_variant;
 
+#define BPX_KERNELS(isa) bpx__brute_rows_##isa, bpx__prune_rows_##isa
 static const simd_variant variants[BPX_SIMD_COUNT] = {
-    [BPX_SIMD_AUTO] = {"auto", 0, NULL},
-    [BPX_SIMD_SCALAR] = {"scalar", 1, bpx__brute_rows_scalar},
+    [BPX_SIMD_AUTO] = {"auto", 0, NULL, NULL},
+    [BPX_SIMD_SCALAR] = {"scalar", 1, BPX_KERNELS(scalar)},
 #if BPX_HAVE_SSE2
-    [BPX_SIMD_SSE2] = {"sse2", 4, bpx__brute_rows_sse2},
+    [BPX_SIMD_SSE2] = {"sse2", 4, BPX_KERNELS(sse2)},
 #else
-    [BPX_SIMD_SSE2] = {"sse2", 4, NULL},
+    [BPX_SIMD_SSE2] = {"sse2", 4, NULL, NULL},
 #endif
 #if BPX_HAVE_AVX2
-    [BPX_SIMD_AVX2] = {"avx2", 8, bpx__brute_rows_avx2},
+    [BPX_SIMD_AVX2] = {"avx2", 8, BPX_KERNELS(avx2)},
 #else
-    [BPX_SIMD_AVX2] = {"avx2", 8, NULL},
+    [BPX_SIMD_AVX2] = {"avx2", 8, NULL, NULL},
 #endif
 #if BPX_HAVE_AVX512
-    [BPX_SIMD_AVX512] = {"avx512", 16, bpx__brute_rows_avx512},
+    [BPX_SIMD_AVX512] = {"avx512", 16, BPX_KERNELS(avx512)},
 #else
-    [BPX_SIMD_AVX512] = {"avx512", 16, NULL},
+    [BPX_SIMD_AVX512] = {"avx512", 16, NULL, NULL},
 #endif
 #if BPX_HAVE_NEON
-    [BPX_SIMD_NEON] = {"neon", 4, bpx__brute_rows_neon},
+    [BPX_SIMD_NEON] = {"neon", 4, BPX_KERNELS(neon)},
 #else
-    [BPX_SIMD_NEON] = {"neon", 4, NULL},
+    [BPX_SIMD_NEON] = {"neon", 4, NULL, NULL},
 #endif
 };
+
+static bpx_simd usable(bpx_simd simd)
+{
+    if (simd == BPX_SIMD_AUTO)
+        return bpx_simd_best();
+    return bpx_simd_supported(simd) ? simd : BPX_SIMD_SCALAR;
+}
+
+bpx_brute_rows_fn *bpx__brute_rows_for(bpx_simd simd)
+{
+    return variants[usable(simd)].brute;
+}
+
+bpx_prune_rows_fn *bpx__prune_rows_for(bpx_simd simd)
+{
+    return variants[usable(simd)].prune;
+}
 
 const char *bpx_simd_name(bpx_simd simd)
 {
@@ -83,7 +103,7 @@ bool bpx_simd_supported(bpx_simd simd)
 {
     if (simd == BPX_SIMD_AUTO)
         return true;
-    return (unsigned)simd < BPX_SIMD_COUNT && variants[simd].rows && bpx__cpu_supports(simd);
+    return (unsigned)simd < BPX_SIMD_COUNT && variants[simd].brute && bpx__cpu_supports(simd);
 }
 
 bpx_simd bpx_simd_best(void)
@@ -104,7 +124,7 @@ static bool brute_query(const bpx_world_def *def, const char **reason, char *det
         *reason = "no such SIMD width";
         return false;
     }
-    if (!variants[simd].rows) {
+    if (!variants[simd].brute) {
         *reason = "SIMD width not compiled into this build";
         return false;
     }
@@ -119,7 +139,7 @@ static bool brute_query(const bpx_world_def *def, const char **reason, char *det
 typedef struct brute_job {
     bpx_world *world;
     bpx_soa soa;
-    brute_rows_fn *rows;
+    bpx_brute_rows_fn *rows;
 } brute_job;
 
 static void brute_task(int begin, int end, int worker, void *context)
@@ -142,7 +162,7 @@ static bpx_status brute_compare(bpx_world *w)
         if (status != BPX_OK)
             return status;
     }
-    brute_job job = {w, bpx__world_soa(w), variants[w->simd].rows};
+    brute_job job = {w, bpx__world_soa(w), bpx__brute_rows_for(w->simd)};
     bpx__parallel_for(&w->executor, brute_task, w->block_count, &job);
     return BPX_OK;
 }

@@ -11,49 +11,8 @@
 #include "core/alloc.h"
 #include "core/clock.h"
 #include "core/world.h"
-#include "cpu_features.h"
+#include "kernels.h"
 #include "sort.h"
-
-typedef void prune_rows_fn(const bpx_sorted *s, uint32_t row_begin, uint32_t row_end,
-                           bpx_block *out);
-
-prune_rows_fn bpx__prune_rows_scalar;
-#if BPX_HAVE_SSE2
-prune_rows_fn bpx__prune_rows_sse2;
-#endif
-#if BPX_HAVE_AVX2
-prune_rows_fn bpx__prune_rows_avx2;
-#endif
-#if BPX_HAVE_AVX512
-prune_rows_fn bpx__prune_rows_avx512;
-#endif
-#if BPX_HAVE_NEON
-prune_rows_fn bpx__prune_rows_neon;
-#endif
-
-static prune_rows_fn *rows_for(bpx_simd simd)
-{
-    switch (simd) {
-#if BPX_HAVE_SSE2
-    case BPX_SIMD_SSE2:
-        return bpx__prune_rows_sse2;
-#endif
-#if BPX_HAVE_AVX2
-    case BPX_SIMD_AVX2:
-        return bpx__prune_rows_avx2;
-#endif
-#if BPX_HAVE_AVX512
-    case BPX_SIMD_AVX512:
-        return bpx__prune_rows_avx512;
-#endif
-#if BPX_HAVE_NEON
-    case BPX_SIMD_NEON:
-        return bpx__prune_rows_neon;
-#endif
-    default:
-        return bpx__prune_rows_scalar;
-    }
-}
 
 enum {
     ROWS_PER_BLOCK = 1024, // sweep rows cost about the same; claims even out the rest
@@ -172,23 +131,10 @@ static void gather(const bpx_world *w, prune_state *st)
     memset(st->ids + n, 0, sizeof(uint32_t) * PAD);
 }
 
-// Stable counting sort of src into dst by the i (by_i) or j field; counts has n + 1 words.
-static void counting_sort(const bpx_pair *src, bpx_pair *dst, size_t count, uint32_t n,
-                          uint32_t *counts, bool by_i)
-{
-    memset(counts, 0, sizeof(uint32_t) * ((size_t)n + 1));
-    for (size_t k = 0; k < count; k++)
-        counts[(by_i ? src[k].i : src[k].j) + 1]++;
-    for (uint32_t v = 0; v < n; v++)
-        counts[v + 1] += counts[v];
-    for (size_t k = 0; k < count; k++)
-        dst[counts[by_i ? src[k].i : src[k].j]++] = src[k];
-}
-
 typedef struct prune_job {
     bpx_world *world;
     bpx_sorted sorted;
-    prune_rows_fn *rows;
+    bpx_prune_rows_fn *rows;
 } prune_job;
 
 static void prune_task(int begin, int end, int worker, void *context)
@@ -221,34 +167,11 @@ static bpx_status prune_compare(bpx_world *w)
     prune_job job = {w,
                      {{st->lo[0], st->lo[1], st->lo[2]}, {st->hi[0], st->hi[1], st->hi[2]},
                       st->ids, n},
-                     rows_for(w->simd)};
+                     bpx__prune_rows_for(w->simd)};
     bpx__parallel_for(&w->executor, prune_task, w->block_count, &job);
 
-    // Collect the blocks' hits, then order them (j first, then i: stable, so (i, j) order).
-    size_t total = 0;
-    bpx_status status = bpx__emitter_total(w, &total);
-    if (status != BPX_OK)
-        return status;
-    st->spare.count = st->sorted.count = 0;
-    if (!bpx__list_reserve(&st->spare, total) || !bpx__list_reserve(&st->sorted, total))
-        return BPX_ERR_OUT_OF_MEMORY;
-    bpx__emitter_merge(w, st->spare.pairs);
-    counting_sort(st->spare.pairs, st->sorted.pairs, total, n, st->counts, false);
-    counting_sort(st->sorted.pairs, st->spare.pairs, total, n, st->counts, true);
-    st->spare.count = total;
-
-    // Hand the ordered list to the emitter as block 0 (the others emptied): swap, not copy.
-    uint64_t tests = 0;
-    for (int b = 0; b < w->block_count; b++) {
-        tests += w->blocks[b].tests;
-        w->blocks[b].hits.count = 0;
-        w->blocks[b].tests = 0;
-    }
-    bpx_pair_list block0 = w->blocks[0].hits;
-    w->blocks[0].hits = st->spare;
-    w->blocks[0].tests = tests;
-    st->spare = block0;
-    return BPX_OK;
+    bpx_status status = bpx__emitter_sort_blocks(w, &st->sorted, &st->spare, st->counts);
+    return status;
 }
 
 static bool prune_query(const bpx_world_def *def, const char **reason, char *detail,

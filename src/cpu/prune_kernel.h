@@ -4,8 +4,8 @@
 // Boxes are sorted by min x (prune.c). Box p is tested against the boxes after it in that order
 // while their min x is <= its max x: those are exactly the ones whose x interval meets its own
 // (their max x >= their min x >= its min x). W candidates are tested per step, y and z with the
-// same compares as the brute force; the run ends at the first step whose lanes are not all
-// within reach, and the padding (min x = +inf) ends it at n.
+// same compares as the brute force; the run ends at the first box out of reach, and a sentinel
+// (min x = +inf) after the last box ends it there.
 #include "core/world.h"
 
 #ifndef BPX_PRUNE_ROWS
@@ -47,13 +47,17 @@ void BPX_PRUNE_ROWS(const bpx_sorted *s, uint32_t row_begin, uint32_t row_end, b
             m = bpx_wm_le_and(m, ly_p, bpx_wf_loadu(ly_hi + k));
             m = bpx_wm_le_and(m, bpx_wf_loadu(lz + k), hz_p);
             m = bpx_wm_le_and(m, lz_p, bpx_wf_loadu(lz_hi + k));
-            uint32_t bits = bpx_wm_bits(m);
+            // Only the run of lanes in reach from the first counts: a list may hold several
+            // sorted runs one after another, each ended by a sentinel (the grid's columns).
+            uint32_t in_reach = bpx_wm_bits(reach);
+            in_reach &= ~(in_reach + 1);
+            uint32_t bits = bpx_wm_bits(m) & in_reach;
             tests += BPX_W;
             if (bits && !emit_sorted(&out->hits, s->id[p], s->id, k, bits)) {
                 out->status = BPX_ERR_OUT_OF_MEMORY;
                 return;
             }
-            if (bpx_wm_bits(reach) != all)
+            if (in_reach != all)
                 break;
         }
     }

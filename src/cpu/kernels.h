@@ -1,0 +1,16 @@
+// The comparator kernels, compiled once per instruction set (kernels_<isa>.c) and picked at run
+// time by SIMD width (brute.c holds the table).
+#pragma once
+
+#include "core/world.h"
+
+/// Rows [row_begin, row_end) of the triangle i < j (brute_kernel.h), hits in (i, j) order.
+typedef void bpx_brute_rows_fn(const bpx_soa *s, uint32_t row_begin, uint32_t row_end,
+                               bpx_block *out);
+/// Sorted positions [row_begin, row_end) swept forward (prune_kernel.h), hits unordered.
+typedef void bpx_prune_rows_fn(const bpx_sorted *s, uint32_t row_begin, uint32_t row_end,
+                               bpx_block *out);
+
+/// The kernels for a supported width (AUTO: the widest); the scalar ones otherwise.
+bpx_brute_rows_fn *bpx__brute_rows_for(bpx_simd simd);
+bpx_prune_rows_fn *bpx__prune_rows_for(bpx_simd simd);

@@ -1,0 +1,103 @@
+// The model's collision emitter (paper §4.4, Figure 5): the 2m - 1 comparison units each write
+// a hit's two indices into their own pair of FIFOs (4m - 2 FIFOs in all, written and read in
+// lockstep, so one pair of FIFOs is kept here as one FIFO of index pairs); a round-robin
+// scheduler moves one collision per clock from the FIFOs into its output register, which the
+// interface writes to the collision RAM. A full FIFO stalls the comparator.
+#pragma once
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "bpx/types.h"
+#include "hw/comparator.h"
+
+typedef struct bpx_hw_emitter {
+    int lanes;       // FIFO pairs: one per comparison unit
+    uint32_t depth;  // entries per FIFO
+    bpx_pair *slots; // lanes x depth ring buffers
+    uint32_t head[BPX_HW_MAX_UNITS];
+    uint32_t fill[BPX_HW_MAX_UNITS];
+    uint64_t nonempty; // bit k: FIFO pair k holds an entry (committed)
+    uint64_t full;     // bit k: FIFO pair k is full (committed)
+    int next_lane;     // where the round robin looks first
+    // Output register (committed).
+    bool out_valid;
+    bpx_pair out;
+    // Evaluate -> commit.
+    uint64_t push; // lanes written this clock: (push_i, push_j0 + lane)
+    uint32_t push_i;
+    uint32_t push_j0;
+    int pop; // lane read this clock, or -1
+    // Statistics since the last reset.
+    uint32_t peak_fill;
+    uint64_t emitted;
+} bpx_hw_emitter;
+
+/// slots must hold lanes * depth pairs.
+void bpx__hw_emitter_init(bpx_hw_emitter *e, int lanes, uint32_t depth, bpx_pair *slots);
+void bpx__hw_emitter_reset(bpx_hw_emitter *e);
+
+/// Whether the comparator's registered results must wait: some unit with a hit has a full FIFO.
+static inline bool bpx__hw_emitter_blocks(const bpx_hw_emitter *e, const bpx_hw_comparator *c)
+{
+    return c->cur->h_valid && (c->cur->h_mask & e->full) != 0;
+}
+
+/// FIFOs or output register still hold collisions.
+static inline bool bpx__hw_emitter_busy(const bpx_hw_emitter *e)
+{
+    return e->nonempty != 0 || e->out_valid;
+}
+
+/// Evaluate: latch the comparator's results (unless stalled) as this clock's FIFO writes and
+/// pick the FIFO to read: the round robin serves the first non-empty FIFO pair at or after
+/// next_lane.
+static inline void bpx__hw_emitter_evaluate(bpx_hw_emitter *e, const bpx_hw_comparator *c,
+                                            bool stall)
+{
+    const bpx_hw_cmp_regs *r = c->cur;
+    e->push = !stall && r->h_valid ? r->h_mask : 0;
+    e->push_i = r->h_i;
+    e->push_j0 = r->h_j0;
+    e->pop = -1;
+    if (e->nonempty) {
+        uint64_t after = e->nonempty >> e->next_lane << e->next_lane;
+        e->pop = after ? __builtin_ctzll(after) : __builtin_ctzll(e->nonempty);
+    }
+}
+
+/// Commit: the read FIFO gives its head to the output register; each unit with a hit writes
+/// (i, j) at its FIFO pair's tail (a written FIFO is never full: the comparator would have been
+/// stalled); the round-robin pointer moves past the FIFO read.
+static inline void bpx__hw_emitter_commit(bpx_hw_emitter *e)
+{
+    e->out_valid = e->pop >= 0;
+    if (e->pop >= 0) {
+        int k = e->pop;
+        e->out = e->slots[(size_t)k * e->depth + e->head[k]];
+        if (++e->head[k] == e->depth)
+            e->head[k] = 0;
+        e->fill[k]--;
+        e->next_lane = k + 1 == e->lanes ? 0 : k + 1;
+        e->emitted++;
+        if (e->fill[k] == 0)
+            e->nonempty &= ~(1ull << k);
+        e->full &= ~(1ull << k);
+    }
+    for (uint64_t mask = e->push; mask; mask &= mask - 1) {
+        int k = __builtin_ctzll(mask);
+        uint32_t tail = e->head[k] + e->fill[k];
+        if (tail >= e->depth)
+            tail -= e->depth;
+        e->slots[(size_t)k * e->depth + tail] = (bpx_pair){e->push_i, e->push_j0 + (uint32_t)k};
+        uint32_t fill = ++e->fill[k];
+        if (fill == e->depth)
+            e->full |= 1ull << k;
+        if (fill > e->peak_fill)
+            e->peak_fill = fill;
+    }
+    e->nonempty |= e->push;
+}
+
+/// The fullest FIFO pair now.
+uint32_t bpx__hw_emitter_fill_max(const bpx_hw_emitter *e);

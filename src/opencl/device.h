@@ -1,0 +1,51 @@
+// OpenCL platforms and devices: listing, selection from a world definition, and one context and
+// built program per device, shared by every world that uses it.
+#pragma once
+
+#define CL_TARGET_OPENCL_VERSION 120
+#include <CL/cl.h>
+
+#include "bpx/opencl.h"
+
+/// Work-group size of the scan and radix-sort kernels (BPX_SCAN_WG; power of two).
+#define BPX_CL_SCAN_WG_MAX 128u
+/// Values per work-item in the scan and radix-sort kernels (BPX_SCAN_ITEMS in scan.cl).
+#define BPX_CL_SCAN_ITEMS 8u
+/// Hits a row keeps on the device before its group must compare again to emit (BPX_STASH).
+#define BPX_CL_STASH 4u
+
+/// A device with its context and program, built once and kept for the life of the process
+/// (OpenCL contexts and programs are thread-safe; command queues and kernels are per world).
+typedef struct bpx_cl_device {
+    cl_platform_id platform;
+    cl_device_id device;
+    cl_context context;
+    cl_program program;
+    int platform_index;
+    int device_index;
+    unsigned tile;    ///< comparator tile width and work-group size (the backend's m)
+    unsigned scan_wg; ///< work-group size of scans and sorts
+    bool denormals;   ///< single-precision subnormals supported (else the host does the updater)
+    cl_ulong global_memory;
+    cl_ulong max_alloc;
+    char name[96];
+    char platform_name[64];
+} bpx_cl_device;
+
+/// The device a world definition selects, its program built (cached). On failure returns false
+/// with a static *reason ("no OpenCL platform", "kernel build failed (log sent to the logger)",
+/// ...). detail (may be NULL) gets "NAME (PLATFORM), m = TILE".
+bool bpx__cl_device_get(const bpx_world_def *def, const bpx_cl_device **out, const char **reason,
+                        char *detail, size_t detail_size);
+
+/// Name of an OpenCL error code ("CL_OUT_OF_RESOURCES").
+const char *bpx__cl_error_name(cl_int code);
+
+/// Whether an OpenCL error means the device ran out of memory (CL_OUT_OF_HOST_MEMORY is the
+/// host's: BPX_ERR_OUT_OF_MEMORY).
+bool bpx__cl_is_memory_error(cl_int code);
+
+/// The embedded program text (generated at build time from src/opencl/kernels/).
+extern const char *const bpx__cl_sources[];
+extern const size_t bpx__cl_source_sizes[];
+extern const int bpx__cl_source_count;

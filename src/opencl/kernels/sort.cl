@@ -1,0 +1,68 @@
+// bpx OpenCL kernels: a stable least-significant-digit radix sort of (uint key, uint value),
+// four bits per pass, for the sort-and-sweep path. SPDX-License-Identifier: MIT
+//
+// Per pass: bpx_radix_count counts each group's digits (hist[digit * groups + group]), the scan
+// kernels turn the counts into offsets (digit-major, so equal digits keep group order), and
+// bpx_radix_scatter moves each key to its place. Each work-item owns BPX_SCAN_ITEMS consecutive
+// elements and walks them in order, and the items' places for each digit are a scan over the
+// items, so the sort is stable: ties keep their input order.
+#define BPX_RADIX_BINS 16
+
+inline void digit_counts(__global const uint *keys, uint n, uint shift, __local uint *counts)
+{
+    uint t = get_local_id(0);
+    ulong first = (ulong)get_group_id(0) * BPX_SCAN_CHUNK + t * BPX_SCAN_ITEMS;
+    uint mine[BPX_RADIX_BINS];
+    for (uint d = 0; d < BPX_RADIX_BINS; d++)
+        mine[d] = 0;
+    for (uint e = 0; e < BPX_SCAN_ITEMS; e++)
+        if (first + e < n)
+            mine[(keys[first + e] >> shift) & (BPX_RADIX_BINS - 1)]++;
+    for (uint d = 0; d < BPX_RADIX_BINS; d++)
+        counts[d * BPX_SCAN_WG + t] = mine[d];
+    barrier(CLK_LOCAL_MEM_FENCE);
+}
+
+__kernel __attribute__((reqd_work_group_size(BPX_SCAN_WG, 1, 1)))
+void bpx_radix_count(__global const uint *keys, uint n, uint shift, __global uint *hist)
+{
+    __local uint counts[BPX_RADIX_BINS * BPX_SCAN_WG];
+    digit_counts(keys, n, shift, counts);
+    uint t = get_local_id(0);
+    if (t < BPX_RADIX_BINS) {
+        uint sum = 0;
+        for (uint u = 0; u < BPX_SCAN_WG; u++)
+            sum += counts[t * BPX_SCAN_WG + u];
+        hist[t * get_num_groups(0) + get_group_id(0)] = sum;
+    }
+}
+
+__kernel __attribute__((reqd_work_group_size(BPX_SCAN_WG, 1, 1)))
+void bpx_radix_scatter(__global const uint *keys, __global const uint *values, uint n, uint shift,
+                       __global const ulong *offsets, __global uint *keys_out,
+                       __global uint *values_out)
+{
+    __local uint counts[BPX_RADIX_BINS * BPX_SCAN_WG];
+    digit_counts(keys, n, shift, counts);
+    uint t = get_local_id(0);
+    if (t < BPX_RADIX_BINS) {
+        uint running = 0;
+        for (uint u = 0; u < BPX_SCAN_WG; u++) {
+            uint v = counts[t * BPX_SCAN_WG + u];
+            counts[t * BPX_SCAN_WG + u] = running;
+            running += v;
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    ulong place[BPX_RADIX_BINS];
+    for (uint d = 0; d < BPX_RADIX_BINS; d++)
+        place[d] = offsets[d * get_num_groups(0) + get_group_id(0)] + counts[d * BPX_SCAN_WG + t];
+    ulong first = (ulong)get_group_id(0) * BPX_SCAN_CHUNK + t * BPX_SCAN_ITEMS;
+    for (uint e = 0; e < BPX_SCAN_ITEMS; e++)
+        if (first + e < n) {
+            uint key = keys[first + e];
+            ulong to = place[(key >> shift) & (BPX_RADIX_BINS - 1)]++;
+            keys_out[to] = key;
+            values_out[to] = values[first + e];
+        }
+}
