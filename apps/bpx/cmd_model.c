@@ -2,10 +2,10 @@
 // trace; its address schedule (Table 1); a per-clock trace; and --paper, the model next to
 // Table 2's measured FPGA times. SPDX-License-Identifier: MIT
 //
-// The scene is the paper's test scenario (§5), generated here: spheres of radius 25 m on a
-// one-layer grid with 10 m gaps (so width and depth follow from n) in a box 400 m high, random
-// velocities in (-40, 40) m/s per axis, elastic collisions with each other and the walls,
-// time step 1/60 s. Only n and the collisions per cycle matter to the model.
+// The scene is the paper's test scenario (§5) as `bpx demo` runs it (apps/demo/demo_sim.h, with
+// its defaults: one layer of spheres of radius 25 m with 10 m gaps in a box 400 m high, random
+// velocities in (-40, 40) m/s per axis, elastic, time step 1/60 s). Only n and the collisions
+// per cycle matter to the model.
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
@@ -13,7 +13,7 @@
 #include <string.h>
 
 #include "cli.h"
-#include "scenes.h"
+#include "demo_sim.h"
 
 static const char *const command = "model";
 
@@ -79,8 +79,8 @@ static void print_help(void)
            "emitter, CPU-IC interface) and reports per broad-phase cycle: clocks per stage\n"
            "(update, compare, emit, transfer), stall clocks, the predicted time at the clock,\n"
            "the comparator's peak read bandwidth, on-chip memory use and the communication\n"
-           "share. The scene is the paper's: n spheres of radius 25 m on a one-layer grid with\n"
-           "10 m gaps in a box 400 m high, velocities in (-40, 40) m/s, elastic collisions.\n"
+           "share. The scene is the paper's as `bpx demo` runs it (its defaults): n spheres of\n"
+           "radius 25 m, 10 m gaps, a box 400 m high, velocities in (-40, 40) m/s, elastic.\n"
            "\n"
            "  --m M           2m RAM ports, 2m - 1 comparison units, 1..%d (default 4)\n"
            "  --clock MHZ     chip clock (default 108)\n"
@@ -199,122 +199,62 @@ static int parse_args(int argc, char **argv, model_options *o)
 }
 
 // ---------------------------------------------------------------------------------------------
-// The paper's scene: spheres in a box
+// The paper's scene: spheres in a box, the demo's simulation (apps/demo/demo_sim.h), so the
+// model sees exactly the cycles `bpx demo` runs.
 
 typedef struct spheres {
     uint32_t n;
-    double radius;
-    double size[3];   // inner box: width (x), height (y), depth (z), m
-    double *pos;      // 3n, m
-    double *vel;      // 3n, m/s
-    float *minima;    // 3n: the origin-centred AABB minima, -radius
-    float *centres;   // 3n: this cycle's centres as sent to the board
-    bpx_world *world; // the simulation's own broad phase
-    double dt;
+    demo_sim *sim;
+    float *minima;  // 3n: the origin-centred AABB minima, -radius
+    float *centres; // 3n: this cycle's centres as sent to the board
 } spheres;
 
 static void spheres_free(spheres *s)
 {
-    free(s->pos);
-    free(s->vel);
     free(s->minima);
     free(s->centres);
-    bpx_world_destroy(s->world);
+    demo_sim_destroy(s->sim);
     memset(s, 0, sizeof *s);
 }
 
+// The centres as the demo's broad phase sends them to bpx: the positions rounded to float.
 static void spheres_centres(spheres *s)
 {
+    const double *pos = demo_sim_positions(s->sim);
     for (size_t k = 0; k < 3 * (size_t)s->n; k++)
-        s->centres[k] = (float)s->pos[k];
+        s->centres[k] = (float)pos[k];
 }
 
-// n spheres of radius 25 m on a square one-layer grid, 10 m between neighbours and from the
-// walls, halfway up a box 400 m high; velocities uniform in (-40, 40) m/s per axis.
+// The demo's defaults (docs/demo.md) with n spheres and the given seed.
 static int spheres_init(spheres *s, uint32_t n, uint64_t seed)
 {
     memset(s, 0, sizeof *s);
-    const double radius = 25.0, gap = 10.0, height = 400.0;
-    uint32_t columns = 1;
-    while ((uint64_t)columns * columns < n)
-        columns++;
-    double side = columns * 2 * radius + (columns - 1) * gap + 2 * gap;
-    *s = (spheres){.n = n, .radius = radius, .size = {side, height, side}, .dt = 1.0 / 60.0};
-    s->pos = malloc(sizeof(double) * 3 * n);
-    s->vel = malloc(sizeof(double) * 3 * n);
+    demo_params params = demo_default_params();
+    params.sphere_count = n;
+    params.seed = seed;
+    demo_error err;
+    s->n = n;
     s->minima = malloc(sizeof(float) * 3 * n);
     s->centres = malloc(sizeof(float) * 3 * n);
-    if (!s->pos || !s->vel || !s->minima || !s->centres) {
+    if (!s->minima || !s->centres || demo_sim_create(&params, NULL, &s->sim, &err) != 0) {
         spheres_free(s);
         return -1;
     }
-    scene_rng rng;
-    scene_rng_seed(&rng, seed);
-    for (uint32_t i = 0; i < n; i++) {
-        double *p = s->pos + 3 * (size_t)i, *v = s->vel + 3 * (size_t)i;
-        p[0] = gap + radius + (i % columns) * (2 * radius + gap);
-        p[1] = height / 2;
-        p[2] = gap + radius + (i / columns) * (2 * radius + gap);
-        for (int a = 0; a < 3; a++) {
-            v[a] = scene_rng_range(&rng, -40.0f, 40.0f);
-            s->minima[3 * (size_t)i + a] = (float)-radius;
-        }
-    }
+    for (size_t k = 0; k < 3 * (size_t)n; k++)
+        s->minima[k] = (float)-params.radius;
     spheres_centres(s);
-    bpx_world_def def = bpx_default_world_def();
-    if (bpx_world_create(&def, &s->world) != BPX_OK ||
-        bpx_world_load_extents(s->world, s->minima, n) != BPX_OK) {
-        spheres_free(s);
-        return -1;
-    }
     return 0;
 }
 
-// Broad phase on this cycle's centres; *pairs are valid until the next call.
-static int spheres_broad(spheres *s, const bpx_pair **pairs, size_t *count)
+// One cycle of the demo's loop; *pairs are its broad phase's, valid until the next call.
+static int spheres_advance(spheres *s, const bpx_pair **pairs, size_t *count)
 {
-    if (bpx_world_update_centres(s->world, s->centres) != BPX_OK ||
-        bpx_world_collide(s->world) != BPX_OK)
+    demo_error err;
+    if (demo_sim_step(s->sim, NULL, &err) != 0)
         return -1;
-    *pairs = bpx_world_pairs(s->world, count);
-    return 0;
-}
-
-// Narrow phase, elastic response between equal spheres, motion, walls.
-static void spheres_advance(spheres *s, const bpx_pair *pairs, size_t count)
-{
-    const double touch = 2 * s->radius;
-    for (size_t k = 0; k < count; k++) {
-        double *pi = s->pos + 3 * (size_t)pairs[k].i, *pj = s->pos + 3 * (size_t)pairs[k].j;
-        double *vi = s->vel + 3 * (size_t)pairs[k].i, *vj = s->vel + 3 * (size_t)pairs[k].j;
-        double d[3] = {pj[0] - pi[0], pj[1] - pi[1], pj[2] - pi[2]};
-        double dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        if (dist2 >= touch * touch || dist2 == 0)
-            continue;
-        double dist = sqrt(dist2);
-        double approach =
-            ((vj[0] - vi[0]) * d[0] + (vj[1] - vi[1]) * d[1] + (vj[2] - vi[2]) * d[2]) / dist;
-        if (approach >= 0)
-            continue;                 // separating already
-        for (int a = 0; a < 3; a++) { // equal masses: the normal components are exchanged
-            vi[a] += approach * d[a] / dist;
-            vj[a] -= approach * d[a] / dist;
-        }
-    }
-    for (size_t k = 0; k < 3 * (size_t)s->n; k++) {
-        int a = (int)(k % 3);
-        double lo = s->radius, hi = s->size[a] - s->radius;
-        double p = s->pos[k] + s->vel[k] * s->dt;
-        if (p < lo) {
-            p = 2 * lo - p;
-            s->vel[k] = fabs(s->vel[k]);
-        } else if (p > hi) {
-            p = 2 * hi - p;
-            s->vel[k] = -fabs(s->vel[k]);
-        }
-        s->pos[k] = p < lo ? lo : p > hi ? hi : p;
-    }
+    *pairs = demo_sim_pairs(s->sim, count);
     spheres_centres(s);
+    return 0;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -578,12 +518,9 @@ static int run_spheres(const model_options *o, uint32_t n, const bpx_model_confi
     int code = CLI_EXIT_OK;
     const bpx_pair *pairs = NULL;
     size_t count = 0;
-    for (int c = 0; c < o->warmup && code == CLI_EXIT_OK; c++) {
-        if (spheres_broad(&s, &pairs, &count) != 0)
+    for (int c = 0; c < o->warmup && code == CLI_EXIT_OK; c++)
+        if (spheres_advance(&s, &pairs, &count) != 0)
             code = CLI_EXIT_ERROR;
-        else
-            spheres_advance(&s, pairs, count);
-    }
     bpx_model *models[2] = {0};
     clock_printer printer = {0};
     for (int k = 0; k < model_count && code == CLI_EXIT_OK; k++) {
@@ -602,27 +539,28 @@ static int run_spheres(const model_options *o, uint32_t n, const bpx_model_confi
         }
     }
     for (int c = 0; c < o->cycles && code == CLI_EXIT_OK; c++) {
-        if (spheres_broad(&s, &pairs, &count) != 0) {
-            code = CLI_EXIT_ERROR;
-            break;
-        }
+        // The board gets this cycle's centres; the demo's broad phase then sees the same ones.
         printer.left = c == 0 ? o->clocks : 0;
-        for (int k = 0; k < model_count; k++) {
-            bpx_model_report r;
-            if (bpx_model_run_centres(models[k], s.centres, &r) != BPX_OK) {
+        bpx_model_report reports[2];
+        for (int k = 0; k < model_count && code == CLI_EXIT_OK; k++) {
+            if (bpx_model_run_centres(models[k], s.centres, &reports[k]) != BPX_OK) {
                 cli_error(command, "%s", bpx_model_error(models[k])->message);
                 code = CLI_EXIT_ERROR;
-                break;
             }
             if (print_clocks && k == 0 && c == 0 && o->clocks > 0)
                 printf("\n");
-            report_add(&sums[k], &r);
+        }
+        if (code != CLI_EXIT_OK || spheres_advance(&s, &pairs, &count) != 0) {
+            code = CLI_EXIT_ERROR;
+            break;
+        }
+        for (int k = 0; k < model_count; k++) {
+            report_add(&sums[k], &reports[k]);
             size_t got = 0;
             const bpx_pair *model_pairs = bpx_model_pairs(models[k], &got);
             *mismatches +=
                 got != count || (count && memcmp(model_pairs, pairs, count * sizeof *pairs) != 0);
         }
-        spheres_advance(&s, pairs, count);
     }
     for (int k = 0; k < model_count; k++)
         bpx_model_destroy(models[k]);

@@ -37,7 +37,6 @@ typedef enum bpx_backend {
     BPX_BACKEND_REFERENCE, ///< "reference": Algorithm 1 verbatim, scalar, one thread. The oracle.
     BPX_BACKEND_BRUTE,     ///< "brute": the paper's comparator on CPU SIMD lanes and threads
     BPX_BACKEND_PRUNE,     ///< "prune": single-axis sort and sweep (box pruning), SIMD, threads
-    BPX_BACKEND_SAP,       ///< "sap": sweep and prune, persistent endpoint lists, insertion sort
     BPX_BACKEND_GRID,      ///< "grid": spatial split for millions of boxes
     BPX_BACKEND_MODEL,     ///< "model": cycle-accurate model of the paper's FPGA design
     BPX_BACKEND_OPENCL,    ///< "opencl": the comparator on an OpenCL device (PoCL, GPUs, FPGAs)

@@ -15,7 +15,7 @@
 static const char *const backend_names[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_AUTO] = "auto",   [BPX_BACKEND_REFERENCE] = "reference",
     [BPX_BACKEND_BRUTE] = "brute", [BPX_BACKEND_PRUNE] = "prune",
-    [BPX_BACKEND_SAP] = "sap",     [BPX_BACKEND_GRID] = "grid",
+    [BPX_BACKEND_GRID] = "grid",
     [BPX_BACKEND_MODEL] = "model", [BPX_BACKEND_OPENCL] = "opencl",
 };
 

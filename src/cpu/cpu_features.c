@@ -1,5 +1,7 @@
 #include "cpu_features.h"
 
+#include <stdatomic.h>
+
 #if defined(__x86_64__) || defined(__i386__)
 #include <cpuid.h>
 
@@ -11,7 +13,7 @@ static unsigned long long read_xcr0(void)
     return ((unsigned long long)edx << 32) | eax;
 }
 
-bool bpx__cpu_supports(bpx_simd simd)
+static bool detect(bpx_simd simd)
 {
     unsigned a, b, c, d;
     switch (simd) {
@@ -39,16 +41,31 @@ bool bpx__cpu_supports(bpx_simd simd)
 
 #elif defined(__aarch64__)
 
-bool bpx__cpu_supports(bpx_simd simd)
+static bool detect(bpx_simd simd)
 {
     return simd == BPX_SIMD_SCALAR || simd == BPX_SIMD_NEON; // NEON is baseline on AArch64
 }
 
 #else
 
-bool bpx__cpu_supports(bpx_simd simd)
+static bool detect(bpx_simd simd)
 {
     return simd == BPX_SIMD_SCALAR;
 }
 
 #endif
+
+// CPUID is slow (in a virtual machine it traps to the hypervisor, microseconds), and every
+// collide asks: detect once. Racing first callers compute the same answer.
+bool bpx__cpu_supports(bpx_simd simd)
+{
+    static _Atomic int known[BPX_SIMD_COUNT]; // 0 unknown, 1 no, 2 yes
+    if ((unsigned)simd >= BPX_SIMD_COUNT)
+        return false;
+    int k = atomic_load_explicit(&known[simd], memory_order_relaxed);
+    if (k == 0) {
+        k = detect(simd) ? 2 : 1;
+        atomic_store_explicit(&known[simd], k, memory_order_relaxed);
+    }
+    return k == 2;
+}
