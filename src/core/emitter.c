@@ -10,16 +10,25 @@ enum {
     ROW_OVERHEAD_TESTS = 16, // a row's fixed cost (broadcasts, first partial vector), in tests
 };
 
+enum { BLOCK_FIRST_PAIRS = 64 }; // every block starts with room for this many hits
+
 bpx_status bpx__emitter_reserve_blocks(bpx_world *w, int wanted)
 {
-    if (wanted <= w->block_capacity)
-        return BPX_OK;
-    size_t old_size = sizeof(bpx_block) * (size_t)w->block_capacity;
-    size_t new_size = sizeof(bpx_block) * (size_t)wanted;
-    if (!bpx__grow((void **)&w->blocks, old_size, new_size))
-        return BPX_ERR_OUT_OF_MEMORY;
-    memset((char *)w->blocks + old_size, 0, new_size - old_size);
-    w->block_capacity = wanted;
+    if (wanted > w->block_capacity) {
+        // Half again as many: backends whose block count follows the data (grid) settle.
+        int capacity = wanted + wanted / 2;
+        size_t old_size = sizeof(bpx_block) * (size_t)w->block_capacity;
+        size_t new_size = sizeof(bpx_block) * (size_t)capacity;
+        if (!bpx__grow((void **)&w->blocks, old_size, new_size))
+            return BPX_ERR_OUT_OF_MEMORY;
+        memset((char *)w->blocks + old_size, 0, new_size - old_size);
+        w->block_capacity = capacity;
+    }
+    // Room up front, so that a block's first hits in a later cycle do not allocate there.
+    for (int b = 0; b < wanted; b++)
+        if (!bpx__list_reserve(&w->blocks[b].hits, BLOCK_FIRST_PAIRS) ||
+            !bpx__list_reserve(&w->blocks[b].stage, BLOCK_FIRST_PAIRS))
+            return BPX_ERR_OUT_OF_MEMORY;
     return BPX_OK;
 }
 
@@ -150,7 +159,9 @@ bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_lis
     if (status != BPX_OK)
         return status;
     a->count = b->count = 0;
-    if (!bpx__list_reserve(a, total) || !bpx__list_reserve(b, total))
+    // Headroom: the three lists that take turns here (a, b and block 0's) settle in a few
+    // cycles even when the pair count drifts up.
+    if (!bpx__list_reserve(a, total + total / 2) || !bpx__list_reserve(b, total + total / 2))
         return BPX_ERR_OUT_OF_MEMORY;
     bpx__emitter_merge(w, a->pairs);
     // By j, then (stably) by i: (i, j) order.

@@ -73,6 +73,7 @@ typedef struct grid_state {
     uint32_t counts_capacity;
     bpx_pair_list a, b;
     int sweep_blocks;
+    size_t most_block_hits; // the largest block's hits last cycle
 } grid_state;
 
 static void free_entries(grid_state *st)
@@ -462,6 +463,12 @@ static bpx_status grid_compare(bpx_world *w)
     w->block_count = blocks;
     w->planned_n = UINT32_MAX; // the layout is this backend's own
 
+    // Blocks cover different rows each cycle; give every one room for twice the largest
+    // block's hits of the last cycle, so the sweep does not grow lists as the scene drifts.
+    for (int b = 0; b < blocks; b++)
+        if (!bpx__list_reserve(&w->blocks[b].hits, 2 * st->most_block_hits))
+            return BPX_ERR_OUT_OF_MEMORY;
+
     grid_job job = {
         w,
         st,
@@ -476,6 +483,10 @@ static bpx_status grid_compare(bpx_world *w)
         bpx__brute_rows_for(w->simd),
     };
     bpx__parallel_for(&w->executor, grid_task, blocks, &job);
+    st->most_block_hits = 0;
+    for (int b = 0; b < blocks; b++)
+        if (w->blocks[b].hits.count > st->most_block_hits)
+            st->most_block_hits = w->blocks[b].hits.count;
     status = bpx__emitter_sort_blocks(w, &st->a, &st->b, st->counts);
     if (status != BPX_OK)
         return status;
