@@ -21,7 +21,7 @@ static const cli_command commands[] = {
     {"pairs", cmd_pairs, "print the overlapping pairs of boxes read from a CSV file"},
     {"backends", cmd_backends, "list the backends and SIMD widths usable on this machine"},
     {"devices", cmd_devices, "list the OpenCL devices (P:D for --device) of the opencl backend"},
-    {"bench", cmd_bench, "time brute against reference side by side (the main job)"},
+    {"bench", cmd_bench, "time every backend side by side on the same scenes"},
     {"model", cmd_model, "the paper's FPGA clock by clock: timings, Table 1 schedule, Table 2"},
     {"demo", cmd_demo, "the paper's test scenario: spheres in a box, timed, pictures, trace"},
 };
