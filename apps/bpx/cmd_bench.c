@@ -14,6 +14,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_table2.h"
 #include "cli.h"
 #include "scenes.h"
 
@@ -35,6 +36,7 @@ typedef struct bench_options {
     uint64_t seed;
     const char *csv_path;
     bool all_simd;                      // also every narrower SIMD width
+    bool table2;                        // the paper's Table 2 instead (bench_table2.c)
     int opencl_platform, opencl_device; // --device P:D, as bpx_world_def (from 1; 0 = best)
 } bench_options;
 
@@ -54,13 +56,15 @@ static int compare_double(const void *a, const void *b)
 static void print_help(void)
 {
     printf("usage: bpx bench [--sizes N,N,...] [--threads T] [--seconds S] [--cycles C]\n"
-           "                 [--all-simd] [--seed S] [--csv FILE]\n"
+           "                 [--all-simd] [--seed S] [--csv FILE] [--table2]\n"
            "\n"
            "Times every backend side by side on the same random scenes (constant density,\n"
            "~1 overlap per box, coherent motion) and prints a Markdown table: mean, median,\n"
            "99th-percentile and min microseconds per cycle (set boxes + collide), box-pair\n"
            "tests per second, and the speed-up over the size's first row (reference up to\n"
            "n = 20000, else brute). Quadratic backends are skipped where a cycle takes seconds.\n"
+           "--table2 instead replays the paper's scenario (`bpx demo`) for n = 50 .. 500 and\n"
+           "prints Table 2's shape next to the paper's figures (--cycles, default 1000).\n"
            "\n"
            "  --sizes     box counts (default 500,10000)\n"
            "  --threads   worker threads of the threaded rows (default: online CPUs)\n"
@@ -103,6 +107,8 @@ static int parse_args(int argc, char **argv, bench_options *o)
         cli_match m;
         if (cli_is_flag(argv[k], "--all-simd")) {
             o->all_simd = true;
+        } else if (cli_is_flag(argv[k], "--table2")) {
+            o->table2 = true;
         } else if ((m = cli_flag_value(argc, argv, &k, "--sizes", &value)) != CLI_NO_MATCH) {
             if (m == CLI_MISSING_VALUE || parse_sizes(value, o) != 0)
                 return cli_usage_error("bench", "--sizes wants box counts like 500,10000");
@@ -343,6 +349,12 @@ int cmd_bench(int argc, char **argv)
     int code = parse_args(argc, argv, &o);
     if (code != CLI_EXIT_OK)
         return code;
+    if (o.table2) {
+        print_machine(&o);
+        return bench_table2(o.threads, o.max_cycles == 20000 ? 1000 : o.max_cycles, o.seed) == 0
+                   ? CLI_EXIT_OK
+                   : CLI_EXIT_ERROR;
+    }
 
     FILE *csv = NULL;
     if (o.csv_path) {
