@@ -14,6 +14,7 @@
 #include <time.h>
 
 #include "bench_table2.h"
+#include "cli.h"
 #include "demo_sim.h"
 
 // Table 2 of Woulfe et al. 2007, ms per cycle (Pentium 4, 1.8 GHz; FPGA at 108 MHz on PCI).
@@ -33,19 +34,6 @@ typedef struct variant {
     bpx_backend backend;
     int threads;
 } variant;
-
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
-
-static int compare_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 // Records `cycles` cycles of the scenario: centres[c * 3n ...] as float, minima once.
 static int record(uint32_t n, int cycles, uint64_t seed, float *minima, float *centres,
@@ -95,11 +83,11 @@ static int replay(const variant *v, uint32_t n, int cycles, const float *minima,
         return -1;
     }
     for (int c = 0; c < cycles; c++) {
-        double start = now_s();
+        double start = cli_now_s();
         bpx_status status = bpx_world_update_centres(w, centres + (size_t)c * 3 * n);
         if (status == BPX_OK)
             status = bpx_world_collide(w);
-        samples[c] = (now_s() - start) * 1e6;
+        samples[c] = (cli_now_s() - start) * 1e6;
         if (status != BPX_OK) {
             fprintf(stderr, "bpx bench: %s\n", bpx_world_error(w)->message);
             bpx_world_destroy(w);
@@ -112,7 +100,7 @@ static int replay(const variant *v, uint32_t n, int cycles, const float *minima,
         sum += samples[c];
     out[0] = samples[0];
     out[1] = sum / (cycles - 1);
-    qsort(samples + 1, (size_t)cycles - 1, sizeof(double), compare_double);
+    qsort(samples + 1, (size_t)cycles - 1, sizeof(double), cli_compare_double);
     out[2] = samples[1 + (cycles - 1) / 2];
     out[3] = samples[1 + (int)ceil(0.99 * (cycles - 1)) - 1];
     return 0;

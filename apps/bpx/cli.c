@@ -1,5 +1,6 @@
 // bpx command-line tool: argument helpers shared by the commands.
 // SPDX-License-Identifier: MIT
+#define _POSIX_C_SOURCE 200809L // clock_gettime
 #include "cli.h"
 
 #include <errno.h>
@@ -7,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 static void print_error(const char *cmd, const char *fmt, va_list args)
 {
@@ -108,4 +110,17 @@ int cli_parse_simd(const char *cmd, const char *text, bpx_simd *out)
     }
     fprintf(stderr, "\nTry 'bpx %s --help'.\n", cmd);
     return CLI_EXIT_USAGE;
+}
+
+double cli_now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
+}
+
+int cli_compare_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
 }

@@ -51,6 +51,12 @@ typedef enum cli_match {
 // Matches argv[*index] against a flag taking a value, as "--flag=value" or "--flag value".
 cli_match cli_flag_value(int argc, char **argv, int *index, const char *flag, const char **value);
 
+// Seconds on a monotonic clock, for timings.
+double cli_now_s(void);
+
+// qsort comparator for doubles, ascending.
+int cli_compare_double(const void *a, const void *b);
+
 // Parses a whole decimal integer in [min, max]. Returns false on anything else.
 bool cli_parse_int(const char *text, long min, long max, int *out);
 

@@ -40,19 +40,6 @@ typedef struct bench_options {
     int opencl_platform, opencl_device; // --device P:D, as bpx_world_def (from 1; 0 = best)
 } bench_options;
 
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
-
-static int compare_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 static void print_help(void)
 {
     printf("usage: bpx bench [--sizes N,N,...] [--threads T] [--seconds S] [--cycles C]\n"
@@ -224,13 +211,13 @@ static int run_variant(const bench_variant *v, bpx_box *const frames[FRAME_COUNT
     int cycles = 0;
     double spent = 0, pairs = 0, link[5] = {0};
     for (int c = 0; c < WARMUP_CYCLES + o->max_cycles && spent < o->seconds; c++) {
-        double start = now_s();
+        double start = cli_now_s();
         status = centres
                      ? bpx_world_update_centres(world, centres + (size_t)(c % FRAME_COUNT) * 3 * n)
                      : bpx_world_set_boxes(world, frames[c % FRAME_COUNT], n);
         if (status == BPX_OK)
             status = bpx_world_collide(world);
-        double elapsed = now_s() - start;
+        double elapsed = cli_now_s() - start;
         if (status != BPX_OK) {
             cli_error("bench", "%s", bpx_world_error(world)->message);
             bpx_world_destroy(world);
@@ -254,7 +241,7 @@ static int run_variant(const bench_variant *v, bpx_box *const frames[FRAME_COUNT
     double sum = 0;
     for (int c = 0; c < cycles; c++)
         sum += samples[c];
-    qsort(samples, (size_t)cycles, sizeof *samples, compare_double);
+    qsort(samples, (size_t)cycles, sizeof *samples, cli_compare_double);
     *r = (bench_result){
         .mean_us = sum / cycles,
         .median_us = cycles % 2 ? samples[cycles / 2]

@@ -190,9 +190,7 @@ void bpx__emitter_free(bpx_world *w)
         list_free(&w->blocks[b].stage);
     }
     bpx__free(w->blocks, sizeof(bpx_block) * (size_t)w->block_capacity);
-    bpx__free(w->pairs, w->pair_capacity * sizeof(bpx_pair));
+    list_free(&w->pairs);
     w->blocks = NULL;
-    w->pairs = NULL;
     w->block_capacity = w->block_count = 0;
-    w->pair_capacity = w->pair_count = 0;
 }

@@ -407,22 +407,15 @@ bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
 // ---------------------------------------------------------------------------------------------
 // Comparator + emitter
 
-static bool reserve_pairs(bpx_world *w, size_t count)
+// The blocks' pairs, concatenated into the world's own list (total from bpx__emitter_total).
+static bool merge_own(bpx_world *w, size_t total)
 {
-    if (count <= w->pair_capacity)
-        return true;
-    size_t capacity = w->pair_capacity ? w->pair_capacity : 256;
-    while (capacity < count) {
-        if (capacity > SIZE_MAX / 2 / sizeof(bpx_pair))
-            return false;
-        capacity *= 2;
-    }
-    bpx_pair *pairs = bpx__alloc(capacity * sizeof(bpx_pair));
-    if (!pairs)
+    w->pairs.count = 0;
+    if (!bpx__list_reserve(&w->pairs, total))
         return false;
-    bpx__free(w->pairs, w->pair_capacity * sizeof(bpx_pair));
-    w->pairs = pairs;
-    w->pair_capacity = capacity;
+    bpx__emitter_merge(w, w->pairs.pairs);
+    w->pairs.count = total;
+    w->merged = true;
     return true;
 }
 
@@ -462,15 +455,12 @@ bpx_status bpx_world_collide(bpx_world *w)
     if (status != BPX_OK)
         return status;
     uint64_t start = bpx__now_ns();
-    if (!reserve_pairs(w, total)) {
+    if (!merge_own(w, total)) {
         w->result_valid = false;
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %zu pairs", total);
     }
-    bpx__emitter_merge(w, w->pairs);
-    w->pair_count = total;
-    w->merged = true;
-    status = bpx__objects_after_collide(w, w->pairs, total);
+    status = bpx__objects_after_collide(w, w->pairs.pairs, total);
     w->stats.emit_ns = bpx__now_ns() - start;
     if (status != BPX_OK) {
         w->result_valid = false;
@@ -497,7 +487,7 @@ bpx_status bpx_world_collide_into(bpx_world *w, bpx_pair *out, size_t capacity, 
         if (!bpx_world_pairs(w, NULL) && total > 0)
             status = BPX_ERR_OUT_OF_MEMORY;
         if (status == BPX_OK)
-            status = bpx__objects_after_collide(w, w->pairs, total);
+            status = bpx__objects_after_collide(w, w->pairs.pairs, total);
         if (status != BPX_OK) {
             w->result_valid = false;
             return bpx__error(&w->error, status, UINT32_MAX, -1, "no memory for pair events");
@@ -523,19 +513,14 @@ const bpx_pair *bpx_world_pairs(bpx_world *w, size_t *count)
     size_t total = 0;
     if (!w->result_valid || bpx__emitter_total(w, &total) != BPX_OK)
         return NULL;
-    if (!w->merged) {
-        if (!reserve_pairs(w, total)) {
-            bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
-                       "no memory to merge %zu pairs", total);
-            return NULL;
-        }
-        bpx__emitter_merge(w, w->pairs);
-        w->pair_count = total;
-        w->merged = true;
+    if (!w->merged && !merge_own(w, total)) {
+        bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                   "no memory to merge %zu pairs", total);
+        return NULL;
     }
     if (count)
         *count = total;
-    return w->pairs;
+    return w->pairs.pairs;
 }
 
 bpx_status bpx_world_copy_pairs(const bpx_world *w, bpx_pair *out, size_t capacity,

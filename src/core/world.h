@@ -90,11 +90,9 @@ struct bpx_world {
     int block_count;
     int block_capacity;
     uint32_t planned_n; // n the blocks were planned for (UINT32_MAX: none)
-    bpx_pair *pairs;    // merged output owned by the world
-    size_t pair_count;
-    bool merged;       // pairs[] holds the last cycle (else only the blocks do)
-    bool result_valid; // the blocks hold a complete last cycle
-    size_t pair_capacity;
+    bpx_pair_list pairs; // merged output owned by the world
+    bool merged;         // pairs holds the last cycle (else only the blocks do)
+    bool result_valid;   // the blocks hold a complete last cycle
 
     void *backend_state; // owned by the backend, freed by its destroy hook
 

@@ -96,18 +96,16 @@ static void sort_by_min_x(bpx_world *w, prune_state *st)
 {
     uint32_t n = w->n;
     const float *lx = w->boxes.lo[0];
-    if (st->ordered_n == n) {
-        for (uint32_t k = 0; k < n; k++)
-            st->keys[k] = bpx__float_key(lx[st->order[k]]);
-        // Coherent motion moves few boxes past few others; give up when it gets expensive.
-        if (bpx__insertion_sort(st->keys, st->order, n, 4 * (uint64_t)n + 1024))
-            return;
-    } else {
+    bool coherent = st->ordered_n == n;
+    if (!coherent)
         for (uint32_t k = 0; k < n; k++)
             st->order[k] = k;
-    }
     for (uint32_t k = 0; k < n; k++)
         st->keys[k] = bpx__float_key(lx[st->order[k]]);
+    // Coherent motion moves few boxes past few others; give up when it gets expensive (keys
+    // and ids move together, so a given-up pass still leaves valid input for the radix sort).
+    if (coherent && bpx__insertion_sort(st->keys, st->order, n, 4 * (uint64_t)n + 1024))
+        return;
     bpx__radix_sort(st->keys, st->order, st->scratch_keys, st->scratch_ids, n);
     st->ordered_n = n;
 }
