@@ -33,7 +33,9 @@ fi
 # blocks that libdbus never frees by design; once unloaded, LeakSanitizer cannot name the library
 # that allocated them, so a suppression by library name cannot match. Address and undefined-
 # behaviour checks stay on, and the same demo code runs with leak checking in demo_cli.
-if ldd "$bpx" 2>/dev/null | grep -q libasan; then
+# (No `ldd | grep -q` here: under pipefail, grep's early exit can kill ldd with SIGPIPE and
+# make the test read "no ASan"; that race is what let the leak report through in CI once.)
+if [[ $(ldd "$bpx" 2>/dev/null) == *libasan* ]]; then
     export ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0"
 fi
 
