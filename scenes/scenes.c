@@ -572,6 +572,30 @@ void scene_uniform_density(uint32_t n, float overlaps_per_box, uint64_t seed, bp
     uniform_density(n, (double)overlaps_per_box, &r, out);
 }
 
+void scene_heavy_tailed_density(uint32_t n, uint64_t seed, bpx_box *out)
+{
+    if (!out || n == 0) {
+        return;
+    }
+    scene_rng r;
+    scene_rng_seed(&r, seed);
+    float half = (float)(density_side(n, 1.0) * 0.5);
+    for (uint32_t i = 0; i < n; i++) {
+        float u = scene_rng_float01(&r);
+        float lo_side = 0.5f, hi_side = 1.5f;
+        if (u < 0.0001f || i == n / 2) {
+            lo_side = 16.0f, hi_side = 32.0f;
+        } else if (u < 0.01f) {
+            lo_side = 4.0f, hi_side = 8.0f;
+        }
+        for (int a = 0; a < 3; a++) {
+            float size = scene_rng_range(&r, lo_side, hi_side);
+            float lo = scene_rng_range(&r, -half, half) - size * 0.5f;
+            set_axis(&out[i], a, lo, lo + size);
+        }
+    }
+}
+
 void scene_move(bpx_box *boxes, uint32_t n, float step, scene_rng *r)
 {
     for (uint32_t i = 0; i < n; i++) {

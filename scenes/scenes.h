@@ -67,6 +67,11 @@ int scene_generate(scene_kind kind, uint32_t n, uint64_t seed, bpx_box *out);
 /// overlaps about overlaps_per_box others (pairs ~= n * overlaps_per_box / 2) whatever n is.
 void scene_uniform_density(uint32_t n, float overlaps_per_box, uint64_t seed, bpx_box *out);
 
+/// The same density with a heavy tail of sizes, the case that breaks uniform grids: per box,
+/// side 0.5..1.5 (~99%), 4..8 (~1%) or 16..32 (~0.01%, at least one box from n = 2). About 1.1
+/// overlaps per box whatever n is; each huge box overlaps ~2000 small ones.
+void scene_heavy_tailed_density(uint32_t n, uint64_t seed, bpx_box *out);
+
 /// Coherent motion: moves every box by its own random displacement in [-step, step]^3 (min and
 /// max together, so boxes stay valid).
 void scene_move(bpx_box *boxes, uint32_t n, float step, scene_rng *r);

@@ -177,6 +177,16 @@ static void test_properties(void)
     uniform = count_pairs(boxes, n);
     CHECK_MSG(uniform > n && uniform < 3 * n, "%" PRIu64, uniform);
 
+    check_set_context("heavy_tailed_density");
+    scene_heavy_tailed_density(n, seed, boxes);
+    uint64_t heavy = count_pairs(boxes, n);
+    float widest = 0.0f;
+    for (uint32_t i = 0; i < n; i++) {
+        widest = fmaxf(widest, boxes[i].max[0] - boxes[i].min[0]);
+    }
+    CHECK_MSG(heavy > n / 4 && heavy < 4 * n, "%" PRIu64, heavy);
+    CHECK_MSG(widest >= 16.0f, "widest side %g", (double)widest);
+
     check_set_context("touching");
     CHECK(scene_generate(SCENE_TOUCHING, n, seed, boxes) == 0);
     uint64_t touching = 0;

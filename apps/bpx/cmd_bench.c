@@ -1,71 +1,95 @@
-// bpx bench: times backends side by side on the same boxes, in one run.
+// bpx bench: every backend and every peer library timed side by side on the same boxes, in one
+// run: the paper's Table 2 on its own scenario (bench_table2.c), then random scenes at scale.
 // SPDX-License-Identifier: MIT
 //
-// Method: per scene size, one random scene at constant density (about one overlap per box) moved
-// coherently into a few frames that every variant replays in the same order. Each variant gets
-// warm-up cycles (buffers grow, threads wake), then timed cycles on a monotonic clock; a cycle is
-// what a frame pays: bpx_world_set_boxes + bpx_world_collide. Speed claims are ratios of medians
-// measured in this same run.
+// Scale scenes: per size, a random scene at constant density (uniform sizes, or a heavy-tailed
+// mix) moved coherently into a few frames that every variant replays in the same ping-pong order
+// (bench_run.c). Speed claims are ratios of medians measured in this same run. Every cycle's pair
+// count is checked against the frame's exact count; a mismatch makes the run fail.
 #define _POSIX_C_SOURCE 200809L
+#include <errno.h>
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
-#include "bench_table2.h"
-#include "cli.h"
+#include "bench.h"
+#include "peers.h"
 #include "scenes.h"
 
-enum { FRAME_COUNT = 8, MAX_SIZES = 16, MAX_VARIANTS = 32, WARMUP_CYCLES = 5 };
+enum { FRAME_COUNT = 8, MAX_NAMES = 32, SCENES = 3 };
 
-typedef struct bench_variant {
-    bpx_backend backend;
-    bpx_simd simd;
-    int threads;
-    bool centres; // opencl: the two-phase updater (centres cross the link, not boxes)
-} bench_variant;
+// uniform: sizes 0.5..1.5, moved up to 0.05 per axis and frame; heavy: a heavy tail of sizes,
+// the same motion; resting: uniform sizes moved 50 times less (a scene mostly at rest).
+static const char *const scene_names[SCENES] = {"uniform", "heavy", "resting"};
+static const float scene_steps[SCENES] = {0.05f, 0.05f, 0.001f};
 
 typedef struct bench_options {
-    uint32_t sizes[MAX_SIZES];
+    uint32_t sizes[BENCH_MAX_SIZES];
     int size_count;
+    bool sizes_given, table2, quick, all_simd;
+    bool scenes[SCENES];
     int threads;
-    double seconds; // time budget per variant and size
-    int max_cycles;
+    double seconds;     // time budget per variant and size
+    int max_cycles;     // timed cycles at most (scale); cycles per n (table 2)
+    bool cycles_given;
     uint64_t seed;
-    const char *csv_path;
-    bool all_simd;                      // also every narrower SIMD width
-    bool table2;                        // the paper's Table 2 instead (bench_table2.c)
+    const char *csv_path, *out_dir;
+    const char *names[MAX_NAMES]; // --backend: bpx backends and peers by name; none = all
+    int name_count;
     int opencl_platform, opencl_device; // --device P:D, as bpx_world_def (from 1; 0 = best)
 } bench_options;
 
 static void print_help(void)
 {
-    printf("usage: bpx bench [--sizes N,N,...] [--threads T] [--seconds S] [--cycles C]\n"
-           "                 [--all-simd] [--seed S] [--csv FILE] [--table2]\n"
+    printf("usage: bpx bench [--quick] [--out DIR] [--backend NAME,...] [--sizes N,...]\n"
+           "                 [--scene uniform,heavy] [--table2] [--threads T] [--seconds S]\n"
+           "                 [--cycles C] [--all-simd] [--seed S] [--csv FILE] [--device P:D]\n"
            "\n"
-           "Times every backend side by side on the same random scenes (constant density,\n"
-           "~1 overlap per box, coherent motion) and prints a Markdown table: mean, median,\n"
-           "99th-percentile and min microseconds per cycle (set boxes + collide), box-pair\n"
-           "tests per second, and the speed-up over the size's first row (reference up to\n"
-           "n = 20000, else brute). Quadratic backends are skipped where a cycle takes seconds.\n"
-           "--table2 instead replays the paper's scenario (`bpx demo`) for n = 50 .. 500 and\n"
-           "prints Table 2's shape next to the paper's figures (--cycles, default 1000).\n"
+           "Times every bpx backend and every peer library built in (Bullet, Box2D: see\n"
+           "`bpx backends`) side by side, in two parts:\n"
+           "  1. Table 2 of the paper on its own scenario (`bpx demo` recorded for n = 50..500,\n"
+           "     replayed the paper's two-phase way): mean/median/p99 us per cycle, the cold\n"
+           "     first cycle, pairs per cycle, speed-ups against sap and the fastest peer,\n"
+           "     next to the paper's FPGA and SOLID figures;\n"
+           "  2. random scenes at constant density (uniform sizes, a heavy-tailed mix, and\n"
+           "     uniform boxes nearly at rest), coherent motion, n = 1k, 10k, 100k, 1M: the\n"
+           "     same columns, a summary of bpx's best against the fastest peer, and a\n"
+           "     log-log plot per scene (--out).\n"
+           "Every cycle's pair count is checked against the exact count (peers: their pairs\n"
+           "whose exact boxes overlap); any mismatch fails the run (exit 1).\n"
            "\n"
-           "  --sizes     box counts (default 500,10000)\n"
+           "  --quick     both parts in under a minute (300 cycles; n = 1k, 10k, 100k)\n"
+           "  --out DIR   write DIR/bench.md, DIR/bench.csv, DIR/table2.csv and the plots\n"
+           "              DIR/scale_uniform.svg, DIR/scale_heavy.svg, DIR/scale_resting.svg\n"
+           "  --backend   only these (bpx backends and peers, e.g. prune,sap,bullet-dbvt)\n"
+           "  --sizes     scale part only, these box counts (default 1000,10000,100000,1000000)\n"
+           "  --scene     scale scenes (default uniform,heavy,resting)\n"
+           "  --table2    Table 2 part only (with --sizes: both)\n"
            "  --threads   worker threads of the threaded rows (default: online CPUs)\n"
-           "  --seconds   time budget per variant and size (default 0.5)\n"
-           "  --cycles    most timed cycles per variant (default 20000)\n"
+           "  --seconds   time budget per variant and size (default 0.5; --quick 0.1)\n"
+           "  --cycles    scale: most timed cycles per variant (default 20000);\n"
+           "              table 2: cycles per n (default 10000; --quick 300)\n"
            "  --all-simd  also time every narrower SIMD width this CPU has\n"
            "  --seed      scene seed (default 1)\n"
-           "  --csv FILE  also write the rows as CSV\n"
-           "  --device P:D  OpenCL platform and device of the opencl rows (as `bpx devices`)\n"
-           "\n"
-           "Where the opencl backend is available, its rows follow (simd column: what crosses\n"
-           "the link each cycle, \"boxes\" or \"centres\" for the two-phase updater), and a\n"
-           "second table gives their device times: transfers in and out, kernels, and the share\n"
-           "of communication in them, like Table 2 of the paper.\n");
+           "  --csv FILE  also write the scale rows as CSV\n"
+           "  --device P:D  OpenCL platform and device of the opencl rows (as `bpx devices`)\n");
+}
+
+static int parse_list(const char *text, const char **out, int most, char *storage, size_t size)
+{
+    if (strlen(text) >= size)
+        return -1;
+    strcpy(storage, text);
+    int count = 0;
+    for (char *save = NULL, *tok = strtok_r(storage, ",", &save); tok;
+         tok = strtok_r(NULL, ",", &save)) {
+        if (count == most)
+            return -1;
+        out[count++] = tok;
+    }
+    return count;
 }
 
 static int parse_sizes(const char *text, bench_options *o)
@@ -74,8 +98,9 @@ static int parse_sizes(const char *text, bench_options *o)
     const char *p = text;
     while (*p) {
         char *end;
+        errno = 0;
         unsigned long n = strtoul(p, &end, 10);
-        if (end == p || n > 100000000ul || o->size_count == MAX_SIZES)
+        if (end == p || errno || n > BPX_MAX_BOXES || o->size_count == BENCH_MAX_SIZES)
             return -1;
         o->sizes[o->size_count++] = (uint32_t)n;
         if (*end == ',')
@@ -87,8 +112,15 @@ static int parse_sizes(const char *text, bench_options *o)
     return o->size_count > 0 ? 0 : -1;
 }
 
+static bool known_name(const char *name)
+{
+    bpx_backend b;
+    return bpx_backend_from_name(name, &b) == BPX_OK || bench_peer_find(name) >= 0;
+}
+
 static int parse_args(int argc, char **argv, bench_options *o)
 {
+    static char name_storage[512], scene_storage[64];
     for (int k = 1; k < argc; k++) {
         const char *value = NULL;
         cli_match m;
@@ -96,15 +128,47 @@ static int parse_args(int argc, char **argv, bench_options *o)
             o->all_simd = true;
         } else if (cli_is_flag(argv[k], "--table2")) {
             o->table2 = true;
+        } else if (cli_is_flag(argv[k], "--quick")) {
+            o->quick = true;
         } else if ((m = cli_flag_value(argc, argv, &k, "--sizes", &value)) != CLI_NO_MATCH) {
             if (m == CLI_MISSING_VALUE || parse_sizes(value, o) != 0)
                 return cli_usage_error("bench", "--sizes wants box counts like 500,10000");
+            o->sizes_given = true;
+        } else if ((m = cli_flag_value(argc, argv, &k, "--backend", &value)) != CLI_NO_MATCH) {
+            if (m == CLI_MISSING_VALUE ||
+                (o->name_count = parse_list(value, o->names, MAX_NAMES, name_storage,
+                                            sizeof name_storage)) <= 0)
+                return cli_usage_error("bench", "--backend wants names like prune,bullet-dbvt");
+            for (int n = 0; n < o->name_count; n++)
+                if (!known_name(o->names[n]))
+                    return cli_usage_error("bench",
+                                           "unknown backend or peer \"%s\" (see bpx backends)",
+                                           o->names[n]);
+        } else if ((m = cli_flag_value(argc, argv, &k, "--scene", &value)) != CLI_NO_MATCH) {
+            const char *list[SCENES + 1];
+            int count = m == CLI_MATCH ? parse_list(value, list, SCENES + 1, scene_storage,
+                                                    sizeof scene_storage)
+                                       : -1;
+            memset(o->scenes, 0, sizeof o->scenes);
+            for (int s = 0; s < count; s++) {
+                int found = -1;
+                for (int t = 0; t < SCENES; t++)
+                    if (strcmp(list[s], scene_names[t]) == 0)
+                        found = t;
+                if (found < 0)
+                    count = -1;
+                else
+                    o->scenes[found] = true;
+            }
+            if (count <= 0)
+                return cli_usage_error("bench", "--scene wants uniform, heavy, resting or a list");
         } else if ((m = cli_flag_value(argc, argv, &k, "--threads", &value)) != CLI_NO_MATCH) {
             if (m == CLI_MISSING_VALUE || !cli_parse_int(value, 1, 256, &o->threads))
                 return cli_usage_error("bench", "--threads wants 1..256");
         } else if ((m = cli_flag_value(argc, argv, &k, "--cycles", &value)) != CLI_NO_MATCH) {
             if (m == CLI_MISSING_VALUE || !cli_parse_int(value, 1, 100000000, &o->max_cycles))
                 return cli_usage_error("bench", "--cycles wants a positive count");
+            o->cycles_given = true;
         } else if ((m = cli_flag_value(argc, argv, &k, "--seconds", &value)) != CLI_NO_MATCH) {
             char *end = NULL;
             o->seconds = m == CLI_MATCH ? strtod(value, &end) : 0;
@@ -127,6 +191,10 @@ static int parse_args(int argc, char **argv, bench_options *o)
             if (m == CLI_MISSING_VALUE)
                 return cli_usage_error("bench", "--csv wants a file name");
             o->csv_path = value;
+        } else if ((m = cli_flag_value(argc, argv, &k, "--out", &value)) != CLI_NO_MATCH) {
+            if (m == CLI_MISSING_VALUE)
+                return cli_usage_error("bench", "--out wants a directory");
+            o->out_dir = value;
         } else {
             return cli_usage_error("bench", "unknown argument \"%s\"", argv[k]);
         }
@@ -134,166 +202,130 @@ static int parse_args(int argc, char **argv, bench_options *o)
     return CLI_EXIT_OK;
 }
 
-static void print_machine(const bench_options *o)
+static bool wanted(const bench_variant *v, const void *context)
 {
-    char model[256] = "unknown CPU";
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (f) {
-        char line[512];
-        while (fgets(line, sizeof line, f))
-            if (strncmp(line, "model name", 10) == 0) {
-                const char *colon = strchr(line, ':');
-                if (colon) {
-                    snprintf(model, sizeof model, "%s", colon + 2);
-                    model[strcspn(model, "\n")] = '\0';
-                }
-                break;
-            }
-        fclose(f);
-    }
-    printf("machine: %s, %ld online CPUs; widest SIMD %s (%d lanes); threads %d; bpx %s\n\n",
-           model, sysconf(_SC_NPROCESSORS_ONLN), bpx_simd_name(bpx_simd_best()),
-           bpx_simd_lanes(BPX_SIMD_AUTO), o->threads, bpx_version());
+    const bench_options *o = context;
+    if (o->name_count == 0)
+        return true;
+    const char *name = v->peer >= 0 ? bench_peer_get(v->peer)->name : bpx_backend_name(v->backend);
+    for (int k = 0; k < o->name_count; k++)
+        if (strcmp(o->names[k], name) == 0)
+            return true;
+    return false;
 }
 
-typedef struct bench_result {
-    double mean_us, median_us, p99_us, min_us;
-    double pairs; // mean per timed cycle
-    uint64_t tests;
-    int cycles;
-    // opencl: device-clock means per timed cycle (other backends: 0).
-    double in_us, out_us, device_us, bytes_in, bytes_out;
-} bench_result;
-
-// Runs one variant over the frames. Returns 0, or prints the error and returns -1.
-static int run_variant(const bench_variant *v, bpx_box *const frames[FRAME_COUNT], uint32_t n,
-                       const bench_options *o, double *samples, bench_result *r)
+// Where a variant stops: quadratic ones where one cycle would take seconds (less with --quick).
+static bool fits(const bench_variant *v, uint32_t n, bool quick)
 {
-    bpx_world_def def = bpx_default_world_def();
-    def.backend = v->backend;
-    def.simd = v->simd;
-    def.worker_count = v->threads;
-    def.capacity_hint = n;
-    def.opencl_platform = o->opencl_platform;
-    def.opencl_device = o->opencl_device;
-    bpx_world *world;
-    bpx_status status = bpx_world_create(&def, &world);
-    if (status != BPX_OK) {
-        cli_error("bench", "cannot create %s world: %s", bpx_backend_name(v->backend),
-                  bpx_status_string(status));
-        return -1;
+    if (v->peer >= 0) {
+        const bench_peer_info *info = bench_peer_get(v->peer);
+        return n <= info->max_n && n <= (quick ? info->slow_n / 4 : info->slow_n);
     }
-    // The two-phase updater: each frame's boxes as origin-centred minima (loaded once, from the
-    // first frame: motion keeps sizes) and per-frame centres.
-    float *centres = NULL;
-    if (v->centres) {
-        float *minima = malloc(sizeof(float) * 3 * (n ? n : 1));
-        centres = malloc(sizeof(float) * 3 * FRAME_COUNT * (n ? n : 1));
-        status = minima && centres ? BPX_OK : BPX_ERR_OUT_OF_MEMORY;
-        for (int f = 0; f < FRAME_COUNT && status == BPX_OK; f++)
-            for (uint32_t i = 0; i < n; i++)
-                for (int a = 0; a < 3; a++) {
-                    float half = (frames[f][i].max[a] - frames[f][i].min[a]) * 0.5f;
-                    centres[((size_t)f * n + i) * 3 + a] = frames[f][i].min[a] + half;
-                    if (f == 0)
-                        minima[(size_t)i * 3 + a] = -half;
-                }
-        if (status == BPX_OK)
-            status = bpx_world_load_extents(world, minima, n);
-        free(minima);
-        if (status != BPX_OK) {
-            cli_error("bench", "cannot load extents: %s", bpx_status_string(status));
-            free(centres);
-            bpx_world_destroy(world);
-            return -1;
-        }
+    uint32_t quadratic = quick ? 20000 : 200000;
+    switch (v->backend) {
+    case BPX_BACKEND_REFERENCE:
+        return n <= (quick ? 5000u : 20000u);
+    case BPX_BACKEND_BRUTE:
+    case BPX_BACKEND_OPENCL:
+        return n <= quadratic;
+    default:
+        return true;
     }
-    int cycles = 0;
-    double spent = 0, pairs = 0, link[5] = {0};
-    for (int c = 0; c < WARMUP_CYCLES + o->max_cycles && spent < o->seconds; c++) {
-        double start = cli_now_s();
-        status = centres
-                     ? bpx_world_update_centres(world, centres + (size_t)(c % FRAME_COUNT) * 3 * n)
-                     : bpx_world_set_boxes(world, frames[c % FRAME_COUNT], n);
-        if (status == BPX_OK)
-            status = bpx_world_collide(world);
-        double elapsed = cli_now_s() - start;
-        if (status != BPX_OK) {
-            cli_error("bench", "%s", bpx_world_error(world)->message);
-            bpx_world_destroy(world);
-            return -1;
-        }
-        if (c >= WARMUP_CYCLES) {
-            samples[cycles++] = elapsed * 1e6;
-            spent += elapsed;
-            pairs += (double)bpx_world_stats(world).pair_count;
-            bpx_cycle_stats stats = bpx_world_stats(world);
-            link[0] += (double)stats.transfer_in_ns * 1e-3;
-            link[1] += (double)stats.transfer_out_ns * 1e-3;
-            link[2] += (double)stats.device_ns * 1e-3;
-            link[3] += (double)stats.bytes_in;
-            link[4] += (double)stats.bytes_out;
-        }
-    }
-    bpx_world_destroy(world);
-    free(centres);
-
-    double sum = 0;
-    for (int c = 0; c < cycles; c++)
-        sum += samples[c];
-    qsort(samples, (size_t)cycles, sizeof *samples, cli_compare_double);
-    *r = (bench_result){
-        .mean_us = sum / cycles,
-        .median_us = cycles % 2 ? samples[cycles / 2]
-                                : 0.5 * (samples[cycles / 2 - 1] + samples[cycles / 2]),
-        .p99_us = samples[(int)ceil(0.99 * cycles) - 1],
-        .min_us = samples[0],
-        .pairs = pairs / cycles,
-        .tests = (uint64_t)n * (n > 0 ? n - 1 : 0) / 2,
-        .cycles = cycles,
-        .in_us = link[0] / cycles,
-        .out_us = link[1] / cycles,
-        .device_us = link[2] / cycles,
-        .bytes_in = link[3] / cycles,
-        .bytes_out = link[4] / cycles,
-    };
-    return 0;
 }
-
-// Quadratic backends stop where one cycle would take seconds.
-enum { REFERENCE_MAX_N = 20000, BRUTE_MAX_N = 200000, OPENCL_MAX_N = 200000 };
 
 static int list_variants(const bench_options *o, uint32_t n, bench_variant *out)
 {
+    bench_variant all[BENCH_MAX_VARIANTS];
     int count = 0;
-    if (n <= REFERENCE_MAX_N)
-        out[count++] = (bench_variant){BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1, false};
+    all[count++] = (bench_variant){-1, BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1, false};
     bpx_simd best = bpx_simd_best();
     for (int s = BPX_SIMD_COUNT - 1; s > BPX_SIMD_AUTO; s--) {
-        if (!bpx_simd_supported((bpx_simd)s) || (!o->all_simd && s != (int)best) ||
-            n > BRUTE_MAX_N)
+        if (!bpx_simd_supported((bpx_simd)s) || (!o->all_simd && s != (int)best))
             continue;
-        out[count++] = (bench_variant){BPX_BACKEND_BRUTE, (bpx_simd)s, 1, false};
+        all[count++] = (bench_variant){-1, BPX_BACKEND_BRUTE, (bpx_simd)s, 1, false};
         if (o->threads > 1)
-            out[count++] = (bench_variant){BPX_BACKEND_BRUTE, (bpx_simd)s, o->threads, false};
+            all[count++] = (bench_variant){-1, BPX_BACKEND_BRUTE, (bpx_simd)s, o->threads, false};
     }
-    static const bpx_backend scalable[] = {BPX_BACKEND_PRUNE, BPX_BACKEND_GRID};
+    static const bpx_backend scalable[] = {BPX_BACKEND_PRUNE, BPX_BACKEND_SAP, BPX_BACKEND_GRID,
+                                           BPX_BACKEND_AUTO};
     for (size_t k = 0; k < sizeof scalable / sizeof scalable[0]; k++) {
-        out[count++] = (bench_variant){scalable[k], BPX_SIMD_AUTO, 1, false};
-        if (o->threads > 1)
-            out[count++] = (bench_variant){scalable[k], BPX_SIMD_AUTO, o->threads, false};
+        all[count++] = (bench_variant){-1, scalable[k], BPX_SIMD_AUTO, 1, false};
+        if (o->threads > 1 && scalable[k] != BPX_BACKEND_SAP)
+            all[count++] = (bench_variant){-1, scalable[k], BPX_SIMD_AUTO, o->threads, false};
     }
     // The coprocessor: boxes over the link, then only centres (the paper's updater).
-    if (n <= OPENCL_MAX_N && bpx_backend_query(BPX_BACKEND_OPENCL).available) {
-        out[count++] = (bench_variant){BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, false};
-        out[count++] = (bench_variant){BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true};
+    if (bpx_backend_query(BPX_BACKEND_OPENCL).available) {
+        all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, false};
+        all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true};
     }
-    return count;
+    for (int p = 0; p < bench_peer_count() && count < BENCH_MAX_VARIANTS; p++)
+        all[count++] = (bench_variant){p, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, false};
+    int kept = 0;
+    for (int k = 0; k < count; k++)
+        if (wanted(&all[k], o) && fits(&all[k], n, o->quick))
+            out[kept++] = all[k];
+    return kept;
+}
+
+// The frames of one scale scene and their exact pair counts (from the auto backend, untimed).
+typedef struct scale_scene {
+    bpx_box *boxes[FRAME_COUNT];
+    uint64_t pairs[FRAME_COUNT];
+    bench_frames frames;
+} scale_scene;
+
+static int make_scene(int scene, uint32_t n, uint64_t seed, scale_scene *s)
+{
+    *s = (scale_scene){0};
+    for (int f = 0; f < FRAME_COUNT; f++)
+        if (!(s->boxes[f] = malloc(sizeof(bpx_box) * (n ? n : 1))))
+            return -1;
+    if (scene == 1)
+        scene_heavy_tailed_density(n, seed, s->boxes[0]);
+    else
+        scene_uniform_density(n, 1.0f, seed, s->boxes[0]);
+    scene_rng rng;
+    scene_rng_seed(&rng, seed ^ 0x9e3779b97f4a7c15ull);
+    for (int f = 1; f < FRAME_COUNT; f++) {
+        memcpy(s->boxes[f], s->boxes[f - 1], sizeof(bpx_box) * n);
+        scene_move(s->boxes[f], n, scene_steps[scene], &rng);
+    }
+    s->frames = (bench_frames){.n = n, .count = FRAME_COUNT, .boxes = s->boxes, .pairs = s->pairs};
+    for (int a = 0; a < 3; a++) {
+        s->frames.bounds_min[a] = n ? INFINITY : 0.0f;
+        s->frames.bounds_max[a] = n ? -INFINITY : 1.0f;
+    }
+    bpx_world_def def = bpx_default_world_def();
+    bpx_world *world;
+    if (bpx_world_create(&def, &world) != BPX_OK)
+        return -1;
+    for (int f = 0; f < FRAME_COUNT; f++) {
+        for (uint32_t i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) {
+                s->frames.bounds_min[a] = fminf(s->frames.bounds_min[a], s->boxes[f][i].min[a]);
+                s->frames.bounds_max[a] = fmaxf(s->frames.bounds_max[a], s->boxes[f][i].max[a]);
+            }
+        if (bpx_world_set_boxes(world, s->boxes[f], n) != BPX_OK ||
+            bpx_world_collide(world) != BPX_OK) {
+            bpx_world_destroy(world);
+            return -1;
+        }
+        s->pairs[f] = bpx_world_stats(world).pair_count;
+    }
+    bpx_world_destroy(world);
+    return 0;
+}
+
+static void free_scene(scale_scene *s)
+{
+    for (int f = 0; f < FRAME_COUNT; f++)
+        free(s->boxes[f]);
 }
 
 // The opencl rows again, as Table 2 of the paper: where a cycle's device time goes.
-enum { MAX_LINK_ROWS = 2 * MAX_SIZES };
+enum { MAX_LINK_ROWS = 2 * BENCH_MAX_SIZES * SCENES };
 typedef struct link_row {
+    const char *scene;
     uint32_t n;
     bool centres;
     bench_result r;
@@ -302,19 +334,231 @@ typedef struct link_row {
 static void print_link_table(const link_row *rows, int count)
 {
     bpx_backend_info info = bpx_backend_query(BPX_BACKEND_OPENCL);
-    printf("\nopencl on %s; device-clock means per cycle (transfers as the device's events see "
-           "them):\n\n"
-           "| n | link | bytes in | bytes out | in us | out us | kernels us | "
-           "communication share | cycle median us |\n"
-           "|---:|---|---:|---:|---:|---:|---:|---:|---:|\n",
-           info.detail);
+    bench_printf("\nopencl on %s; device-clock means per cycle (transfers as the device's events "
+                 "see them):\n\n"
+                 "| scene | n | link | bytes in | bytes out | in us | out us | kernels us | "
+                 "communication share | cycle median us |\n"
+                 "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n",
+                 info.detail);
     for (int k = 0; k < count; k++) {
         const bench_result *r = &rows[k].r;
         double link = r->in_us + r->out_us, total = link + r->device_us;
-        printf("| %u | %s | %.0f | %.0f | %.2f | %.2f | %.2f | %.1f %% | %.2f |\n", rows[k].n,
-               rows[k].centres ? "centres" : "boxes", r->bytes_in, r->bytes_out, r->in_us,
-               r->out_us, r->device_us, total > 0 ? 100.0 * link / total : 0.0, r->median_us);
+        bench_printf("| %s | %u | %s | %.0f | %.0f | %.2f | %.2f | %.2f | %.1f %% | %.2f |\n",
+                     rows[k].scene, rows[k].n, rows[k].centres ? "centres" : "boxes", r->bytes_in, r->bytes_out,
+                     r->in_us, r->out_us, r->device_us,
+                     total > 0 ? 100.0 * link / total : 0.0, r->median_us);
     }
+}
+
+// Speed-up of b over a (a's median / b's), or NAN where either is missing.
+static double ratio(double a, double b)
+{
+    return a > 0 && b > 0 ? a / b : NAN;
+}
+
+static void print_ratio(double r)
+{
+    if (isnan(r))
+        bench_printf(" - |");
+    else
+        bench_printf(" %.1fx |", r);
+}
+
+// Per scene and size: the best bpx and the fastest peer, for the summary.
+typedef struct scale_summary {
+    char best[BENCH_NAME_SIZE], peer[BENCH_NAME_SIZE];
+    double best_us, peer_us;
+} scale_summary;
+
+typedef struct scale_state {
+    const bench_options *o;
+    FILE *csv;
+    double *samples;
+    bench_series series[SCENES][BENCH_MAX_VARIANTS];
+    int series_count[SCENES];
+    link_row links[MAX_LINK_ROWS];
+    int link_count;
+    int mismatches;
+    scale_summary summary[SCENES][BENCH_MAX_SIZES];
+} scale_state;
+
+static bench_series *series_for(scale_state *st, int scene, const bench_variant *v)
+{
+    char name[BENCH_NAME_SIZE];
+    bench_variant_name(v, name, sizeof name);
+    for (int k = 0; k < st->series_count[scene]; k++)
+        if (strcmp(st->series[scene][k].name, name) == 0)
+            return &st->series[scene][k];
+    if (st->series_count[scene] == BENCH_MAX_VARIANTS)
+        return NULL;
+    bench_series *s = &st->series[scene][st->series_count[scene]++];
+    snprintf(s->name, sizeof s->name, "%s", name);
+    s->peer = v->peer >= 0;
+    for (int k = 0; k < BENCH_MAX_SIZES; k++)
+        s->median_us[k] = NAN;
+    return s;
+}
+
+static int run_size(scale_state *st, int scene, int size_index)
+{
+    const bench_options *o = st->o;
+    uint32_t n = o->sizes[size_index];
+    scale_scene sc;
+    bench_progress("bpx bench: %s n = %u: exact pairs", scene_names[scene], n);
+    if (make_scene(scene, n, o->seed, &sc) != 0) {
+        free_scene(&sc);
+        cli_error("bench", "cannot make the %s scene of %u boxes", scene_names[scene], n);
+        return -1;
+    }
+    bench_variant variants[BENCH_MAX_VARIANTS];
+    bench_result results[BENCH_MAX_VARIANTS];
+    int count = list_variants(o, n, variants);
+    bench_budget budget = {o->seconds, o->max_cycles, o->quick ? 2 : 5};
+    int code = 0;
+    for (int v = 0; v < count && code == 0; v++) {
+        char name[BENCH_NAME_SIZE];
+        bench_variant_name(&variants[v], name, sizeof name);
+        bench_progress("bpx bench: %s n = %u: %s (%d/%d)", scene_names[scene], n, name, v + 1,
+                       count);
+        code = bench_run(&variants[v], &sc.frames, &budget, st->samples, &results[v]);
+    }
+    bench_progress(NULL);
+    free_scene(&sc);
+    if (code != 0)
+        return -1;
+
+    double sap_us = NAN, peer_us = NAN, best_us = INFINITY;
+    for (int v = 0; v < count; v++) {
+        char name[BENCH_NAME_SIZE];
+        bench_variant_name(&variants[v], name, sizeof name);
+        double m = results[v].median_us;
+        if (variants[v].peer >= 0 && !(m >= peer_us)) { // the first peer, or a faster one
+            peer_us = m;
+            snprintf(st->summary[scene][size_index].peer, BENCH_NAME_SIZE, "%s", name);
+        }
+        if (variants[v].peer < 0 && variants[v].backend != BPX_BACKEND_REFERENCE && m < best_us) {
+            best_us = m;
+            snprintf(st->summary[scene][size_index].best, BENCH_NAME_SIZE, "%s", name);
+        }
+        if (variants[v].peer < 0 && variants[v].backend == BPX_BACKEND_SAP)
+            sap_us = m;
+    }
+    st->summary[scene][size_index].best_us = best_us;
+    st->summary[scene][size_index].peer_us = peer_us;
+    for (int v = 0; v < count; v++) {
+        const bench_variant *var = &variants[v];
+        const bench_result *r = &results[v];
+        char name[BENCH_NAME_SIZE], check[64];
+        bench_variant_name(var, name, sizeof name);
+        if (r->mismatches)
+            snprintf(check, sizeof check, "**%d cycles wrong**", r->mismatches);
+        else if (var->peer < 0 && var->backend == BPX_BACKEND_SAP)
+            snprintf(check, sizeof check, "ok; %d of %d rebuilt", r->rebuilt, r->cycles);
+        else if (var->peer < 0 && var->backend == BPX_BACKEND_AUTO) {
+            int used = snprintf(check, sizeof check, "ok; ran");
+            for (int b = 0; b < BPX_BACKEND_COUNT; b++)
+                if (r->ran & (1u << b) && used < (int)sizeof check)
+                    used += snprintf(check + used, sizeof check - (size_t)used, " %s",
+                                     bpx_backend_name((bpx_backend)b));
+        } else if (var->peer >= 0 && r->exact_pairs > 0)
+            snprintf(check, sizeof check, "ok (reports %.2fx)", r->pairs / r->exact_pairs);
+        else
+            snprintf(check, sizeof check, "ok");
+        st->mismatches += r->mismatches;
+        bench_printf("| %s | %u | %s | %.1f | %.1f | %.2f | %.2f | %.2f |", scene_names[scene], n,
+                     name, r->exact_pairs, r->cold_us, r->mean_us, r->median_us, r->p99_us);
+        print_ratio(ratio(sap_us, r->median_us));
+        print_ratio(ratio(peer_us, r->median_us));
+        bench_printf(" %s |\n", check);
+        bench_series *s = series_for(st, scene, var);
+        if (s && var->backend != BPX_BACKEND_REFERENCE)
+            s->median_us[size_index] = r->median_us;
+        if (var->peer < 0 && var->backend == BPX_BACKEND_OPENCL && st->link_count < MAX_LINK_ROWS)
+            st->links[st->link_count++] = (link_row){scene_names[scene], n, var->centres, *r};
+        if (st->csv)
+            fprintf(st->csv, "%s,%u,%s,%s,%d,%d,%.2f,%.2f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d\n",
+                    scene_names[scene], n, name,
+                    var->peer >= 0 ? "peer" : bpx_simd_name(var->simd == BPX_SIMD_AUTO
+                                                                ? bpx_simd_best()
+                                                                : var->simd),
+                    var->threads, r->cycles, r->pairs, r->exact_pairs, r->cold_us, r->mean_us,
+                    r->median_us, r->p99_us, r->min_us, ratio(sap_us, r->median_us),
+                    ratio(peer_us, r->median_us), r->mismatches);
+    }
+    fflush(stdout);
+    return 0;
+}
+
+static int run_scale(scale_state *st)
+{
+    const bench_options *o = st->o;
+    bench_printf("Random scenes at constant density (about one overlap per box; \"heavy\": 1%%\n"
+                 "of boxes 4..8 and 0.01%% 16..32 times the others' size), %d frames of coherent\n"
+                 "motion (up to 0.05 per axis and frame for boxes of size ~1; \"resting\": 0.001)\n"
+                 "replayed back and forth. Per variant: cold = first cycle of a fresh\n"
+                 "world (peers: their creation with the first frame), then warm-up, then timed\n"
+                 "cycles for %.2f s (at least one); us per cycle (bpx: set_boxes + collide;\n"
+                 "peers: move every proxy + their pair update). vs sap / vs fastest peer: their\n"
+                 "median over this row's. check: every cycle's pairs against the exact count\n"
+                 "(peers report more: fat or quantised boxes).\n\n",
+                 FRAME_COUNT, o->seconds);
+    bench_printf("| scene | n | variant | pairs/cycle | cold us | mean us | median us | p99 us | "
+                 "vs sap | vs fastest peer | check |\n"
+                 "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|\n");
+    for (int scene = 0; scene < SCENES; scene++)
+        for (int k = 0; o->scenes[scene] && k < o->size_count; k++)
+            if (run_size(st, scene, k) != 0)
+                return -1;
+
+    bench_printf("\nbpx's best against the fastest peer (medians, us per cycle):\n\n"
+                 "| scene | n | best bpx | us | fastest peer | us | bpx speed-up |\n"
+                 "|---|---:|---|---:|---|---:|---:|\n");
+    for (int scene = 0; scene < SCENES; scene++)
+        for (int k = 0; o->scenes[scene] && k < o->size_count; k++) {
+            const scale_summary *s = &st->summary[scene][k];
+            bench_printf("| %s | %u | %s | %.2f | %s |", scene_names[scene], o->sizes[k], s->best,
+                         s->best_us, isfinite(s->peer_us) ? s->peer : "-");
+            if (isfinite(s->peer_us))
+                bench_printf(" %.2f |", s->peer_us);
+            else
+                bench_printf(" - |");
+            print_ratio(ratio(s->peer_us, s->best_us));
+            bench_printf("\n");
+        }
+    if (st->link_count > 0)
+        print_link_table(st->links, st->link_count);
+    return 0;
+}
+
+static int write_plots(const scale_state *st)
+{
+    const bench_options *o = st->o;
+    for (int scene = 0; scene < SCENES; scene++) {
+        if (!o->scenes[scene] || o->size_count == 0)
+            continue;
+        char path[4096], title[160];
+        snprintf(path, sizeof path, "%s/scale_%s.svg", o->out_dir, scene_names[scene]);
+        snprintf(title, sizeof title,
+                 "bpx bench: %s scene, median time per cycle (dashed: peer libraries)",
+                 scene_names[scene]);
+        if (bench_plot_svg(path, title, o->sizes, o->size_count, st->series[scene],
+                           st->series_count[scene]) != 0) {
+            cli_error("bench", "cannot write %s", path);
+            return -1;
+        }
+        fprintf(stderr, "bpx bench: wrote %s\n", path);
+    }
+    return 0;
+}
+
+static FILE *open_out(const bench_options *o, const char *name)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", o->out_dir, name);
+    FILE *f = fopen(path, "w");
+    if (!f)
+        cli_error("bench", "cannot write %s: %s", path, strerror(errno));
+    return f;
 }
 
 int cmd_bench(int argc, char **argv)
@@ -326,8 +570,9 @@ int cmd_bench(int argc, char **argv)
         }
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     bench_options o = {
-        .sizes = {500, 10000},
-        .size_count = 2,
+        .sizes = {1000, 10000, 100000, 1000000},
+        .size_count = 4,
+        .scenes = {true, true, true},
         .threads = cpus > 0 ? (int)(cpus < 256 ? cpus : 256) : 1,
         .seconds = 0.5,
         .max_cycles = 20000,
@@ -336,89 +581,81 @@ int cmd_bench(int argc, char **argv)
     int code = parse_args(argc, argv, &o);
     if (code != CLI_EXIT_OK)
         return code;
-    if (o.table2) {
-        print_machine(&o);
-        return bench_table2(o.threads, o.max_cycles == 20000 ? 1000 : o.max_cycles, o.seed) == 0
-                   ? CLI_EXIT_OK
-                   : CLI_EXIT_ERROR;
+    bool run_table2 = o.table2 || !o.sizes_given, scale = o.sizes_given || !o.table2;
+    if (o.quick) {
+        if (!o.sizes_given)
+            o.size_count = 3;
+        if (o.seconds == 0.5)
+            o.seconds = 0.1;
+    }
+    int table2_cycles = o.cycles_given ? o.max_cycles : o.quick ? 300 : 10000;
+    if (o.out_dir && mkdir(o.out_dir, 0777) != 0 && errno != EEXIST) {
+        cli_error("bench", "cannot create %s: %s", o.out_dir, strerror(errno));
+        return CLI_EXIT_ERROR;
     }
 
-    FILE *csv = NULL;
-    if (o.csv_path) {
-        csv = fopen(o.csv_path, "w");
-        if (!csv) {
-            cli_error("bench", "cannot write %s", o.csv_path);
-            return CLI_EXIT_ERROR;
-        }
-        fprintf(csv, "n,backend,simd,threads,cycles,pairs,mean_us,median_us,p99_us,min_us,"
-                     "gtests_per_s,speedup_vs_first_row\n");
+    FILE *markdown = NULL, *csv = NULL, *table2_csv = NULL;
+    if (o.out_dir && !(markdown = open_out(&o, "bench.md")))
+        return CLI_EXIT_ERROR;
+    bench_set_markdown_copy(markdown);
+    if (o.csv_path && !(csv = fopen(o.csv_path, "w")))
+        cli_error("bench", "cannot write %s: %s", o.csv_path, strerror(errno));
+    else if (!o.csv_path && o.out_dir && scale)
+        csv = open_out(&o, "bench.csv");
+    if (o.out_dir && run_table2)
+        table2_csv = open_out(&o, "table2.csv");
+    scale_state *st = calloc(1, sizeof *st);
+    if (!st) {
+        cli_error("bench", "out of memory");
+        return CLI_EXIT_ERROR;
     }
-    print_machine(&o);
-    printf("| n | backend | simd | threads | pairs/cycle | mean us | median us | p99 us | min us | "
-           "G tests/s | vs first row |\n"
-           "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    st->o = &o;
+    st->csv = csv;
+    st->samples = malloc(sizeof(double) * ((size_t)(table2_cycles > o.max_cycles ? table2_cycles
+                                                                                  : o.max_cycles) +
+                                           8));
+    if (!st->samples || (o.csv_path && !csv) || (o.out_dir && scale && !csv) ||
+        (o.out_dir && run_table2 && !table2_csv))
+        code = CLI_EXIT_ERROR;
+    if (csv)
+        fprintf(csv, "scene,n,variant,simd,threads,cycles,pairs_reported,pairs_exact,cold_us,"
+                     "mean_us,median_us,p99_us,min_us,speedup_vs_sap,speedup_vs_fastest_peer,"
+                     "wrong_cycles\n");
 
-    bench_variant variants[MAX_VARIANTS];
-    link_row link_rows[MAX_LINK_ROWS];
-    int link_count = 0;
-    double *samples = malloc(sizeof(double) * ((size_t)o.max_cycles + WARMUP_CYCLES));
-    code = samples ? CLI_EXIT_OK : CLI_EXIT_ERROR;
-    for (int s = 0; s < o.size_count && code == CLI_EXIT_OK; s++) {
-        uint32_t n = o.sizes[s];
-        bpx_box *frames[FRAME_COUNT] = {0};
-        for (int f = 0; f < FRAME_COUNT; f++)
-            if (!(frames[f] = malloc(sizeof(bpx_box) * (n ? n : 1))))
-                code = CLI_EXIT_ERROR;
-        if (code == CLI_EXIT_OK) {
-            scene_uniform_density(n, 1.0f, o.seed, frames[0]);
-            scene_rng rng;
-            scene_rng_seed(&rng, o.seed ^ 0x9e3779b97f4a7c15ull);
-            for (int f = 1; f < FRAME_COUNT; f++) {
-                memcpy(frames[f], frames[f - 1], sizeof(bpx_box) * n);
-                scene_move(frames[f], n, 0.05f, &rng);
-            }
-        }
-        int variant_count = list_variants(&o, n, variants);
-        double reference_median = 0;
-        for (int v = 0; v < variant_count && code == CLI_EXIT_OK; v++) {
-            bench_result r;
-            if (run_variant(&variants[v], frames, n, &o, samples, &r) != 0) {
-                code = CLI_EXIT_ERROR;
-                break;
-            }
-            double gtests = r.median_us > 0 ? (double)r.tests / r.median_us * 1e-3 : 0;
-            // Against the first variant of this size (reference where it runs, else brute).
-            if (v == 0)
-                reference_median = r.median_us;
-            double speedup = r.median_us > 0 ? reference_median / r.median_us : 0;
-            const char *simd = variants[v].backend == BPX_BACKEND_OPENCL
-                                   ? (variants[v].centres ? "centres" : "boxes")
-                               : variants[v].backend == BPX_BACKEND_REFERENCE
-                                   ? "-"
-                                   : bpx_simd_name(variants[v].simd == BPX_SIMD_AUTO
-                                                       ? bpx_simd_best()
-                                                       : variants[v].simd);
-            printf("| %u | %s | %s | %d | %.1f | %.2f | %.2f | %.2f | %.2f | %.2f | %.1fx |\n", n,
-                   bpx_backend_name(variants[v].backend), simd, variants[v].threads, r.pairs,
-                   r.mean_us, r.median_us, r.p99_us, r.min_us, gtests, speedup);
-            fflush(stdout);
-            if (variants[v].backend == BPX_BACKEND_OPENCL && link_count < MAX_LINK_ROWS)
-                link_rows[link_count++] = (link_row){n, variants[v].centres, r};
-            if (csv)
-                fprintf(csv, "%u,%s,%s,%d,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.4f,%.3f\n", n,
-                        bpx_backend_name(variants[v].backend), simd, variants[v].threads,
-                        r.cycles, r.pairs, r.mean_us, r.median_us, r.p99_us,
-                        r.min_us, gtests, speedup);
-        }
-        for (int f = 0; f < FRAME_COUNT; f++)
-            free(frames[f]);
+    if (code == CLI_EXIT_OK) {
+        bench_print_machine(o.threads);
+        bench_printf("peers:");
+        for (int p = 0; p < bench_peer_count(); p++)
+            bench_printf("%s %s (%s)", p ? ";" : "", bench_peer_get(p)->name,
+                         bench_peer_get(p)->detail);
+        bench_printf("%s\n\n", bench_peer_count() ? "" : " none built in (see bench/peers)");
     }
-    free(samples);
-    if (code == CLI_EXIT_OK && link_count > 0)
-        print_link_table(link_rows, link_count);
-    if (csv && fclose(csv) != 0) {
-        cli_error("bench", "cannot write %s", o.csv_path);
+    if (code == CLI_EXIT_OK && run_table2) {
+        bench_table2_options t2 = {o.threads, table2_cycles, o.seed, wanted, &o, table2_csv};
+        int rc = bench_table2(&t2);
+        if (rc < 0)
+            code = CLI_EXIT_ERROR;
+        st->mismatches += rc > 0 ? rc : 0;
+    }
+    if (code == CLI_EXIT_OK && scale) {
+        if (run_table2)
+            bench_printf("\n");
+        if (run_scale(st) != 0 || (o.out_dir && write_plots(st) != 0))
+            code = CLI_EXIT_ERROR;
+    }
+    if (code == CLI_EXIT_OK && st->mismatches > 0) {
+        cli_error("bench", "%d cycles reported a pair count other than the exact one",
+                  st->mismatches);
         code = CLI_EXIT_ERROR;
     }
+    FILE *files[] = {markdown, csv, table2_csv};
+    for (size_t k = 0; k < sizeof files / sizeof files[0]; k++)
+        if (files[k] && fclose(files[k]) != 0) {
+            cli_error("bench", "cannot finish writing the output files");
+            code = CLI_EXIT_ERROR;
+        }
+    bench_set_markdown_copy(NULL);
+    free(st->samples);
+    free(st);
     return code;
 }

@@ -455,6 +455,39 @@ run pairs "$tmp/no-such-file.csv" --help
 expect_help
 
 # ---------------------------------------------------------------------------------------------
+# bpx bench, small: both parts, every backend and peer, every cycle's pairs checked (a wrong
+# count exits 1), and the files --out promises.
+begin "bench: both parts, small, with --out"
+run bench --table2 --cycles 20 --sizes 300,3000 --seconds 0.01 --out "$tmp/bench"
+if [[ $rc -ne 0 ]]; then
+    fail "expected exit 0"
+else
+    for file in bench.md bench.csv table2.csv scale_uniform.svg scale_heavy.svg scale_resting.svg; do
+        [[ -s $tmp/bench/$file ]] || fail "no $file"
+    done
+    grep -q "^| 500 | " "$tmp/out" || fail "no Table 2 row for n = 500"
+    grep -q "^| heavy | 3000 | sap 1t |" "$tmp/out" || fail "no sap row for the heavy scene"
+    grep -q "<polyline" "$tmp/bench/scale_uniform.svg" || fail "the plot has no lines"
+    ! grep -q "wrong" "$tmp/out" || fail "a variant reported wrong pairs"
+fi
+
+begin "bench: --backend narrows"
+run bench --sizes 1000 --scene uniform --backend prune,grid --seconds 0.01
+if [[ $rc -ne 0 ]]; then
+    fail "expected exit 0"
+elif grep -q "| brute\|| sap" "$tmp/out" || ! grep -q "| grid 1t |" "$tmp/out"; then
+    fail "expected only prune and grid rows"
+fi
+
+begin "bench: unknown --backend"
+run bench --backend prune,nope
+expect_error 2 "nope"
+
+begin "bench: bad --scene"
+run bench --scene round
+expect_error 2 "scene"
+
+# ---------------------------------------------------------------------------------------------
 if [[ $failures -ne 0 ]]; then
     echo "test_cli.sh: $failures of $cases cases FAILED" >&2
     exit 1

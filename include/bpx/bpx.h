@@ -135,7 +135,8 @@ BPX_API bpx_status bpx_world_copy_pairs(const bpx_world *world, bpx_pair *out, s
 /// Counts and timings of the last cycle.
 BPX_API bpx_cycle_stats bpx_world_stats(const bpx_world *world);
 
-/// The backend the world resolved to (never AUTO) and its SIMD width.
+/// The backend the world resolved to (never AUTO; for auto, the one its last cycle ran, which
+/// can change from cycle to cycle) and its SIMD width.
 BPX_API bpx_backend bpx_world_backend(const bpx_world *world);
 BPX_API bpx_simd bpx_world_simd(const bpx_world *world);
 

@@ -37,6 +37,10 @@ typedef enum bpx_backend {
     BPX_BACKEND_REFERENCE, ///< "reference": Algorithm 1 verbatim, scalar, one thread. The oracle.
     BPX_BACKEND_BRUTE,     ///< "brute": the paper's comparator on CPU SIMD lanes and threads
     BPX_BACKEND_PRUNE,     ///< "prune": single-axis sort and sweep (box pruning), SIMD, threads
+    BPX_BACKEND_SAP,       ///< "sap": sweep and prune with temporal coherence: sorted endpoint
+                           ///< lists on x, y, z kept between cycles and mended by insertion
+                           ///< sort, so a coherent cycle costs O(n + swaps); rebuilt by radix
+                           ///< sort when that gets dear. Mending on one thread
     BPX_BACKEND_GRID,      ///< "grid": spatial split for millions of boxes
     BPX_BACKEND_MODEL,     ///< "model": cycle-accurate model of the paper's FPGA design
     BPX_BACKEND_OPENCL,    ///< "opencl": the comparator on an OpenCL device (PoCL, GPUs, FPGAs)
@@ -150,6 +154,10 @@ typedef struct bpx_cycle_stats {
     uint64_t compare_ns;    ///< comparator: the pair tests, all workers
     uint64_t emit_ns;       ///< collision emitter: merging per-block hits into one ordered stream
     uint64_t cycle_count;   ///< completed bpx_world_collide* calls since creation
+    /// sap backend: the last cycle rebuilt its state from scratch (a cold cycle: the first, or
+    /// after n shrank or the boxes moved too far to mend; the paper's "incl sort"), instead of
+    /// mending last cycle's ("excl sort"). Always false for the other backends.
+    bool rebuilt;
     /// OpenCL backend (others leave these 0), last cycle, on the device's clock: time spent
     /// moving data to the device (centres or boxes), from the device (the count register and
     /// the pairs), and running kernels (updater, comparator, emitter, sort). The paper's

@@ -15,7 +15,7 @@
 static const char *const backend_names[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_AUTO] = "auto",   [BPX_BACKEND_REFERENCE] = "reference",
     [BPX_BACKEND_BRUTE] = "brute", [BPX_BACKEND_PRUNE] = "prune",
-    [BPX_BACKEND_GRID] = "grid",
+    [BPX_BACKEND_SAP] = "sap",     [BPX_BACKEND_GRID] = "grid",
     [BPX_BACKEND_MODEL] = "model", [BPX_BACKEND_OPENCL] = "opencl",
 };
 
@@ -24,6 +24,7 @@ static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_REFERENCE] = &bpx__reference_backend,
     [BPX_BACKEND_BRUTE] = &bpx__brute_backend,
     [BPX_BACKEND_PRUNE] = &bpx__prune_backend,
+    [BPX_BACKEND_SAP] = &bpx__sap_backend,
     [BPX_BACKEND_GRID] = &bpx__grid_backend,
     [BPX_BACKEND_MODEL] = &bpx__model_backend,
 #if BPX_HAVE_OPENCL
@@ -258,7 +259,7 @@ bpx_backend bpx_world_backend(const bpx_world *w)
 {
     if (!w)
         return BPX_BACKEND_AUTO;
-    return w->backend->id == BPX_BACKEND_AUTO ? bpx__auto_choice(w->n) : w->backend->id;
+    return w->backend->id == BPX_BACKEND_AUTO ? bpx__auto_choice(w) : w->backend->id;
 }
 
 bpx_simd bpx_world_simd(const bpx_world *w)
@@ -424,6 +425,7 @@ static bpx_status compare(bpx_world *w, size_t *total)
 {
     w->merged = false;
     w->stats.pair_count = 0;
+    w->stats.rebuilt = false; // only backends that keep state between cycles set it
     uint64_t start = bpx__now_ns();
     bpx_status status = w->backend->compare(w);
     if (status == BPX_OK) {

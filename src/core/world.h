@@ -169,9 +169,10 @@ void bpx__emitter_free(bpx_world *w);
 extern const bpx_backend_impl bpx__reference_backend;
 extern const bpx_backend_impl bpx__brute_backend;
 extern const bpx_backend_impl bpx__prune_backend;
+extern const bpx_backend_impl bpx__sap_backend;
 extern const bpx_backend_impl bpx__grid_backend;
 extern const bpx_backend_impl bpx__auto_backend;
-/// The backend auto runs for n boxes.
-bpx_backend bpx__auto_choice(uint32_t n);
+/// The backend auto ran last cycle (before the first: the one it will pick for n boxes).
+bpx_backend bpx__auto_choice(const bpx_world *w);
 extern const bpx_backend_impl bpx__model_backend;
 extern const bpx_backend_impl bpx__opencl_backend;

@@ -1,34 +1,107 @@
-// The auto backend: each cycle, the CPU backend that is fastest for the world's n.
+// The auto backend: each cycle, the CPU backend that should be fastest for what it observes.
 //
-// The rule (measured with `bpx bench` on the scenes of the benchmark; docs/architecture.md):
-//   n <= 96        brute: no sort to pay for, and a few SIMD steps per row
-//   n <= 200,000   prune: one sort on x, then a sweep that meets few boxes per box
-//   above          grid:  the sweep's candidates grow like n^(5/3); columns keep them linear
-// The choice depends on n only, so the output (identical for every backend anyway) and the
-// work done are reproducible. Each delegate keeps its own state between cycles.
+// The rule (measured with `bpx bench`; the README's Speed section has the runs):
+//   n <= 96                        brute: no sort to pay for, a few SIMD steps per row
+//   boxes at rest, n > 96          sap:   mending sorted endpoint lists costs O(n + swaps), and
+//                                         with little motion there are few swaps
+//   sweep candidates per box <= C  prune: one sort on x, a sweep that meets few boxes per box
+//   above                          grid:  the sweep's candidates grow like n^(2/3) per box at
+//                                         constant density; cells keep them constant
+// Two statistics of the x axis, taken in one pass over the boxes each cycle:
+//   candidates per box ~ n * mean x extent / x span: the boxes a sweep along x meets per box if
+//     they are spread evenly (for random scenes at constant density it is n^(2/3) / 2); it
+//     grows with n and with the sizes, so a heavy tail of big boxes moves the choice to grid;
+//   swaps per box ~ mean |change of min x| since last cycle * 2n / x span: how many endpoints
+//     each endpoint passes when sorted lists are mended, sap's cost.
+// The choice depends on the boxes only, so it (and so the work done) is reproducible; the output
+// is the same whichever backend runs. Each delegate keeps its own state between cycles.
+#include <math.h>
 #include <stdio.h>
 
 #include "core/alloc.h"
 #include "core/world.h"
 
-enum { AUTO_BRUTE_MAX = 96, AUTO_PRUNE_MAX = 200000 };
+enum { AUTO_BRUTE_MAX = 96 };
+// prune up to this many sweep candidates per box, grid beyond (measured: grid 2 threads ahead
+// from n = 20k at constant density, where n^(2/3) / 2 = 368).
+static const double AUTO_PRUNE_MAX_CANDIDATES = 350.0;
+// sap when each endpoint passes fewer than this many others per cycle. Measured at n = 10k,
+// 0.23 swaps: sap 1.8x faster than prune; at 1k, 2.5 swaps: 4x slower. Against grid (whose cost
+// per box is lower) sap wins only near rest: at 100k, 1.07 swaps: 3x slower; at rest: 2x faster.
+// Leaving sap takes twice the swaps of entering it, so the choice doesn't flicker.
+static const double AUTO_SAP_SWAPS_VS_PRUNE = 0.3, AUTO_SAP_SWAPS_VS_GRID = 0.05;
 
 typedef struct auto_state {
     void *states[BPX_BACKEND_COUNT]; // each delegate's backend_state
+    bpx_backend last;                // the delegate of the last cycle (AUTO before the first)
+    float *last_min_x;               // last cycle's min x per box, to measure motion
+    uint32_t last_n, capacity;
 } auto_state;
 
-static const bpx_backend_impl *delegate_for(uint32_t n)
+static const bpx_backend_impl *impl_of(bpx_backend id)
 {
-    if (n <= AUTO_BRUTE_MAX)
+    switch (id) {
+    case BPX_BACKEND_BRUTE:
         return &bpx__brute_backend;
-    if (n <= AUTO_PRUNE_MAX)
+    case BPX_BACKEND_SAP:
+        return &bpx__sap_backend;
+    case BPX_BACKEND_GRID:
+        return &bpx__grid_backend;
+    default:
         return &bpx__prune_backend;
-    return &bpx__grid_backend;
+    }
 }
 
-bpx_backend bpx__auto_choice(uint32_t n)
+// The choice before any cycle has run: n alone.
+static bpx_backend choice_by_n(uint32_t n)
 {
-    return delegate_for(n)->id;
+    return n <= AUTO_BRUTE_MAX ? BPX_BACKEND_BRUTE : BPX_BACKEND_PRUNE;
+}
+
+bpx_backend bpx__auto_choice(const bpx_world *w)
+{
+    const auto_state *st = w->backend_state;
+    return st && st->last != BPX_BACKEND_AUTO ? st->last : choice_by_n(w->n);
+}
+
+// Measures the two statistics (and keeps this cycle's min x for the next) and picks.
+static bpx_backend choose(bpx_world *w, auto_state *st)
+{
+    uint32_t n = w->n;
+    if (n <= AUTO_BRUTE_MAX)
+        return BPX_BACKEND_BRUTE;
+    const float *lo = w->boxes.lo[0], *hi = w->boxes.hi[0];
+    bool have_last = st->last_min_x && st->last_n == n;
+    double extent = 0, moved = 0;
+    float low = INFINITY, high = -INFINITY;
+    uint32_t live = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        if (!(lo[i] <= hi[i]))
+            continue; // removed objects are inert (min +inf, max -inf)
+        live++;
+        extent += (double)hi[i] - (double)lo[i];
+        low = fminf(low, lo[i]);
+        high = fmaxf(high, hi[i]);
+        if (have_last)
+            moved += fabs((double)lo[i] - (double)st->last_min_x[i]); // inf if just added
+    }
+    if (st->capacity >= n) {
+        for (uint32_t i = 0; i < n; i++)
+            st->last_min_x[i] = lo[i];
+        st->last_n = n;
+    } else {
+        st->last_n = 0; // no room (allocation failed): no motion measured next cycle
+    }
+    double span = (double)high - (double)low;
+    if (live <= AUTO_BRUTE_MAX || !(span > 0) || !isfinite(span))
+        return live <= AUTO_BRUTE_MAX ? BPX_BACKEND_BRUTE : BPX_BACKEND_PRUNE;
+    double swaps = 2.0 * moved / span; // mean |move| * (2 live endpoints / span)
+    double candidates = extent / span;  // live * (mean extent) / span
+    bool big = candidates > AUTO_PRUNE_MAX_CANDIDATES;
+    double limit = big ? AUTO_SAP_SWAPS_VS_GRID : AUTO_SAP_SWAPS_VS_PRUNE;
+    if (have_last && swaps < (st->last == BPX_BACKEND_SAP ? 2 * limit : limit))
+        return BPX_BACKEND_SAP;
+    return big ? BPX_BACKEND_GRID : BPX_BACKEND_PRUNE;
 }
 
 static bpx_status auto_compare(bpx_world *w)
@@ -37,14 +110,27 @@ static bpx_status auto_compare(bpx_world *w)
     if (!st) {
         if (!(st = bpx__alloc(sizeof *st)))
             return BPX_ERR_OUT_OF_MEMORY;
-        *st = (auto_state){{0}};
+        *st = (auto_state){.last = BPX_BACKEND_AUTO};
         w->backend_state = st;
     }
-    const bpx_backend_impl *impl = delegate_for(w->n);
-    w->backend_state = st->states[impl->id];
+    if (w->n > st->capacity && w->n > AUTO_BRUTE_MAX) {
+        // Room for the motion statistic. On failure auto goes on without it (no sap).
+        uint32_t capacity = w->n + w->n / 2;
+        float *grown = bpx__alloc(sizeof(float) * capacity);
+        if (grown) {
+            bpx__free(st->last_min_x, sizeof(float) * st->capacity);
+            st->last_min_x = grown;
+            st->capacity = capacity;
+            st->last_n = 0;
+        }
+    }
+    bpx_backend id = choose(w, st);
+    const bpx_backend_impl *impl = impl_of(id);
+    w->backend_state = st->states[id];
     bpx_status status = impl->compare(w);
-    st->states[impl->id] = w->backend_state;
+    st->states[id] = w->backend_state;
     w->backend_state = st;
+    st->last = id;
     return status;
 }
 
@@ -53,13 +139,15 @@ static void auto_destroy(bpx_world *w)
     auto_state *st = w->backend_state;
     if (!st)
         return;
-    const bpx_backend_impl *delegates[] = {&bpx__brute_backend, &bpx__prune_backend,
-                                           &bpx__grid_backend};
+    const bpx_backend delegates[] = {BPX_BACKEND_BRUTE, BPX_BACKEND_PRUNE, BPX_BACKEND_SAP,
+                                     BPX_BACKEND_GRID};
     for (size_t k = 0; k < sizeof delegates / sizeof delegates[0]; k++) {
-        w->backend_state = st->states[delegates[k]->id];
-        if (w->backend_state && delegates[k]->destroy)
-            delegates[k]->destroy(w);
+        const bpx_backend_impl *impl = impl_of(delegates[k]);
+        w->backend_state = st->states[delegates[k]];
+        if (w->backend_state && impl->destroy)
+            impl->destroy(w);
     }
+    bpx__free(st->last_min_x, sizeof(float) * st->capacity);
     bpx__free(st, sizeof *st);
     w->backend_state = NULL;
 }
@@ -70,8 +158,10 @@ static bool auto_query(const bpx_world_def *def, const char **reason, char *deta
     char inner[96];
     if (!bpx__brute_backend.query(def, reason, inner, sizeof inner))
         return false;
-    snprintf(detail, size, "brute to n = %d, prune to %d, grid beyond (%.40s)", AUTO_BRUTE_MAX,
-             AUTO_PRUNE_MAX, inner);
+    snprintf(detail, size,
+             "brute to n = %d; then sap at rest, prune to %.0f sweep candidates per box, grid "
+             "beyond (%.40s)",
+             AUTO_BRUTE_MAX, AUTO_PRUNE_MAX_CANDIDATES, inner);
     return true;
 }
 

@@ -1,135 +1,130 @@
-// The grid backend: a uniform grid of columns in (y, z), each column swept along x, for
-// millions of boxes; big boxes apart.
+// The grid backend: a hierarchical grid of columns in (y, z), each a run sorted along x, for
+// millions of boxes; the few biggest boxes apart. Linear in n at constant density.
 //
-// Why: at constant density the candidates of one sweep over the whole scene grow like
-// n^(5/3) (a box meets the whole slab of boxes whose x intervals meet its own). Cutting the
-// scene into columns no wider than a box's reach in y and z leaves each sweep a near
-// one-dimensional problem, so candidates grow like n. Why columns and not cells: a sweep reads
-// sorted, contiguous memory (the prune kernel as is), where cell-by-cell neighbour lookups
-// are random reads that miss the cache at millions of boxes.
+// Why: at constant density the candidates of one sweep over the whole scene grow like n^(5/3)
+// (a box meets the whole slab of boxes whose x intervals meet its own). Columns no wider than a
+// box leave each box a handful of short, sorted, contiguous runs to test (SIMD, no hashing).
 //
-// Each cycle:
-//  1. Sizes. A box's size is its largest extent. Boxes up to 4 x the median size are "small";
-//     the column side is just over the largest small size, so a small box spans at most 2 x 2
-//     columns, and two overlapping boxes share at least one.
-//  2. Every small box is entered in each column it spans: a counting sort by column (entries
-//     carry the box, so the scatter is the only random access), then each column sorted by
-//     min x on its own (small, cache-resident), then written out as SoA runs, each ended by a
-//     sentinel (min x = +inf).
-//  3. The prune kernel sweeps every run (the kernel stops at the sentinel). A pair sharing
-//     several columns is found in each: duplicates are dropped after the pairs are sorted.
-//  4. Big boxes (a few huge among many small) are laid out first, ahead of every small box,
-//     and the brute kernel tests each of their rows against everything after it.
-//  5. Hits go to (i, j) order (emitter.c), duplicates out. Every test is the exact float
-//     comparison of overlap.h; the grid only decides which pairs are tested.
+// Each cycle, every pass but the small serial ones split over the workers:
+//  1. Parameters (serial, from a sample and last cycle's exact bounds): the level-0 cell side s
+//     is the largest box size that keeps about GRID_WINDOW_BOXES boxes per window at the scene's
+//     density (all boxes when sizes are even; the bulk when they are heavy-tailed), and no more
+//     columns than about one per GRID_BOXES_PER_COLUMN boxes.
+//  2. Keys: each box's cells (q = floor((v - origin) / s), clamped: monotone in v, which is all
+//     the tests' reasoning needs, so any float input is safe), its level (the first at which it
+//     spans at most 2 cells per axis; level l has cells 4^l s), the 1 to 4 columns ((y, z)
+//     cells at that level) it covers; per-chunk histograms of columns.
+//  3. Levels: the top levels holding few boxes become "big" boxes, tested against all (the
+//     rest never look for them); the others get columns: a prefix of the histograms.
+//  4. Scatter: each box (coordinates, id, x cell, flags) to its columns, 32 bytes a write.
+//  5. Per column: a counting sort on the x cell, mended by insertion sort on min x (radix when
+//     that gives up), written out as SoA runs.
+//  6. Tests (grid_kernel.h): each box against the rest of its run, and from its home column
+//     against windows of the columns it covers at each coarser level; big boxes against all.
+//     A pair met in several columns is kept in one (a rule on the flags), so no dedupe pass.
+//  7. Hits to (i, j) order: a scatter by i / 2048 into buckets, then each bucket sorted by
+//     LSD counting passes in cache; the result goes to block 0. Every test is the exact float
+//     comparison of overlap.h; the grid only decides which pairs are tested, and the order is
+//     a full sort, so the bytes are the same for any worker count or schedule.
 #include <math.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "core/alloc.h"
 #include "core/world.h"
+#include "cpu_features.h"
+#include "grid.h"
 #include "kernels.h"
 #include "sort.h"
 
 enum {
-    SAMPLE = 1023,        // sizes sampled for the median
-    ROWS_PER_BLOCK = 2048, // sweep rows per work item
-    BIG_ROWS_PER_BLOCK = 8,
+    SAMPLE = 1023,            // boxes sampled for sizes (and first-cycle bounds)
+    GRID_SWEEP_BOXES = 8,     // boxes one sweep should meet at the scene's density
+    GRID_CELL_SIZES = 3,      // cell side / box size
+    GRID_BOXES_PER_COLUMN = 16,
+    CHUNKS_MAX = 64,          // box ranges of the key and scatter passes
+    ITEM_ENTRIES = 4096,      // positions per test item (at least)
+    ITEMS_MAX = 512,
+    BIG_SPAN = 1 << 16,       // ids per big-box work item
+    EMIT_SHIFT = 11,          // at most 2^11 ids per bucket of pairs, 11-bit sort digits
+    EMIT_BUCKET_PAIRS = 8192, // pairs per bucket wanted (the in-cache sort)
+    EMIT_GROUPS = 64,
+    EMIT_ITEMS = 256,
     PAD = BPX_PAD_LANES,
+    LEVELS = BPX_GRID_LEVELS,
+    WORKERS_MAX = 256, // bpx_world_def.worker_count's range
 };
 
-// One entry of a column: the box itself travels with its id, so sorting never gathers.
+// A box on its way to its column.
 typedef struct grid_entry {
     float lo[3], hi[3];
-    uint32_t key;    // bpx__float_key(lo x): the sweep order
     uint32_t id;
-    uint32_t column; // y column * z columns + z column
-    uint32_t unused;
+    uint32_t fx; // fine x cell of min x | flags << 24
 } grid_entry;
 
-typedef struct grid_state {
-    // Entries grouped by column, then the runs in SoA form.
-    size_t entry_capacity;
-    grid_entry *entries;
-    grid_entry *scratch; // radix sort ping-pong
-    size_t scratch_capacity;
-    uint8_t *class_of; // per box: 0 inert, 1 small, 2 big
-    size_t class_capacity;
-    uint32_t *column_start; // columns + 1
-    size_t column_capacity;
-    size_t run_capacity; // floats per SoA array: entries + one sentinel per run + PAD
+typedef struct grid_params {
+    float origin[3], inv[3];
+    uint32_t top[3]; // largest cell coordinate per axis (on x, of the fine cells)
+    int fine_bits;   // x is cut 2^fine_bits times finer than the cells, for the column sort
+    uint32_t columns;
+} grid_params;
+
+// Sorted runs in SoA form, with the sort's scratch; `capacity` positions (padding included).
+typedef struct grid_soa {
     float *lo[3], *hi[3];
-    uint32_t *run_ids;
-    size_t run_length; // positions used this cycle
+    uint32_t *id, *cx, *keys, *ids, *scratch_keys, *scratch_ids;
+    uint8_t *flags;
+    size_t capacity;
+} grid_soa;
 
-    // Big boxes first, then all small ones (positions for the brute kernel).
-    uint32_t layout_capacity;
-    float *blo[3], *bhi[3];
-    uint32_t *layout_ids;
-    uint32_t big_count, small_count;
+typedef struct grid_chunk {
+    uint32_t begin, end;
+    uint32_t level_count[LEVELS];
+    float lo_min[3], lo_max[3];
+    float max_extent;
+} grid_chunk;
 
-    uint32_t *counts; // n + 1
-    uint32_t counts_capacity;
+typedef struct grid_state {
+    // Last cycle's exact figures, for this cycle's parameters.
+    bool have_stats;
+    float bounds_lo[3], bounds_hi[3];
+    float max_extent;
+
+    grid_params params;
+    bpx_grid_layout layout;
+    grid_chunk chunks[CHUNKS_MAX];
+    int chunk_count;
+
+    uint32_t *key; // per box id (padded to a whole group for the big kernel)
+    size_t key_capacity;
+    uint32_t *hist; // chunk x column: counts, then write offsets
+    size_t hist_capacity;
+    uint32_t *column_start;
+    size_t column_capacity;
+    grid_entry *entries;
+    size_t entry_capacity;
+    // Positions of the coarser levels' runs (level 0's are sorted in the workers' scratch).
+    grid_soa positions;
+    grid_soa scratch[WORKERS_MAX];
+    int scratch_count;
+    uint32_t *big_ids;
+    size_t big_capacity;
+    uint32_t item_column[ITEMS_MAX + 1];
+    int item_count, big_items;
+    uint32_t big_per_box; // work items per big box
+
+    // Emitter.
     bpx_pair_list a, b;
-    int sweep_blocks;
-    size_t most_block_hits; // the largest block's hits last cycle
+    uint32_t *emit_hist; // groups x buckets
+    size_t emit_hist_capacity;
+    uint32_t *bucket_start;
+    size_t bucket_capacity;
+    size_t *block_hits; // last cycle's hits per block
+    size_t block_hits_capacity;
 } grid_state;
 
-static void free_entries(grid_state *st)
-{
-    bpx__free(st->entries, st->entry_capacity * sizeof(grid_entry));
-    bpx__free(st->scratch, st->scratch_capacity * sizeof(grid_entry));
-    st->scratch = NULL;
-    st->scratch_capacity = 0;
-    bpx__free(st->class_of, st->class_capacity);
-    bpx__free(st->column_start, st->column_capacity * sizeof(uint32_t));
-    st->entries = NULL;
-    st->class_of = NULL;
-    st->column_start = NULL;
-    st->entry_capacity = st->column_capacity = 0;
-    st->class_capacity = 0;
-}
-
-static void free_runs(grid_state *st)
-{
-    for (int a = 0; a < 3; a++) {
-        bpx__free(st->lo[a], st->run_capacity * sizeof(float));
-        bpx__free(st->hi[a], st->run_capacity * sizeof(float));
-        st->lo[a] = st->hi[a] = NULL;
-    }
-    bpx__free(st->run_ids, st->run_capacity * sizeof(uint32_t));
-    st->run_ids = NULL;
-    st->run_capacity = 0;
-}
-
-static void free_layout(grid_state *st)
-{
-    size_t cap = (size_t)st->layout_capacity + 2 * PAD;
-    for (int a = 0; a < 3; a++) {
-        bpx__free(st->blo[a], cap * sizeof(float));
-        bpx__free(st->bhi[a], cap * sizeof(float));
-        st->blo[a] = st->bhi[a] = NULL;
-    }
-    bpx__free(st->layout_ids, cap * sizeof(uint32_t));
-    st->layout_ids = NULL;
-    st->layout_capacity = 0;
-}
-
-static void grid_destroy(bpx_world *w)
-{
-    grid_state *st = w->backend_state;
-    if (!st)
-        return;
-    free_entries(st);
-    free_runs(st);
-    free_layout(st);
-    bpx__free(st->counts, ((size_t)st->counts_capacity + 1) * sizeof(uint32_t));
-    bpx__free(st->a.pairs, st->a.capacity * sizeof(bpx_pair));
-    bpx__free(st->b.pairs, st->b.capacity * sizeof(bpx_pair));
-    bpx__free(st, sizeof *st);
-    w->backend_state = NULL;
-}
+// ---------------------------------------------------------------------------------------------
+// Memory
 
 // Makes *array hold at least `need` elements of `size` bytes (contents not kept; grows by half
 // again, so it settles after a few cycles). Never zero-sized, so NULL means no memory.
@@ -145,49 +140,140 @@ static bool reserve_array(void **array, size_t *capacity, size_t need, size_t si
     return *array != NULL;
 }
 
-static bool reserve_runs(grid_state *st, size_t floats)
+static void free_soa(grid_soa *r)
 {
-    if (floats <= st->run_capacity && st->run_ids)
+    size_t cap = r->capacity;
+    for (int a = 0; a < 3; a++) {
+        bpx__free(r->lo[a], cap * sizeof(float));
+        bpx__free(r->hi[a], cap * sizeof(float));
+    }
+    uint32_t *u32s[] = {r->id, r->cx, r->keys, r->ids, r->scratch_keys, r->scratch_ids};
+    for (size_t k = 0; k < sizeof u32s / sizeof u32s[0]; k++)
+        bpx__free(u32s[k], cap * sizeof(uint32_t));
+    bpx__free(r->flags, cap);
+    *r = (grid_soa){0};
+}
+
+static bool reserve_soa(grid_soa *r, size_t need)
+{
+    if (need <= r->capacity && r->id)
         return true;
-    free_runs(st);
-    size_t cap = floats + floats / 2 + 64;
+    free_soa(r);
+    size_t cap = need + need / 2 + 64;
     bool ok = true;
     for (int a = 0; a < 3; a++) {
-        ok &= (st->lo[a] = bpx__alloc(cap * sizeof(float))) != NULL;
-        ok &= (st->hi[a] = bpx__alloc(cap * sizeof(float))) != NULL;
+        ok &= (r->lo[a] = bpx__alloc(cap * sizeof(float))) != NULL;
+        ok &= (r->hi[a] = bpx__alloc(cap * sizeof(float))) != NULL;
     }
-    ok &= (st->run_ids = bpx__alloc(cap * sizeof(uint32_t))) != NULL;
-    st->run_capacity = cap;
+    uint32_t **u32s[] = {&r->id, &r->cx, &r->keys, &r->ids, &r->scratch_keys, &r->scratch_ids};
+    for (size_t k = 0; k < sizeof u32s / sizeof u32s[0]; k++)
+        ok &= (*u32s[k] = bpx__alloc(cap * sizeof(uint32_t))) != NULL;
+    ok &= (r->flags = bpx__alloc(cap)) != NULL;
+    r->capacity = cap;
     if (!ok)
-        free_runs(st);
+        free_soa(r);
     return ok;
 }
 
-static bool reserve_layout(grid_state *st, uint32_t n)
+// Sentinels after a run: never in reach (min x +inf), never overlapping.
+static void pad_soa(grid_soa *r, size_t at)
 {
-    if (n <= st->layout_capacity && st->layout_ids)
-        return true;
-    free_layout(st);
-    size_t cap = (size_t)n + 2 * PAD;
-    bool ok = true;
-    for (int a = 0; a < 3; a++) {
-        ok &= (st->blo[a] = bpx__alloc(cap * sizeof(float))) != NULL;
-        ok &= (st->bhi[a] = bpx__alloc(cap * sizeof(float))) != NULL;
+    for (size_t k = at; k < at + PAD; k++) {
+        for (int a = 0; a < 3; a++) {
+            r->lo[a][k] = INFINITY;
+            r->hi[a][k] = -INFINITY;
+        }
+        r->id[k] = 0;
+        r->cx[k] = UINT32_MAX;
+        r->flags[k] = 0;
     }
-    ok &= (st->layout_ids = bpx__alloc(cap * sizeof(uint32_t))) != NULL;
-    st->layout_capacity = n;
-    if (!ok)
-        free_layout(st);
-    return ok;
 }
 
-static int compare_float(const void *a, const void *b)
+static void grid_destroy(bpx_world *w)
 {
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
+    grid_state *st = w->backend_state;
+    if (!st)
+        return;
+    free_soa(&st->positions);
+    for (int k = 0; k < WORKERS_MAX; k++)
+        free_soa(&st->scratch[k]);
+    bpx__free(st->key, st->key_capacity * sizeof(uint32_t));
+    bpx__free(st->hist, st->hist_capacity * sizeof(uint32_t));
+    bpx__free(st->column_start, st->column_capacity * sizeof(uint32_t));
+    bpx__free(st->entries, st->entry_capacity * sizeof(grid_entry));
+    bpx__free(st->big_ids, st->big_capacity * sizeof(uint32_t));
+    bpx__free(st->a.pairs, st->a.capacity * sizeof(bpx_pair));
+    bpx__free(st->b.pairs, st->b.capacity * sizeof(bpx_pair));
+    bpx__free(st->emit_hist, st->emit_hist_capacity * sizeof(uint32_t));
+    bpx__free(st->bucket_start, st->bucket_capacity * sizeof(uint32_t));
+    bpx__free(st->block_hits, st->block_hits_capacity * sizeof(size_t));
+    bpx__free(st, sizeof *st);
+    w->backend_state = NULL;
 }
 
-static float box_size(const bpx_soa *s, uint32_t i)
+// ---------------------------------------------------------------------------------------------
+// Kernels per instruction set (grid_<isa>.c), chosen at run time like brute's.
+
+#define GRID_DECLARE(isa)                                                                         \
+    bpx_grid_column_fn bpx__grid_column_##isa;                                                   \
+    bpx_grid_big_fn bpx__grid_big_##isa;
+GRID_DECLARE(scalar)
+#if BPX_HAVE_SSE2
+GRID_DECLARE(sse2)
+#endif
+#if BPX_HAVE_AVX2
+GRID_DECLARE(avx2)
+#endif
+#if BPX_HAVE_AVX512
+GRID_DECLARE(avx512)
+#endif
+#if BPX_HAVE_NEON
+GRID_DECLARE(neon)
+#endif
+
+typedef struct grid_kernels {
+    bpx_grid_column_fn *column;
+    bpx_grid_big_fn *big;
+} grid_kernels;
+
+static grid_kernels kernels_for(bpx_simd simd)
+{
+    if (simd == BPX_SIMD_AUTO)
+        simd = bpx_simd_best();
+    if (!bpx_simd_supported(simd))
+        simd = BPX_SIMD_SCALAR;
+    switch (simd) {
+#if BPX_HAVE_SSE2
+    case BPX_SIMD_SSE2:
+        return (grid_kernels){bpx__grid_column_sse2, bpx__grid_big_sse2};
+#endif
+#if BPX_HAVE_AVX2
+    case BPX_SIMD_AVX2:
+        return (grid_kernels){bpx__grid_column_avx2, bpx__grid_big_avx2};
+#endif
+#if BPX_HAVE_AVX512
+    case BPX_SIMD_AVX512:
+        return (grid_kernels){bpx__grid_column_avx512, bpx__grid_big_avx512};
+#endif
+#if BPX_HAVE_NEON
+    case BPX_SIMD_NEON:
+        return (grid_kernels){bpx__grid_column_neon, bpx__grid_big_neon};
+#endif
+    default:
+        return (grid_kernels){bpx__grid_column_scalar, bpx__grid_big_scalar};
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1. Parameters
+
+// Removed ids hold inert boxes (min +inf > max -inf): they take no part.
+static inline bool is_inert(const bpx_soa *s, uint32_t i)
+{
+    return !(s->lo[0][i] <= s->hi[0][i]);
+}
+
+static inline float box_size(const bpx_soa *s, uint32_t i)
 {
     float e = s->hi[0][i] - s->lo[0][i];
     for (int a = 1; a < 3; a++) {
@@ -197,228 +283,558 @@ static float box_size(const bpx_soa *s, uint32_t i)
     return e;
 }
 
-// Removed ids hold inert boxes (min +inf > max -inf): they take no part.
-static bool is_inert(const bpx_soa *s, uint32_t i)
+static void sort_floats(float *v, uint32_t count)
 {
-    return !(s->lo[0][i] <= s->hi[0][i]);
-}
-
-// One stable counting-sort pass of src into dst by digit(entry) in [0, buckets).
-#define GRID_SCATTER(src, dst, count, counts, buckets, digit)                                      \
-    do {                                                                                           \
-        memset(counts, 0, sizeof(uint32_t) * ((buckets) + 1));                                     \
-        for (size_t k_ = 0; k_ < (count); k_++) {                                                  \
-            const grid_entry *e = &(src)[k_];                                                      \
-            counts[(digit) + 1]++;                                                                 \
-        }                                                                                          \
-        for (size_t b_ = 0; b_ < (buckets); b_++)                                                  \
-            counts[b_ + 1] += counts[b_];                                                          \
-        for (size_t k_ = 0; k_ < (count); k_++) {                                                  \
-            const grid_entry *e = &(src)[k_];                                                      \
-            (dst)[counts[(digit)]++] = *e;                                                         \
-        }                                                                                          \
-    } while (0)
-
-// Orders entries by (column, min x), ties by id: LSD passes over min x (3 x 11 bits), then the
-// z column, then the y column; entries come in id order and every pass is stable. Few buckets
-// per pass keep the scatter cache-friendly (one pass over all columns would not be).
-static void sort_entries(grid_state *st, size_t count, uint32_t zdim, uint32_t ydim,
-                         uint32_t *counts)
-{
-    grid_entry *a = st->entries, *b = st->scratch;
-    for (int shift = 0; shift < 32; shift += 11) {
-        GRID_SCATTER(a, b, count, counts, 2048u, (e->key >> shift) & 2047u);
-        grid_entry *t = a;
-        a = b;
-        b = t;
-    }
-    GRID_SCATTER(a, b, count, counts, zdim, e->column % zdim);
-    GRID_SCATTER(b, a, count, counts, ydim, e->column / zdim);
-    st->entries = a; // five passes: the result is in the other array than it started
-    st->scratch = b;
-    size_t t = st->entry_capacity;
-    st->entry_capacity = st->scratch_capacity;
-    st->scratch_capacity = t;
-}
-
-static void put_sentinels(float *lo[3], float *hi[3], uint32_t *ids, size_t at, size_t count)
-{
-    for (size_t k = at; k < at + count; k++) {
-        for (int a = 0; a < 3; a++) {
-            lo[a][k] = INFINITY;
-            hi[a][k] = -INFINITY;
-        }
-        ids[k] = 0;
+    for (uint32_t k = 1; k < count; k++) {
+        float x = v[k];
+        uint32_t at = k;
+        for (; at > 0 && v[at - 1] > x; at--)
+            v[at] = v[at - 1];
+        v[at] = x;
     }
 }
 
-// The column range of a box on one axis (clamped to the grid, so monotone in the input).
-static inline void column_range(float lo, float hi, double origin, double inv, uint32_t top,
-                                uint32_t *from, uint32_t *to)
-{
-    double a = floor(((double)lo - origin) * inv), b = floor(((double)hi - origin) * inv);
-    *from = (uint32_t)fmin(fmax(a, 0.0), (double)top);
-    *to = (uint32_t)fmin(fmax(b, 0.0), (double)top);
-}
-
-// Steps 1 to 3's layout. Returns false when memory ran out.
-static bool build(const bpx_soa *s, grid_state *st)
+static void choose_params(const bpx_soa *s, grid_state *st, grid_params *p)
 {
     uint32_t n = s->n;
     float sample[SAMPLE];
+    float lo_min[3] = {INFINITY, INFINITY, INFINITY}, lo_max[3] = {-INFINITY, -INFINITY, -INFINITY};
     uint32_t taken = 0, stride = n / SAMPLE + 1;
-    for (uint32_t i = 0; i < n && taken < SAMPLE; i += stride)
-        if (!is_inert(s, i))
-            sample[taken++] = box_size(s, i);
-    qsort(sample, taken, sizeof(float), compare_float);
-    float limit = taken ? 4.0f * sample[taken / 2] : 0.0f;
-
-    if (!reserve_array((void **)&st->class_of, &st->class_capacity, n, 1))
-        return false;
-    float largest = 0.0f, lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-    st->small_count = st->big_count = 0;
-    for (uint32_t i = 0; i < n; i++) {
-        if (is_inert(s, i)) {
-            st->class_of[i] = 0;
+    for (uint32_t i = 0; i < n && taken < SAMPLE; i += stride) {
+        if (is_inert(s, i))
             continue;
-        }
-        float e = box_size(s, i);
-        st->class_of[i] = e > limit ? 2 : 1;
-        if (e > limit) {
-            st->big_count++;
-            continue;
-        }
-        st->small_count++;
-        largest = e > largest ? e : largest;
-        for (int a = 0; a < 2; a++) {
-            lo[a] = fminf(lo[a], s->lo[a + 1][i]);
-            hi[a] = fmaxf(hi[a], s->hi[a + 1][i]);
-        }
-    }
-    // Columns just over the largest small box (so rounding cannot put a box across 3), and no
-    // more of them than 4 per small box (so the column table stays O(n)).
-    double origin[2], span[2];
-    for (int a = 0; a < 2; a++) {
-        origin[a] = st->small_count ? (double)lo[a] : 0.0;
-        span[a] = st->small_count ? (double)hi[a] - (double)lo[a] : 0.0;
-    }
-    double budget = fmin(4.0 * st->small_count + 64.0, 65536.0); // also columns per axis
-    double side = fmax((double)largest * 1.001, sqrt(span[0] * span[1] / budget));
-    side = fmax(fmax(side, span[0] / budget), fmax(span[1] / budget, 1e-300));
-    double inv = 1.0 / side;
-    uint32_t dim[2];
-    for (int a = 0; a < 2; a++)
-        dim[a] = (uint32_t)fmin(floor(span[a] * inv) + 1.0, budget);
-
-    // Entries in id order, each with its column; then sorted by (column, min x).
-    size_t entries = 0;
-    for (uint32_t i = 0; i < n; i++)
-        if (st->class_of[i] == 1) {
-            uint32_t y0, y1, z0, z1;
-            column_range(s->lo[1][i], s->hi[1][i], origin[0], inv, dim[0] - 1, &y0, &y1);
-            column_range(s->lo[2][i], s->hi[2][i], origin[1], inv, dim[1] - 1, &z0, &z1);
-            entries += (size_t)(y1 - y0 + 1) * (z1 - z0 + 1);
-        }
-    uint32_t most_buckets = dim[0] > dim[1] ? dim[0] : dim[1];
-    most_buckets = most_buckets > 2048 ? most_buckets : 2048;
-    if (!reserve_array((void **)&st->entries, &st->entry_capacity, entries, sizeof(grid_entry)) ||
-        !reserve_array((void **)&st->scratch, &st->scratch_capacity, entries,
-                       sizeof(grid_entry)) ||
-        !reserve_array((void **)&st->column_start, &st->column_capacity, most_buckets + 1,
-                       sizeof(uint32_t)))
-        return false;
-    size_t at = 0;
-    for (uint32_t i = 0; i < n; i++) {
-        if (st->class_of[i] != 1)
-            continue;
-        grid_entry e = {{s->lo[0][i], s->lo[1][i], s->lo[2][i]},
-                        {s->hi[0][i], s->hi[1][i], s->hi[2][i]},
-                        bpx__float_key(s->lo[0][i]),
-                        i,
-                        0,
-                        0};
-        uint32_t y0, y1, z0, z1;
-        column_range(e.lo[1], e.hi[1], origin[0], inv, dim[0] - 1, &y0, &y1);
-        column_range(e.lo[2], e.hi[2], origin[1], inv, dim[1] - 1, &z0, &z1);
-        for (uint32_t y = y0; y <= y1; y++)
-            for (uint32_t z = z0; z <= z1; z++) {
-                e.column = y * dim[1] + z;
-                st->entries[at++] = e;
-            }
-    }
-    sort_entries(st, entries, dim[1], dim[0], st->column_start);
-
-    // The runs, a sentinel after each column.
-    size_t runs = 0;
-    for (size_t k = 0; k < entries; k++)
-        runs += k == 0 || st->entries[k].column != st->entries[k - 1].column;
-    if (!reserve_runs(st, entries + runs + PAD))
-        return false;
-    at = 0;
-    for (size_t k = 0; k < entries; k++) {
-        if (k > 0 && st->entries[k].column != st->entries[k - 1].column)
-            put_sentinels(st->lo, st->hi, st->run_ids, at++, 1);
+        sample[taken++] = box_size(s, i);
         for (int a = 0; a < 3; a++) {
-            st->lo[a][at] = st->entries[k].lo[a];
-            st->hi[a][at] = st->entries[k].hi[a];
+            lo_min[a] = fminf(lo_min[a], s->lo[a][i]);
+            lo_max[a] = fmaxf(lo_max[a], s->lo[a][i]);
         }
-        st->run_ids[at++] = st->entries[k].id;
     }
-    if (entries)
-        put_sentinels(st->lo, st->hi, st->run_ids, at++, 1);
-    put_sentinels(st->lo, st->hi, st->run_ids, at, PAD);
-    st->run_length = at;
+    if (st->have_stats)
+        for (int a = 0; a < 3; a++) {
+            lo_min[a] = st->bounds_lo[a];
+            lo_max[a] = st->bounds_hi[a];
+        }
+    if (!taken || !(lo_min[0] <= lo_max[0])) { // nothing live: any grid will do
+        for (int a = 0; a < 3; a++)
+            lo_min[a] = lo_max[a] = 0.0f;
+        sample[taken++] = 1.0f;
+    }
+    sort_floats(sample, taken);
 
-    // Big boxes first, then every small box, for the brute kernel.
-    if (st->big_count) {
-        if (!reserve_layout(st, n))
-            return false;
-        uint32_t big_at = 0, small_at = st->big_count;
-        for (uint32_t i = 0; i < n; i++) {
-            if (st->class_of[i] == 0)
-                continue;
-            uint32_t p = st->class_of[i] == 2 ? big_at++ : small_at++;
-            for (int a = 0; a < 3; a++) {
-                st->blo[a][p] = s->lo[a][i];
-                st->bhi[a][p] = s->hi[a][i];
-            }
-            st->layout_ids[p] = i;
-        }
-        put_sentinels(st->blo, st->bhi, st->layout_ids, small_at, 2 * PAD);
+    // Cells GRID_CELL_SIZES times the largest box size that keeps about GRID_SWEEP_BOXES boxes
+    // in one sweep (a column's cross-section, (s + e)^2, times an x reach e, the median size)
+    // at the scene's density; at least that times the median size.
+    double span[3], volume = 1.0, median = (double)sample[taken / 2];
+    for (int a = 0; a < 3; a++) {
+        span[a] = (double)lo_max[a] - (double)lo_min[a];
+        volume *= fmax(span[a], median);
     }
-    return true;
+    double density = volume > 0.0 ? (double)(n ? n : 1) / volume : 0.0;
+    double reach = fmax(median, 1e-30);
+    double cap = density > 0.0 ? (sqrt(GRID_SWEEP_BOXES / (density * reach)) - reach) /
+                                     GRID_CELL_SIZES
+                               : INFINITY;
+    double size = median;
+    for (uint32_t k = taken; k-- > taken / 2;)
+        if ((double)sample[k] <= cap) {
+            size = (double)sample[k];
+            break;
+        }
+    // Sizes even (the whole sample fits): last cycle's exact largest, so that no box goes up.
+    if ((double)sample[taken - 1] <= cap && st->have_stats && (double)st->max_extent <= cap)
+        size = fmax(size, (double)st->max_extent);
+    double side = GRID_CELL_SIZES * size;
+    // Cells representable (22 bits a coordinate), never zero, and not too many columns.
+    for (int a = 0; a < 3; a++)
+        side = fmax(side, span[a] / (double)(1u << (BPX_GRID_Q_BITS - 1)));
+    side = fmax(side, 1e-30);
+    double columns_max = fmin((double)(n / GRID_BOXES_PER_COLUMN) + 64.0, (double)(1u << 24));
+    while ((floor(span[1] / side) + 1.0) * (floor(span[2] / side) + 1.0) > columns_max)
+        side *= 1.25;
+
+    float inv = (float)(1.0 / side);
+    if (!(inv > 0.0f))
+        inv = 1e-38f;
+    for (int a = 0; a < 3; a++) {
+        p->origin[a] = lo_min[a];
+        p->inv[a] = inv;
+        double top = floor(span[a] / side);
+        p->top[a] = top < (double)((1u << BPX_GRID_Q_BITS) - 1)
+                        ? (uint32_t)top
+                        : (1u << BPX_GRID_Q_BITS) - 1;
+    }
+    // About 1024 fine x cells across the scene (exact power-of-two scaling, 24 bits at most).
+    p->fine_bits = 0;
+    while (p->fine_bits < 4 && (p->top[0] + 1) << (p->fine_bits + 1) <= 1024)
+        p->fine_bits++;
+    p->inv[0] = inv * (float)(1 << p->fine_bits);
+    if (!(p->inv[0] < INFINITY))
+        p->inv[0] = inv, p->fine_bits = 0;
+    p->top[0] = ((p->top[0] + 1) << p->fine_bits) - 1;
 }
+
+// The cell of coordinate v on one axis: monotone in v (rounding is), clamped to [0, top].
+static inline uint32_t cell_of(float v, float origin, float inv, uint32_t top)
+{
+    float x = (v - origin) * inv;
+    float t = (float)top; // exact: top < 2^24
+    x = x > 0.0f ? x : 0.0f;
+    x = x < t ? x : t;
+    return (uint32_t)x;
+}
+
+static void set_levels(grid_state *st)
+{
+    const grid_params *p = &st->params;
+    uint32_t first = 0;
+    for (int l = 0; l < LEVELS; l++) {
+        bpx_grid_level *lv = &st->layout.level[l];
+        lv->first_column = first;
+        lv->ny = (p->top[1] >> (2 * l)) + 1;
+        lv->nz = (p->top[2] >> (2 * l)) + 1;
+        first += lv->ny * lv->nz;
+    }
+    st->params.columns = first;
+}
+
+// ---------------------------------------------------------------------------------------------
+// 2. Keys, 4. scatter (tasks over chunks of box ids)
 
 typedef struct grid_job {
     bpx_world *world;
     grid_state *st;
-    bpx_sorted runs;
-    bpx_soa layout;
-    bpx_prune_rows_fn *sweep;
-    bpx_brute_rows_fn *brute;
+    bpx_soa soa;
+    bpx_grid_column_fn *column;
+    bpx_grid_big_fn *big;
 } grid_job;
 
-static void grid_task(int begin, int end, int worker, void *context)
+static void key_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
     grid_job *job = context;
+    grid_state *st = job->st;
+    const bpx_soa *s = &job->soa;
+    const grid_params *p = &st->params;
+    const bpx_grid_level *levels = st->layout.level;
+    uint32_t columns = p->columns;
+    int fine = p->fine_bits;
+    for (int c = begin; c < end; c++) {
+        grid_chunk *ch = &st->chunks[c];
+        uint32_t *hist = st->hist + (size_t)c * columns;
+        memset(hist, 0, sizeof(uint32_t) * columns);
+        memset(ch->level_count, 0, sizeof ch->level_count);
+        float lo_min[3] = {INFINITY, INFINITY, INFINITY};
+        float lo_max[3] = {-INFINITY, -INFINITY, -INFINITY};
+        float largest = 0.0f;
+        for (uint32_t i = ch->begin; i < ch->end; i++) {
+            float lo[3] = {s->lo[0][i], s->lo[1][i], s->lo[2][i]};
+            float hi[3] = {s->hi[0][i], s->hi[1][i], s->hi[2][i]};
+            if (!(lo[0] <= hi[0])) {
+                st->key[i] = BPX_GRID_INERT;
+                continue;
+            }
+            uint32_t ql[3], qh[3];
+            for (int a = 0; a < 3; a++) {
+                ql[a] = cell_of(lo[a], p->origin[a], p->inv[a], p->top[a]);
+                qh[a] = cell_of(hi[a], p->origin[a], p->inv[a], p->top[a]);
+            }
+            ql[0] >>= fine;
+            qh[0] >>= fine;
+            for (int a = 0; a < 3; a++) {
+                lo_min[a] = lo[a] < lo_min[a] ? lo[a] : lo_min[a];
+                lo_max[a] = lo[a] > lo_max[a] ? lo[a] : lo_max[a];
+                float e = hi[a] - lo[a];
+                largest = e > largest ? e : largest;
+            }
+            int l = 0;
+            while (l + 1 < LEVELS && ((qh[0] >> 2 * l) - (ql[0] >> 2 * l) > 1 ||
+                                      (qh[1] >> 2 * l) - (ql[1] >> 2 * l) > 1 ||
+                                      (qh[2] >> 2 * l) - (ql[2] >> 2 * l) > 1))
+                l++;
+            const bpx_grid_level *lv = &levels[l];
+            uint32_t y = ql[1] >> 2 * l, z = ql[2] >> 2 * l;
+            uint32_t dy = (qh[1] >> 2 * l) - y, dz = (qh[2] >> 2 * l) - z;
+            uint32_t column = lv->first_column + y * lv->nz + z;
+            st->key[i] = (uint32_t)l << 28 | dz << 27 | dy << 26 | column;
+            hist[column]++;
+            hist[column + dz] += dz;
+            hist[column + dy * lv->nz] += dy;
+            hist[column + dy * lv->nz + dz] += dy & dz;
+            ch->level_count[l]++;
+        }
+        for (int a = 0; a < 3; a++) {
+            ch->lo_min[a] = lo_min[a];
+            ch->lo_max[a] = lo_max[a];
+        }
+        ch->max_extent = largest;
+    }
+}
+
+static void scatter_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    grid_job *job = context;
+    grid_state *st = job->st;
+    const bpx_soa *s = &job->soa;
+    const grid_params *p = &st->params;
+    uint32_t windowed = (uint32_t)st->layout.windowed, columns = p->columns;
+    for (int c = begin; c < end; c++) {
+        const grid_chunk *ch = &st->chunks[c];
+        uint32_t *offset = st->hist + (size_t)c * columns;
+        for (uint32_t i = ch->begin; i < ch->end; i++) {
+            uint32_t key = st->key[i];
+            uint32_t l = bpx__grid_key_level(key);
+            if (l >= windowed) // big or inert
+                continue;
+            float lx = s->lo[0][i];
+            uint32_t cx = cell_of(lx, p->origin[0], p->inv[0], p->top[0]);
+            uint32_t spans = (key & BPX_GRID_SPAN_Y ? BPX_GRID_SPANS_Y : 0) |
+                             (key & BPX_GRID_SPAN_Z ? BPX_GRID_SPANS_Z : 0);
+            grid_entry e = {{lx, s->lo[1][i], s->lo[2][i]},
+                            {s->hi[0][i], s->hi[1][i], s->hi[2][i]},
+                            i,
+                            cx | (spans | BPX_GRID_HOME) << 24};
+            uint32_t column = bpx__grid_key_column(key), nz = st->layout.level[l].nz;
+            st->entries[offset[column]++] = e;
+            if (key & BPX_GRID_SPAN_Z) {
+                e.fx = cx | (spans | BPX_GRID_FIRST_Y) << 24;
+                st->entries[offset[column + 1]++] = e;
+            }
+            if (key & BPX_GRID_SPAN_Y) {
+                e.fx = cx | (spans | BPX_GRID_FIRST_Z) << 24;
+                st->entries[offset[column + nz]++] = e;
+                if (key & BPX_GRID_SPAN_Z) {
+                    e.fx = cx | spans << 24;
+                    st->entries[offset[column + nz + 1]++] = e;
+                }
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 5. Per column: sort by min x, write the SoA run (tasks over items of columns)
+
+// Sorts the m entries of a column by min x into r at offset `at`; x cells >> shift.
+static void sort_column(const grid_entry *ent, uint32_t m, grid_soa *r, size_t at, int shift)
+{
+    uint32_t *keys = r->keys + at, *ids = r->ids + at;
+    for (uint32_t t = 0; t < m; t++) {
+        keys[t] = bpx__float_key(ent[t].lo[0]);
+        ids[t] = t;
+    }
+    bool sorted = m <= 16 && bpx__insertion_sort(keys, ids, m, UINT64_MAX);
+    if (!sorted) {
+        // Fine x cells are min x quantised: bucketing on them leaves little to insertion sort.
+        uint32_t low = UINT32_MAX, high = 0;
+        for (uint32_t t = 0; t < m; t++) {
+            uint32_t fx = ent[t].fx & 0xffffffu;
+            low = fx < low ? fx : low;
+            high = fx > high ? fx : high;
+        }
+        uint32_t range = high - low + 1;
+        uint32_t *sk = r->scratch_keys + at, *si = r->scratch_ids + at;
+        if (range <= 2048 && range <= 8 * m) {
+            uint32_t counts[2049];
+            memset(counts, 0, sizeof(uint32_t) * (range + 1));
+            for (uint32_t t = 0; t < m; t++)
+                counts[(ent[t].fx & 0xffffffu) - low + 1]++;
+            for (uint32_t b = 0; b < range; b++)
+                counts[b + 1] += counts[b];
+            for (uint32_t t = 0; t < m; t++) {
+                uint32_t to = counts[(ent[t].fx & 0xffffffu) - low]++;
+                sk[to] = keys[t];
+                si[to] = t;
+            }
+            memcpy(keys, sk, sizeof(uint32_t) * m);
+            memcpy(ids, si, sizeof(uint32_t) * m);
+            sorted = bpx__insertion_sort(keys, ids, m, 4 * (uint64_t)m + 64);
+        }
+        if (!sorted)
+            bpx__radix_sort(keys, ids, sk, si, m);
+    }
+    for (uint32_t t = 0; t < m; t++) {
+        const grid_entry *x = &ent[ids[t]];
+        for (int a = 0; a < 3; a++) {
+            r->lo[a][at + t] = x->lo[a];
+            r->hi[a][at + t] = x->hi[a];
+        }
+        r->id[at + t] = x->id;
+        r->cx[at + t] = (x->fx & 0xffffffu) >> shift;
+        r->flags[at + t] = (uint8_t)(x->fx >> 24);
+    }
+}
+
+// The coarser levels' columns, into the shared positions (level 0 sorts as it tests).
+static void sort_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    grid_state *st = ((grid_job *)context)->st;
+    const bpx_grid_layout *g = &st->layout;
+    for (int item = begin; item < end; item++) {
+        int l = 0;
+        for (uint32_t c = st->item_column[item]; c < st->item_column[item + 1]; c++) {
+            while (l + 1 < g->windowed && c >= g->level[l + 1].first_column)
+                l++;
+            uint32_t s = st->column_start[c], e = st->column_start[c + 1];
+            if (l > 0 && e > s)
+                sort_column(st->entries + s, e - s, &st->positions, s,
+                            st->params.fine_bits + 2 * l);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 6. Tests
+
+static void test_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    grid_job *job = context;
+    grid_state *st = job->st;
     for (int b = begin; b < end; b++) {
         bpx_block *block = &job->world->blocks[b];
         block->hits.count = 0;
         block->tests = 0;
         block->status = BPX_OK;
-        if (b < job->st->sweep_blocks) {
-            job->sweep(&job->runs, block->row_begin, block->row_end, block);
+        if (b < st->item_count) {
+            const bpx_grid_layout *g = &st->layout;
+            grid_soa *own = &st->scratch[worker], *shared = &st->positions;
+            int l = 0;
+            for (uint32_t c = st->item_column[b]; c < st->item_column[b + 1]; c++) {
+                while (l + 1 < g->windowed && c >= g->level[l + 1].first_column)
+                    l++;
+                uint32_t s = st->column_start[c], e = st->column_start[c + 1];
+                if (s == e)
+                    continue;
+                size_t at = s;
+                grid_soa *r = shared;
+                if (l == 0) { // sorted here, while the entries are in cache
+                    at = 0;
+                    r = own;
+                    sort_column(st->entries + s, e - s, own, 0, st->params.fine_bits);
+                    pad_soa(own, e - s);
+                }
+                const bpx_grid_run run = {{r->lo[0] + at, r->lo[1] + at, r->lo[2] + at},
+                                          {r->hi[0] + at, r->hi[1] + at, r->hi[2] + at},
+                                          r->id + at,
+                                          r->cx + at,
+                                          r->flags + at,
+                                          e - s};
+                job->column(g, l, c, &run, block);
+                if (block->status != BPX_OK)
+                    break;
+            }
             continue;
         }
-        // Brute rows give layout positions: map them to ids.
-        job->brute(&job->layout, block->row_begin, block->row_end, block);
-        const uint32_t *ids = job->st->layout_ids;
-        for (size_t k = 0; k < block->hits.count; k++) {
-            uint32_t i = ids[block->hits.pairs[k].i], j = ids[block->hits.pairs[k].j];
-            block->hits.pairs[k] = i < j ? (bpx_pair){i, j} : (bpx_pair){j, i};
+        uint32_t k = (uint32_t)(b - st->item_count);
+        uint32_t box = k / st->big_per_box, part = k % st->big_per_box;
+        uint32_t stop = (job->soa.n + PAD - 1) / PAD * PAD;
+        uint32_t j0 = part * BIG_SPAN, j1 = j0 + BIG_SPAN < stop ? j0 + BIG_SPAN : stop;
+        if (j0 < j1)
+            job->big(&st->layout, box, j0, j1, block);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 7. Hits to (i, j) order
+
+typedef struct emit_job {
+    bpx_world *world;
+    grid_state *st;
+    int groups, buckets, items, j_passes, shift;
+    bpx_pair *to;     // the bucketed pairs
+    bpx_pair *other;  // scratch of the same length
+} emit_job;
+
+static void emit_range(const emit_job *job, int g, int *b0, int *b1)
+{
+    int blocks = job->world->block_count;
+    *b0 = (int)((int64_t)blocks * g / job->groups);
+    *b1 = (int)((int64_t)blocks * (g + 1) / job->groups);
+}
+
+static void emit_count_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    const emit_job *job = context;
+    for (int g = begin; g < end; g++) {
+        uint32_t *hist = job->st->emit_hist + (size_t)g * job->buckets;
+        memset(hist, 0, sizeof(uint32_t) * (size_t)job->buckets);
+        int b0, b1;
+        emit_range(job, g, &b0, &b1);
+        for (int b = b0; b < b1; b++) {
+            const bpx_pair_list *hits = &job->world->blocks[b].hits;
+            for (size_t k = 0; k < hits->count; k++)
+                hist[hits->pairs[k].i >> job->shift]++;
         }
     }
+}
+
+static void emit_scatter_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    const emit_job *job = context;
+    for (int g = begin; g < end; g++) {
+        uint32_t *offset = job->st->emit_hist + (size_t)g * job->buckets;
+        int b0, b1;
+        emit_range(job, g, &b0, &b1);
+        for (int b = b0; b < b1; b++) {
+            const bpx_pair_list *hits = &job->world->blocks[b].hits;
+            for (size_t k = 0; k < hits->count; k++)
+                job->to[offset[hits->pairs[k].i >> job->shift]++] = hits->pairs[k];
+        }
+    }
+}
+
+static inline bool pair_less(bpx_pair x, bpx_pair y)
+{
+    return x.i < y.i || (x.i == y.i && x.j < y.j);
+}
+
+// Sorts one bucket of src by (i, j): LSD counting passes on j's digits, then on i's low `shift`
+// bits (the bucket shares the rest). The result is in dst when the pass count is odd, else in
+// src: the same for every bucket, as the caller expects.
+static void sort_bucket(bpx_pair *src, bpx_pair *dst, uint32_t count, int j_passes, int shift)
+{
+    int passes = j_passes + (shift > 0);
+    bool in_dst = passes % 2 == 1;
+    if (count <= 32 || passes == 0) {
+        for (uint32_t k = 1; k < count; k++) {
+            bpx_pair x = src[k];
+            uint32_t at = k;
+            for (; at > 0 && pair_less(x, src[at - 1]); at--)
+                src[at] = src[at - 1];
+            src[at] = x;
+        }
+        if (in_dst)
+            memcpy(dst, src, sizeof(bpx_pair) * count);
+        return;
+    }
+    enum { DIGITS = 1 << EMIT_SHIFT };
+    uint32_t counts[DIGITS + 1];
+    for (int pass = 0; pass < passes; pass++) {
+        bool on_i = pass == j_passes;
+        int at = on_i ? 0 : pass * EMIT_SHIFT;
+        uint32_t mask = on_i ? (1u << shift) - 1 : DIGITS - 1;
+        memset(counts, 0, sizeof(uint32_t) * (mask + 2));
+        for (uint32_t k = 0; k < count; k++)
+            counts[(((on_i ? src[k].i : src[k].j) >> at) & mask) + 1]++;
+        for (uint32_t d = 0; d <= mask; d++)
+            counts[d + 1] += counts[d];
+        for (uint32_t k = 0; k < count; k++)
+            dst[counts[((on_i ? src[k].i : src[k].j) >> at) & mask]++] = src[k];
+        bpx_pair *t = src;
+        src = dst;
+        dst = t;
+    }
+}
+
+static void emit_sort_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    const emit_job *job = context;
+    const uint32_t *start = job->st->bucket_start;
+    for (int item = begin; item < end; item++) {
+        int b0 = (int)((int64_t)job->buckets * item / job->items);
+        int b1 = (int)((int64_t)job->buckets * (item + 1) / job->items);
+        for (int b = b0; b < b1; b++)
+            sort_bucket(job->to + start[b], job->other + start[b], start[b + 1] - start[b],
+                        job->j_passes, job->shift);
+    }
+}
+
+static bpx_status emit_sorted(bpx_world *w, grid_state *st)
+{
+    size_t total = 0;
+    bpx_status status = bpx__emitter_total(w, &total);
+    if (status != BPX_OK)
+        return status;
+    uint64_t tests = 0;
+    for (int k = 0; k < w->block_count; k++)
+        tests += w->blocks[k].tests;
+    if (total > UINT32_MAX)
+        return BPX_ERR_OUT_OF_MEMORY; // bucket offsets are 32-bit
+    uint32_t n = w->n;
+    // Buckets of 2^shift ids holding about EMIT_BUCKET_PAIRS pairs (dense pair sets: fewer ids).
+    int shift = EMIT_SHIFT;
+    while (shift > 0 && (double)total * (double)(1u << shift) > (double)EMIT_BUCKET_PAIRS * n)
+        shift--;
+    int buckets = n ? (int)(((n - 1) >> shift) + 1) : 1;
+    int groups = w->block_count < EMIT_GROUPS ? w->block_count : EMIT_GROUPS;
+    int j_passes = 1; // 11-bit digits of the largest j
+    for (uint32_t top = n ? n - 1 : 0; EMIT_SHIFT * j_passes < 32 && top >> (EMIT_SHIFT * j_passes);)
+        j_passes++;
+    if (!bpx__list_reserve(&st->a, total + total / 4) ||
+        !bpx__list_reserve(&st->b, total + total / 4) ||
+        !reserve_array((void **)&st->emit_hist, &st->emit_hist_capacity,
+                       (size_t)groups * (size_t)buckets, sizeof(uint32_t)) ||
+        !reserve_array((void **)&st->bucket_start, &st->bucket_capacity, (size_t)buckets + 1,
+                       sizeof(uint32_t)))
+        return BPX_ERR_OUT_OF_MEMORY;
+    emit_job job = {w,
+                    st,
+                    groups,
+                    buckets,
+                    buckets < EMIT_ITEMS ? buckets : EMIT_ITEMS,
+                    j_passes,
+                    shift,
+                    st->a.pairs,
+                    st->b.pairs};
+    if (total) {
+        bpx__parallel_for(&w->executor, emit_count_task, groups, &job);
+        uint32_t at = 0;
+        for (int b = 0; b < buckets; b++) {
+            st->bucket_start[b] = at;
+            for (int g = 0; g < groups; g++) {
+                uint32_t *slot = &st->emit_hist[(size_t)g * buckets + b];
+                uint32_t c = *slot;
+                *slot = at;
+                at += c;
+            }
+        }
+        st->bucket_start[buckets] = at;
+        bpx__parallel_for(&w->executor, emit_scatter_task, groups, &job);
+        bpx__parallel_for(&w->executor, emit_sort_task, job.items, &job);
+    }
+    // Block 0 takes the ordered list (a swap, not a copy); its old list becomes scratch.
+    bpx_pair_list *result = (j_passes + (shift > 0)) % 2 == 1 ? &st->b : &st->a;
+    result->count = total;
+    for (int k = 0; k < w->block_count; k++) {
+        w->blocks[k].hits.count = 0;
+        w->blocks[k].tests = 0;
+    }
+    bpx_pair_list block0 = w->blocks[0].hits;
+    w->blocks[0].hits = *result;
+    w->blocks[0].tests = tests;
+    *result = block0;
+    result->count = 0;
+    return BPX_OK;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The cycle
+
+// Work items: column ranges of about equal positions (empty columns count a little).
+static void plan_items(grid_state *st, uint32_t columns, uint32_t positions)
+{
+    uint64_t cost_total = (uint64_t)positions + columns / 8;
+    uint64_t target = cost_total / ITEMS_MAX + 1;
+    if (target < ITEM_ENTRIES)
+        target = ITEM_ENTRIES;
+    int items = 0;
+    uint64_t cost = 0;
+    st->item_column[0] = 0;
+    for (uint32_t c = 0; c < columns; c++) {
+        cost += (st->column_start[c + 1] - st->column_start[c]) + ((c & 7) == 0);
+        if (cost >= target && items + 1 < ITEMS_MAX) {
+            st->item_column[++items] = c + 1;
+            cost = 0;
+        }
+    }
+    if (st->item_column[items] != columns || items == 0)
+        st->item_column[++items] = columns;
+    st->item_count = items;
 }
 
 static bpx_status grid_compare(bpx_world *w)
@@ -430,76 +846,155 @@ static bpx_status grid_compare(bpx_world *w)
         *st = (grid_state){0};
         w->backend_state = st;
     }
+    uint32_t n = w->n;
+    grid_kernels kernels = kernels_for(w->simd);
+    grid_job job = {w, st, bpx__world_soa(w), kernels.column, kernels.big};
 
-    if (w->n > st->counts_capacity || !st->counts) {
-        bpx__free(st->counts, ((size_t)st->counts_capacity + 1) * sizeof(uint32_t));
-        st->counts_capacity = w->n;
-        if (!(st->counts = bpx__alloc(((size_t)w->n + 1) * sizeof(uint32_t))))
-            return BPX_ERR_OUT_OF_MEMORY;
+    // 1. Parameters, levels, chunks.
+    choose_params(&job.soa, st, &st->params);
+    set_levels(st);
+    uint32_t columns = st->params.columns;
+    int workers = w->executor.worker_count > 1 ? w->executor.worker_count : 1;
+    int chunks = 2 * workers;
+    chunks = chunks < CHUNKS_MAX ? chunks : CHUNKS_MAX;
+    if ((uint32_t)chunks > n / 4096 + 1)
+        chunks = (int)(n / 4096 + 1);
+    st->chunk_count = chunks;
+    for (int c = 0; c < chunks; c++) {
+        st->chunks[c].begin = (uint32_t)((uint64_t)n * c / chunks);
+        st->chunks[c].end = (uint32_t)((uint64_t)n * (c + 1) / chunks);
     }
-    bpx_soa soa = bpx__world_soa(w);
-    if (!build(&soa, st))
+    size_t padded = ((size_t)n + PAD - 1) / PAD * PAD + PAD;
+    if (!reserve_array((void **)&st->key, &st->key_capacity, padded, sizeof(uint32_t)) ||
+        !reserve_array((void **)&st->hist, &st->hist_capacity, (size_t)chunks * columns,
+                       sizeof(uint32_t)))
         return BPX_ERR_OUT_OF_MEMORY;
 
-    // Work items: runs of sweep rows, then runs of big-box rows; laid out anew each cycle
-    // (the output order never depends on it).
-    uint32_t sweep_rows = (uint32_t)st->run_length;
-    st->sweep_blocks = (int)((sweep_rows + ROWS_PER_BLOCK - 1) / ROWS_PER_BLOCK);
-    int big_blocks = (int)((st->big_count + BIG_ROWS_PER_BLOCK - 1) / BIG_ROWS_PER_BLOCK);
-    int blocks = st->sweep_blocks + big_blocks;
-    if (blocks == 0)
-        blocks = 1; // an empty block 0 carries the (empty) result
+    // 2. Keys.
+    bpx__parallel_for(&w->executor, key_task, chunks, &job);
+
+    // 3. Levels: big from the top while few boxes; the rest in columns.
+    uint32_t level_count[LEVELS] = {0};
+    float lo_min[3] = {INFINITY, INFINITY, INFINITY}, lo_max[3] = {-INFINITY, -INFINITY, -INFINITY};
+    float largest = 0.0f;
+    for (int c = 0; c < chunks; c++) {
+        const grid_chunk *ch = &st->chunks[c];
+        for (int l = 0; l < LEVELS; l++)
+            level_count[l] += ch->level_count[l];
+        for (int a = 0; a < 3; a++) {
+            lo_min[a] = fminf(lo_min[a], ch->lo_min[a]);
+            lo_max[a] = fmaxf(lo_max[a], ch->lo_max[a]);
+        }
+        largest = fmaxf(largest, ch->max_extent);
+    }
+    st->have_stats = lo_min[0] <= lo_max[0];
+    for (int a = 0; a < 3; a++) {
+        st->bounds_lo[a] = lo_min[a];
+        st->bounds_hi[a] = lo_max[a];
+    }
+    st->max_extent = largest;
+    uint32_t big_limit = n / 16384 > 16 ? n / 16384 : 16, big = 0;
+    int windowed = LEVELS;
+    while (windowed > 0 && big + level_count[windowed - 1] <= big_limit)
+        big += level_count[--windowed];
+    bpx_grid_layout *g = &st->layout;
+    g->windowed = windowed;
+    for (int l = 0; l < LEVELS; l++)
+        g->level[l].count = level_count[l];
+    uint32_t wcolumns = windowed < LEVELS ? g->level[windowed].first_column : columns;
+    if (!reserve_array((void **)&st->column_start, &st->column_capacity, (size_t)wcolumns + 1,
+                       sizeof(uint32_t)) ||
+        !reserve_array((void **)&st->big_ids, &st->big_capacity, big, sizeof(uint32_t)))
+        return BPX_ERR_OUT_OF_MEMORY;
+    size_t at = 0;
+    uint32_t level1 = windowed > 1 ? g->level[1].first_column : wcolumns, longest = 0;
+    for (uint32_t c = 0; c < wcolumns; c++) {
+        st->column_start[c] = (uint32_t)at;
+        for (int ch = 0; ch < chunks; ch++) {
+            uint32_t *slot = &st->hist[(size_t)ch * columns + c];
+            uint32_t count = *slot;
+            *slot = (uint32_t)at;
+            at += count;
+        }
+        if (at > UINT32_MAX - 2 * PAD)
+            return BPX_ERR_OUT_OF_MEMORY; // positions are 32-bit
+        if (c < level1 && at - st->column_start[c] > longest)
+            longest = (uint32_t)(at - st->column_start[c]);
+    }
+    st->column_start[wcolumns] = (uint32_t)at;
+    uint32_t positions = (uint32_t)at;
+    // Coarser runs in shared positions (indexed like the entries; level 0's part untouched),
+    // level 0's in each worker's scratch, one column at a time.
+    bool coarse = positions > st->column_start[level1];
+    if (!reserve_array((void **)&st->entries, &st->entry_capacity, positions,
+                       sizeof(grid_entry)) ||
+        (coarse && !reserve_soa(&st->positions, (size_t)positions + PAD)))
+        return BPX_ERR_OUT_OF_MEMORY;
+    for (int k = 0; k < workers && k < WORKERS_MAX; k++)
+        if (!reserve_soa(&st->scratch[k], (size_t)longest + PAD))
+            return BPX_ERR_OUT_OF_MEMORY;
+    if (big) {
+        uint32_t k = 0;
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t key = st->key[i];
+            if (key != BPX_GRID_INERT && bpx__grid_key_level(key) >= (uint32_t)windowed)
+                st->big_ids[k++] = i;
+        }
+    }
+    for (size_t k = n; k < padded; k++)
+        st->key[k] = BPX_GRID_INERT;
+
+    // 4. Scatter; 5. sort the columns.
+    bpx__parallel_for(&w->executor, scatter_task, chunks, &job);
+    plan_items(st, wcolumns, positions);
+    if (coarse) {
+        pad_soa(&st->positions, positions);
+        bpx__parallel_for(&w->executor, sort_task, st->item_count, &job);
+    }
+
+    // 6. Tests (level 0's columns sorted on the way).
+    const grid_soa *r = &st->positions;
+    for (int a = 0; a < 3; a++) {
+        g->lo[a] = r->lo[a];
+        g->hi[a] = r->hi[a];
+    }
+    g->id = r->id;
+    g->cx = r->cx;
+    g->flags = r->flags;
+    g->column_start = st->column_start;
+    g->boxes = job.soa;
+    g->big_ids = st->big_ids;
+    g->big_count = big;
+    g->key = st->key;
+    st->big_per_box = (uint32_t)((((size_t)n + PAD - 1) / PAD * PAD + BIG_SPAN - 1) / BIG_SPAN);
+    if (!st->big_per_box)
+        st->big_per_box = 1;
+    st->big_items = (int)(big * st->big_per_box);
+    int blocks = st->item_count + st->big_items;
     bpx_status status = bpx__emitter_reserve_blocks(w, blocks);
     if (status != BPX_OK)
         return status;
-    for (int b = 0; b < blocks; b++) {
-        bool sweep = b < st->sweep_blocks;
-        uint32_t per = sweep ? ROWS_PER_BLOCK : BIG_ROWS_PER_BLOCK;
-        uint32_t limit = sweep ? sweep_rows : st->big_count;
-        uint32_t first = (uint32_t)(sweep ? b : b - st->sweep_blocks) * per;
-        w->blocks[b].row_begin = first < limit ? first : limit;
-        w->blocks[b].row_end = first + per < limit ? first + per : limit;
-    }
     w->block_count = blocks;
     w->planned_n = UINT32_MAX; // the layout is this backend's own
-
-    // Blocks cover different rows each cycle; give every one room for twice the largest
-    // block's hits of the last cycle, so the sweep does not grow lists as the scene drifts.
-    for (int b = 0; b < blocks; b++)
-        if (!bpx__list_reserve(&w->blocks[b].hits, 2 * st->most_block_hits))
+    // Room for about last cycle's hits per block, so coherent cycles do not grow lists.
+    if ((size_t)blocks > st->block_hits_capacity) {
+        size_t old = st->block_hits_capacity, cap = (size_t)blocks + (size_t)blocks / 2;
+        if (!bpx__grow((void **)&st->block_hits, old * sizeof(size_t), cap * sizeof(size_t)))
             return BPX_ERR_OUT_OF_MEMORY;
-
-    grid_job job = {
-        w,
-        st,
-        {{st->lo[0], st->lo[1], st->lo[2]},
-         {st->hi[0], st->hi[1], st->hi[2]},
-         st->run_ids,
-         (uint32_t)st->run_length},
-        {{st->blo[0], st->blo[1], st->blo[2]},
-         {st->bhi[0], st->bhi[1], st->bhi[2]},
-         st->big_count + st->small_count},
-        bpx__prune_rows_for(w->simd),
-        bpx__brute_rows_for(w->simd),
-    };
-    bpx__parallel_for(&w->executor, grid_task, blocks, &job);
-    st->most_block_hits = 0;
+        memset(st->block_hits + old, 0, (cap - old) * sizeof(size_t));
+        st->block_hits_capacity = cap;
+    }
+    for (int b = 0; b < blocks; b++) {
+        size_t want = st->block_hits[b];
+        if (!bpx__list_reserve(&w->blocks[b].hits, want + want / 4 + 64))
+            return BPX_ERR_OUT_OF_MEMORY;
+    }
+    bpx__parallel_for(&w->executor, test_task, blocks, &job);
     for (int b = 0; b < blocks; b++)
-        if (w->blocks[b].hits.count > st->most_block_hits)
-            st->most_block_hits = w->blocks[b].hits.count;
-    status = bpx__emitter_sort_blocks(w, &st->a, &st->b, st->counts);
-    if (status != BPX_OK)
-        return status;
+        st->block_hits[b] = w->blocks[b].hits.count;
 
-    // A pair sharing several columns was found in each: keep one of each.
-    bpx_pair_list *out = &w->blocks[0].hits;
-    size_t kept = 0;
-    for (size_t k = 0; k < out->count; k++)
-        if (kept == 0 || out->pairs[k].i != out->pairs[kept - 1].i ||
-            out->pairs[k].j != out->pairs[kept - 1].j)
-            out->pairs[kept++] = out->pairs[k];
-    out->count = kept;
-    return BPX_OK;
+    // 7. Hits to (i, j) order.
+    return emit_sorted(w, st);
 }
 
 static bool grid_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)
@@ -510,8 +1005,8 @@ static bool grid_query(const bpx_world_def *def, const char **reason, char *deta
         *reason = "SIMD width not supported here";
         return false;
     }
-    snprintf(detail, size, "columns in y, z swept along x, big boxes apart, %s, threads",
-             bpx_simd_name(simd));
+    snprintf(detail, size, "hierarchical columns in y, z swept along x, big boxes apart, %s, "
+             "threads", bpx_simd_name(simd));
     return true;
 }
 

@@ -1,0 +1,101 @@
+// bpx bench: what cmd_bench.c (random scenes at scale), bench_table2.c (the paper's scenario),
+// bench_run.c (timing one variant) and bench_plot.c (the SVG) share.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include <bpx/bpx.h>
+
+#include "cli.h"
+
+enum { BENCH_MAX_VARIANTS = 48, BENCH_MAX_SIZES = 16, BENCH_NAME_SIZE = 48 };
+
+// One row of a table: a bpx backend at a SIMD width and thread count, or a peer library.
+typedef struct bench_variant {
+    int peer;           // index into bench/peers/peers.h, or -1 for a bpx backend
+    bpx_backend backend;
+    bpx_simd simd;
+    int threads;
+    bool centres;       // bpx: the paper's two-phase updater (extents once, centres per cycle)
+} bench_variant;
+
+// "prune 2t", "brute avx512 1t", "opencl centres", "bullet-dbvt".
+void bench_variant_name(const bench_variant *v, char *out, size_t size);
+
+// The cycles a variant replays. Either boxes (frames[f]) or the two-phase form (minima once,
+// centres per frame); peers get boxes rebuilt from the latter outside the timed region.
+typedef struct bench_frames {
+    uint32_t n;
+    int count;              // distinct frames
+    bpx_box *const *boxes;  // [count] frames of n boxes, or NULL
+    const float *minima;    // 3n origin-centred minima (two-phase), or NULL
+    const float *centres;   // count * 3n centres (two-phase)
+    bool once;              // play frames 0..count-1 once (cold cycle first); else ping-pong
+                            // 0..count-1..1.. forever, each step one coherent move
+    float bounds_min[3], bounds_max[3]; // contain every box of every frame (quantising peers)
+    const uint64_t *pairs;  // exact pair count per frame, to check every variant against; or NULL
+} bench_frames;
+
+typedef struct bench_budget {
+    double seconds; // timed cycles stop after this much time (ping-pong frames)
+    int max_cycles;
+    int warmup;     // untimed cycles after the cold one (ping-pong frames)
+} bench_budget;
+
+typedef struct bench_result {
+    int cycles;                         // timed
+    double cold_us;                     // the first cycle of a fresh world or peer
+    double mean_us, median_us, p99_us, min_us;
+    double pairs;                       // mean reported per timed cycle
+    double exact_pairs;                 // peers: mean pairs whose exact boxes overlap
+    int mismatches;                     // cycles whose exact pairs differ from frames->pairs
+    unsigned ran;                       // bpx: 1 << the backends the timed cycles ran (auto)
+    int rebuilt;                        // sap: timed cycles that rebuilt instead of mending
+    double rebuilt_us, mended_us;       // sap: mean us of those, and of the mended ones
+    double in_us, out_us, device_us;    // opencl: device-clock means per timed cycle
+    double bytes_in, bytes_out;
+} bench_result;
+
+// The frame a cycle plays.
+int bench_frame_at(const bench_frames *frames, int cycle);
+
+// Times one variant. samples needs room for budget->max_cycles (or frames->count) doubles.
+// Returns 0, or prints the error and returns -1.
+int bench_run(const bench_variant *v, const bench_frames *frames, const bench_budget *budget,
+              double *samples, bench_result *out);
+
+// The bench's Markdown goes to stdout and, with --out, to DIR/bench.md as well.
+void bench_set_markdown_copy(FILE *file);
+void bench_printf(const char *fmt, ...) CLI_PRINTF(1, 2);
+
+// A progress line on stderr when it is a terminal (erased by bench_progress(NULL)).
+void bench_progress(const char *fmt, ...) CLI_PRINTF(1, 2);
+
+// The machine line: CPU model, CPUs, widest SIMD, threads, bpx version.
+void bench_print_machine(int threads);
+
+// One series of the plot: a variant's median per size (NAN where it did not run).
+typedef struct bench_series {
+    char name[BENCH_NAME_SIZE];
+    bool peer;
+    double median_us[BENCH_MAX_SIZES];
+} bench_series;
+
+// Writes a log-log SVG of time per cycle against n. Returns 0, or -1 if the file can't be written.
+int bench_plot_svg(const char *path, const char *title, const uint32_t *sizes, int size_count,
+                   const bench_series *series, int series_count);
+
+// --table2: the paper's Table 2 on the paper's scenario; CSV rows to csv if not NULL.
+typedef struct bench_table2_options {
+    int threads;
+    int cycles;
+    uint64_t seed;
+    bool (*wanted)(const bench_variant *v, const void *context); // the --backend filter
+    const void *wanted_context;
+    FILE *csv;
+} bench_table2_options;
+int bench_table2(const bench_table2_options *o);
