@@ -431,6 +431,41 @@ static void test_changing_n(void)
     duo_free(&d);
 }
 
+// A scene at rest (every box shifts by at most 0.001, inside its fat box) where a few boxes jump
+// a box width each cycle, then an eighth of them a fifth of that, then all of them a box width:
+// the lists mend box by box, then all at once, then (within budget or not); every cycle exact.
+static void test_resting_with_jumps(void)
+{
+    enum { n = 3000, cycles = 36 };
+    duo d;
+    duo_init(&d, 1);
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, 101, boxes);
+    scene_rng r;
+    scene_rng_seed(&r, 101);
+    check_set_seed(101);
+    for (int cycle = 0; cycle < cycles; cycle++) {
+        check_set_context("resting with jumps cycle=%d", cycle);
+        uint32_t jumping = cycle < 12 ? 5 : cycle < 24 ? n / 8 : n;
+        scene_move(boxes, n, 0.001f, &r);
+        for (uint32_t k = 0; k < jumping && cycle > 0; k++) {
+            uint32_t i = jumping == n ? k : scene_rng_below(&r, n);
+            for (int a = 0; a < 3; a++) {
+                float reach = jumping == 5 ? 1.0f : 0.2f; // within the move budget
+                float step = scene_rng_range(&r, -reach, reach);
+                boxes[i].min[a] += step;
+                boxes[i].max[a] += step;
+            }
+        }
+        bool cold = duo_step(&d, boxes, n);
+        if (cycle > 0 && cycle < 24)
+            CHECK_MSG(!cold, "%u boxes jumping: rebuilt", jumping);
+    }
+    CHECK(d.want.count > 0);
+    free(boxes);
+    duo_free(&d);
+}
+
 static bool pair_less(bpx_pair a, bpx_pair b)
 {
     return a.i < b.i || (a.i == b.i && a.j < b.j);
@@ -656,6 +691,7 @@ int main(void)
         {"all overlap", test_all_overlap},     {"ulp steps", test_ulp_steps},
         {"extreme touches", test_extreme_touches},
         {"changing n", test_changing_n},       {"objects", test_objects},
+        {"resting with jumps", test_resting_with_jumps},
         {"allocation failure", test_allocation_failure},
     };
     for (int workers = 1; workers <= 3; workers += 2) {

@@ -78,11 +78,11 @@ void bench_progress(const char *fmt, ...) CLI_PRINTF(1, 2);
 // The machine line: CPU model, CPUs, widest SIMD, threads, bpx version.
 void bench_print_machine(int threads);
 
-// One series of the plot: a variant's median per size (NAN where it did not run).
+// One series of the plot: a variant's mean us per cycle per size (NAN where it did not run).
 typedef struct bench_series {
     char name[BENCH_NAME_SIZE];
     bool peer;
-    double median_us[BENCH_MAX_SIZES];
+    double us[BENCH_MAX_SIZES];
 } bench_series;
 
 // Writes a log-log SVG of time per cycle against n. Returns 0, or -1 if the file can't be written.

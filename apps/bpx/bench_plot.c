@@ -24,9 +24,9 @@ int bench_plot_svg(const char *path, const char *title, const uint32_t *sizes, i
     double y_lo = INFINITY, y_hi = -INFINITY;
     for (int s = 0; s < series_count; s++)
         for (int k = 0; k < size_count; k++)
-            if (isfinite(series[s].median_us[k]) && series[s].median_us[k] > 0) {
-                y_lo = fmin(y_lo, floor(log10(series[s].median_us[k])));
-                y_hi = fmax(y_hi, ceil(log10(series[s].median_us[k])));
+            if (isfinite(series[s].us[k]) && series[s].us[k] > 0) {
+                y_lo = fmin(y_lo, floor(log10(series[s].us[k])));
+                y_hi = fmax(y_hi, ceil(log10(series[s].us[k])));
             }
     if (!isfinite(y_lo) || size_count < 1)
         y_lo = 0, y_hi = 1;
@@ -67,7 +67,7 @@ int bench_plot_svg(const char *path, const char *title, const uint32_t *sizes, i
             "stroke=\"#444\"/>\n"
             "<text x=\"%.1f\" y=\"%d\" text-anchor=\"middle\">boxes n</text>\n"
             "<text transform=\"translate(18,%.1f) rotate(-90)\" text-anchor=\"middle\">"
-            "median us per cycle</text>\n",
+            "mean us per cycle</text>\n",
             px0, py1, px1 - px0, py0 - py1, (px0 + px1) / 2, HEIGHT - 12, (py0 + py1) / 2);
 
     for (int s = 0; s < series_count; s++) {
@@ -76,15 +76,15 @@ int bench_plot_svg(const char *path, const char *title, const uint32_t *sizes, i
         fprintf(f, "<polyline fill=\"none\" stroke=\"%s\" stroke-width=\"2\"%s points=\"", colour,
                 dash);
         for (int k = 0; k < size_count; k++)
-            if (isfinite(series[s].median_us[k]) && series[s].median_us[k] > 0)
+            if (isfinite(series[s].us[k]) && series[s].us[k] > 0)
                 fprintf(f, "%.1f,%.1f ", map(sizes[k], x_lo, x_hi, px0, px1),
-                        map(series[s].median_us[k], y_lo, y_hi, py0, py1));
+                        map(series[s].us[k], y_lo, y_hi, py0, py1));
         fprintf(f, "\"/>\n");
         for (int k = 0; k < size_count; k++)
-            if (isfinite(series[s].median_us[k]) && series[s].median_us[k] > 0)
+            if (isfinite(series[s].us[k]) && series[s].us[k] > 0)
                 fprintf(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"3\" fill=\"%s\"/>\n",
                         map(sizes[k], x_lo, x_hi, px0, px1),
-                        map(series[s].median_us[k], y_lo, y_hi, py0, py1), colour);
+                        map(series[s].us[k], y_lo, y_hi, py0, py1), colour);
         double ly = TOP + 10 + 18.0 * s;
         fprintf(f,
                 "<line x1=\"%d\" y1=\"%.1f\" x2=\"%d\" y2=\"%.1f\" stroke=\"%s\" "

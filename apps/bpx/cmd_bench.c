@@ -2,10 +2,11 @@
 // run: the paper's Table 2 on its own scenario (bench_table2.c), then random scenes at scale.
 // SPDX-License-Identifier: MIT
 //
-// Scale scenes: per size, a random scene at constant density (uniform sizes, or a heavy-tailed
-// mix) moved coherently into a few frames that every variant replays in the same ping-pong order
-// (bench_run.c). Speed claims are ratios of medians measured in this same run. Every cycle's pair
-// count is checked against the frame's exact count; a mismatch makes the run fail.
+// Scale scenes: per size, a random scene at constant density (uniform sizes, a heavy-tailed mix,
+// or uniform boxes nearly at rest) moved coherently into a few frames that every variant replays
+// in the same ping-pong order (bench_run.c). Speed claims are ratios of means (as the paper's)
+// measured in this same run. Every cycle's pair count is checked against the frame's exact
+// count; a mismatch makes the run fail.
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <math.h>
@@ -350,7 +351,7 @@ static void print_link_table(const link_row *rows, int count)
     }
 }
 
-// Speed-up of b over a (a's median / b's), or NAN where either is missing.
+// Speed-up of b over a (a / b), or NAN where either is missing.
 static double ratio(double a, double b)
 {
     return a > 0 && b > 0 ? a / b : NAN;
@@ -395,7 +396,7 @@ static bench_series *series_for(scale_state *st, int scene, const bench_variant 
     snprintf(s->name, sizeof s->name, "%s", name);
     s->peer = v->peer >= 0;
     for (int k = 0; k < BENCH_MAX_SIZES; k++)
-        s->median_us[k] = NAN;
+        s->us[k] = NAN;
     return s;
 }
 
@@ -431,7 +432,7 @@ static int run_size(scale_state *st, int scene, int size_index)
     for (int v = 0; v < count; v++) {
         char name[BENCH_NAME_SIZE];
         bench_variant_name(&variants[v], name, sizeof name);
-        double m = results[v].median_us;
+        double m = results[v].mean_us;
         if (variants[v].peer >= 0 && !(m >= peer_us)) { // the first peer, or a faster one
             peer_us = m;
             snprintf(st->summary[scene][size_index].peer, BENCH_NAME_SIZE, "%s", name);
@@ -467,12 +468,12 @@ static int run_size(scale_state *st, int scene, int size_index)
         st->mismatches += r->mismatches;
         bench_printf("| %s | %u | %s | %.1f | %.1f | %.2f | %.2f | %.2f |", scene_names[scene], n,
                      name, r->exact_pairs, r->cold_us, r->mean_us, r->median_us, r->p99_us);
-        print_ratio(ratio(sap_us, r->median_us));
-        print_ratio(ratio(peer_us, r->median_us));
+        print_ratio(ratio(sap_us, r->mean_us));
+        print_ratio(ratio(peer_us, r->mean_us));
         bench_printf(" %s |\n", check);
         bench_series *s = series_for(st, scene, var);
         if (s && var->backend != BPX_BACKEND_REFERENCE)
-            s->median_us[size_index] = r->median_us;
+            s->us[size_index] = r->mean_us;
         if (var->peer < 0 && var->backend == BPX_BACKEND_OPENCL && st->link_count < MAX_LINK_ROWS)
             st->links[st->link_count++] = (link_row){scene_names[scene], n, var->centres, *r};
         if (st->csv)
@@ -482,8 +483,8 @@ static int run_size(scale_state *st, int scene, int size_index)
                                                                 ? bpx_simd_best()
                                                                 : var->simd),
                     var->threads, r->cycles, r->pairs, r->exact_pairs, r->cold_us, r->mean_us,
-                    r->median_us, r->p99_us, r->min_us, ratio(sap_us, r->median_us),
-                    ratio(peer_us, r->median_us), r->mismatches);
+                    r->median_us, r->p99_us, r->min_us, ratio(sap_us, r->mean_us),
+                    ratio(peer_us, r->mean_us), r->mismatches);
     }
     fflush(stdout);
     return 0;
@@ -499,7 +500,7 @@ static int run_scale(scale_state *st)
                  "world (peers: their creation with the first frame), then warm-up, then timed\n"
                  "cycles for %.2f s (at least one); us per cycle (bpx: set_boxes + collide;\n"
                  "peers: move every proxy + their pair update). vs sap / vs fastest peer: their\n"
-                 "median over this row's. check: every cycle's pairs against the exact count\n"
+                 "mean over this row's (means, as the paper: sap's cycles are cheap or dear). check: every cycle's pairs against the exact count\n"
                  "(peers report more: fat or quantised boxes).\n\n",
                  FRAME_COUNT, o->seconds);
     bench_printf("| scene | n | variant | pairs/cycle | cold us | mean us | median us | p99 us | "
@@ -510,7 +511,7 @@ static int run_scale(scale_state *st)
             if (run_size(st, scene, k) != 0)
                 return -1;
 
-    bench_printf("\nbpx's best against the fastest peer (medians, us per cycle):\n\n"
+    bench_printf("\nbpx's best against the fastest peer (means, us per cycle):\n\n"
                  "| scene | n | best bpx | us | fastest peer | us | bpx speed-up |\n"
                  "|---|---:|---|---:|---|---:|---:|\n");
     for (int scene = 0; scene < SCENES; scene++)
@@ -539,7 +540,7 @@ static int write_plots(const scale_state *st)
         char path[4096], title[160];
         snprintf(path, sizeof path, "%s/scale_%s.svg", o->out_dir, scene_names[scene]);
         snprintf(title, sizeof title,
-                 "bpx bench: %s scene, median time per cycle (dashed: peer libraries)",
+                 "bpx bench: %s scene, mean time per cycle (dashed: peer libraries)",
                  scene_names[scene]);
         if (bench_plot_svg(path, title, o->sizes, o->size_count, st->series[scene],
                            st->series_count[scene]) != 0) {

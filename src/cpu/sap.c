@@ -1,57 +1,66 @@
 // The sap backend: sweep and prune with temporal coherence (the persistent sorted endpoint
-// lists of SOLID and of Bullet's AxisSweep3, written here from the idea, not their code).
+// lists of SOLID and of Bullet's AxisSweep3, written here from the idea, not their code), over
+// fat boxes.
 //
-// State kept between cycles: per axis, the 2n endpoints of every box (ids 0 .. n-1, removed
-// objects included: their inert boxes, min +inf and max -inf, sort to the two ends) in sorted
-// order, each one 64-bit word: (key, is_max, box), key = bpx__float_key of the coordinate with
-// -0.0 read as +0.0. The word order is (key, min before max, box): a min and a max that tie
-// keep the min first, so "min_a before max_b" in a list is exactly lo_a <= hi_b (closed
-// intervals: touching counts), and the order of the lists is a pure function of the boxes.
-// Beside them: last cycle's boxes (`prev`) and last cycle's pairs, sorted by (i, j).
+// State kept between cycles: each box's fat box (its box at the last rebuild or at the last
+// cycle it left the fat one, grown by a margin per axis: the boxes' mean extent there / 16),
+// and per axis the 2n endpoints of the fat boxes (ids 0 .. n-1, removed objects included:
+// inert boxes, min +inf and max -inf, sort to the two ends) in sorted order, each one 64-bit
+// word: (key, is_max, box), key = bpx__float_key of the coordinate with -0.0 read as +0.0.
+// The word order is (key, min before max, box): a min and a max that tie keep the min first,
+// so "min_a before max_b" in a list is exactly lo_a <= hi_b (closed intervals: touching
+// counts). Beside them: the fat pairs (pairs whose fat boxes overlap), sorted by (i, j). A box
+// lies in its fat box, so every overlapping pair is a fat pair: the cycle's pairs are the fat
+// pairs whose boxes overlap, found by one pass over the fat pairs in order (so they come out
+// sorted). Fat boxes change rarely (a box at rest never leaves its own), so the lists and the
+// fat pairs mostly stay as they are; that, not mending every endpoint every cycle, is what makes
+// a coherent cycle cheap (measured: a first version that mended every list each cycle spent
+// most of its time on mispredicted branches and random reads, one per endpoint per axis).
 //
-// A warm cycle (O(n + moves + k log k + p), k the pairs that began or ended, p the pairs):
-//  1. Every endpoint gets its new key in place, and each axis is mended by insertion sort.
-//     Insertion sort swaps exactly the endpoints whose relative order changed, each such couple
-//     once. The order of min_a and max_b is the truth of lo_a <= hi_b, so a pair whose overlap
-//     changed has at least one of its six conditions flipped: it is met at least once as a swap
-//     of a min with a max, and no other pair is.
-//       - a min moving left past a max: lo_a <= hi_b just became true, so the pair did not
-//         overlap last cycle; it began iff bpx_overlap(new a, new b).
-//       - a max moving left past a min: lo_b <= hi_a just became false, so the pair does not
-//         overlap now; it ended iff bpx_overlap(old a, old b).
-//     Deciding by the boxes themselves (overlap.h, the reference's own predicate), not by the
-//     state of the other two lists in mid-update, makes the order of the axes irrelevant; a pair
-//     met several times gives the same verdict each time, and duplicates go when the changes
-//     are sorted. (The design brief asked for a hash set for membership; "was in the set" is
-//     "overlapped last cycle", which the kept boxes answer with six compares and no table to
-//     grow or probe, so there is none.)
-//  2. The began and ended pairs (few when the scene is coherent) are sorted and merged into
-//     last cycle's sorted pairs: the new pair list, in (i, j) order, with no per-cycle sort of
-//     all pairs. The world gets a copy in block 0 (its filters edit the blocks in place; the
-//     kept list must stay unfiltered).
+// A warm cycle (O(n + p_fat) plus the mending, k the fat pairs that may have changed):
+//  1. One sequential pass copies the boxes (AoS, for the exact filter) and lists the boxes that
+//     left their fat boxes.
+//  2. None: nothing to mend. A few (at most n / 64 + 16): each in turn gets a new fat box, and
+//     its six endpoints are found by binary search and moved to their places, the lists sorted
+//     at every step. More (or boxes were added): each list is mended by one pass of insertion
+//     sort, every endpoint taking its new word as the pass reaches it. Insertion swaps exactly
+//     the endpoints whose relative order changed, and the order of min_a and max_b is the truth
+//     of lo_a <= hi_b, so a pair whose fat overlap changed has at least one of its six
+//     conditions flipped: it is met at least once as a swap of a min with a max, and noted when
+//     the fat boxes' overlap before and after the step differ (box by box: b's old and new fat
+//     box against the other's current one; all at once: old against old, new against new).
+//  3. The noted pairs (few when the scene is coherent) are sorted and merged into the fat
+//     pairs: each is kept iff the fat boxes overlap now, whether or not it was there before. So
+//     a pair noted twice, or noted and then turned back, costs nothing but a test.
+//  4. The fat pairs are filtered by the exact overlap (the second box prefetched: it is
+//     anywhere in memory) into block 0, already in (i, j) order.
 // Growth (add_boxes appending ids) stays warm: a new box enters as if it had been inert last
-// cycle (max at the front, min at the back of each list) and sorts in like any other move. So
-// does an id freed by remove_boxes (its box turns inert and travels to the ends). Both cost
-// O(n) moves per box, like AxisSweep3's insert and remove, and fall under the budget below.
+// cycle (max at the front, min at the back of each list) and the one-pass mend sorts it in. An
+// id freed by remove_boxes keeps its fat box (its inert box lies in any box) until it is reused;
+// its stale fat pairs never pass the exact filter. Both cost O(n) moves per box, like
+// AxisSweep3's insert and remove, and fall under the budget below.
 //
 // A cold cycle rebuilds: on the first cycle; when n shrank, or grew by more than an eighth;
 // after a failed cycle; when a warm cycle passes MOVES_PER_BOX * n + MOVES_BASE element moves
-// over its three insertion sorts (abandoned part way); and, after two such give-ups in a row,
-// on every cycle but one in RETRY_EVERY, so that incoherent motion does not pay a wasted
-// attempt each cycle. It sorts each axis's 2n endpoints with the radix sort of sort.c (minima
-// listed before maxima; the sort is stable, so ties come out in word order), then sweeps once:
-// the prune kernel, on the world's workers, over the boxes in min order of the axis whose
-// intervals overlap least (counted in O(n) from the sorted lists, so boxes that all share one x
-// interval make the sweep quadratic only if y and z overlap as much); the emitter's
-// counting sorts put the pairs in (i, j) order. bpx_cycle_stats.rebuilt tells the two kinds
-// apart. There is no "boxes replaced wholesale" trigger: set_boxes is the general mode's
-// per-cycle call, so a replaced scene is told from a moved one by the move budget alone, as
-// prune does.
+// (abandoned part way, or early when the first part of the first list projects far past it);
+// and, after two such give-ups in a row, on every cycle but one in RETRY_EVERY, so that
+// incoherent motion does not pay a wasted attempt each cycle. A full rebuild makes new fat
+// boxes and margins, sorts each axis's 2n fat endpoints with the radix sort of sort.c (minima
+// listed before maxima; the sort is stable, so ties come out in word order), then sweeps the
+// fat boxes once: the prune kernel, on the world's workers, in min order of the axis whose
+// intervals overlap least (counted in O(n) from the sorted lists, so boxes that all share one
+// x interval make the sweep quadratic only if y and z overlap as much); the emitter's counting
+// sorts put the fat pairs in (i, j) order, and the exact filter gives the cycle's pairs. While
+// the motion is incoherent (two give-ups in a row), a cycle not followed by an attempt only
+// sorts the n minima of that axis and sweeps the boxes themselves (prune's work, no lists).
+// bpx_cycle_stats.rebuilt tells warm and cold apart. There is no "boxes replaced wholesale"
+// trigger: set_boxes is the general mode's per-cycle call, so a replaced scene is told from a
+// moved one by the move budget alone, as prune does.
 //
-// Threads: the warm path is serial (insertion sorts and their swaps are inherently ordered);
-// the cold sweep runs on the world's workers. The output is the same bytes either way.
-// Memory: about 190 bytes per box (three endpoint lists, keys by box, two box copies, the
-// cold sweep's arrays) plus a few pair lists; grown with slack, so steady cycles allocate nothing.
+// Threads: the warm path is serial; the cold sweep runs on the world's workers. The output is
+// the same bytes either way. Memory: about 200 bytes per box (three endpoint lists, three box
+// copies, the cold sweep's arrays) plus a few pair lists; grown with slack, so steady cycles
+// allocate nothing.
 #include <stdio.h>
 #include <string.h>
 
@@ -63,46 +72,57 @@
 enum {
     ROWS_PER_BLOCK = 1024, // cold sweep rows per work item, as prune
     PAD = BPX_PAD_LANES,   // sentinel boxes after the swept boxes
-    // A warm cycle gives up past MOVES_PER_BOX * n + MOVES_BASE element moves. Measured on a
-    // 2-vCPU Xeon VM (uniform_density, n = 1000): a warm cycle costs about 25 ns per
-    // box plus 13 ns per move (a move of a min past a max tests a pair, on random memory); a
-    // rebuild 120 ns per box at n = 1000 and 290 at 10,000 (its sweep grows like prune's). The
-    // crossover is 7 to 20 moves per box; past the budget a cycle costs at most about two
-    // rebuilds.
-    MOVES_PER_BOX = 16,
+    // A warm cycle gives up past MOVES_PER_BOX * n + MOVES_BASE element moves (see the top):
+    // a move costs a few ns, a full rebuild 150 to 300 ns per box (2-vCPU Xeon VM), so past
+    // the budget a cycle costs at most about two rebuilds.
+    MOVES_PER_BOX = 32,
     MOVES_BASE = 4096,
-    RETRY_EVERY = 8, // after two give-ups in a row, try mending once in this many cycles
-    FIRST_CHANGES = 256, // began/ended lists start with room for this many (+ n / 16)
+    RETRY_EVERY = 8,     // after two give-ups in a row, try mending once in this many cycles
+    FIRST_CHANGES = 256, // change lists start with room for this many (+ n / 16)
+    FEW_DIVISOR = 64,    // at most n / FEW_DIVISOR + FEW_BASE boxes left their fat boxes:
+    FEW_BASE = 16,       // move their endpoints one by one; more: mend every list in one pass
+    MARGIN_DIVISOR = 16, // fat margin on an axis: the boxes' mean extent there / this
+    CHECK_EVERY = 4096,  // endpoints between the early give-up checks of the first list
+    PREFETCH = 16,       // pairs ahead whose second box the exact filter prefetches
 };
+
+#if defined(__GNUC__)
+#define PREFETCH_READ(p) __builtin_prefetch((p), 0, 3)
+#else
+#define PREFETCH_READ(p) ((void)(p))
+#endif
 
 #define MAX_BIT (UINT64_C(1) << 31) // in an endpoint word: set on maxima
 #define BOX_MASK 0x7fffffffu        // in an endpoint word: the box (BPX_MAX_BOXES = 2^30)
 
 // The per-box arrays, allocated together (capacity boxes each, or as noted).
 typedef struct sap_arrays {
-    uint64_t *ends[3];      // 2 * capacity: sorted endpoint words per axis
-    uint32_t *box_keys[3];  // 2 * capacity: this cycle's keys by box, [2 i] min, [2 i + 1] max
-    bpx_box *prev;          // last completed cycle's boxes
-    bpx_box *cur;           // this cycle's boxes
-    uint32_t *keys, *ids, *scratch_keys, *scratch_ids; // 2 * capacity: cold radix sort
+    uint64_t *ends[3];                                 // 2 * capacity: sorted endpoint words
+    bpx_box *fat;                                      // each box's fat box, as in the lists
+    bpx_box *fat_prev;                                 // the same at the last cycle's end
+    bpx_box *cur;                                      // this cycle's boxes
+    uint32_t *changed;                                 // boxes that left their fat box
+    uint32_t *keys, *ids, *scratch_keys, *scratch_ids; // 2 * capacity: cold radix sorts
     float *lo[3], *hi[3];                              // capacity + PAD: cold sweep SoA
     uint32_t *sorted_ids;                              // capacity + PAD
     uint32_t *counts;                                  // capacity + 1: pair counting sorts
 } sap_arrays;
 
-enum { ARRAY_COUNT = 3 + 3 + 2 + 4 + 6 + 2 };
+enum { ARRAY_COUNT = 3 + 4 + 4 + 6 + 2 };
 
 typedef struct sap_state {
     uint32_t capacity; // boxes the arrays hold
     uint32_t n;        // boxes the lists describe (when valid)
-    bool valid;        // ends, prev and pairs describe the last completed cycle
+    bool valid;        // ends, fat and fat_pairs describe the last completed cycle
     uint32_t give_ups; // warm attempts in a row that ran out of moves
     uint32_t waited;   // cycles rebuilt since the last warm attempt
+    int sweep_axis;    // the axis the last full rebuild swept
+    float margin[3];   // fat margin per axis, set by each full rebuild
     sap_arrays a;
-    bpx_pair_list pairs;  // last cycle's pairs, (i, j) order, unfiltered
-    bpx_pair_list merged; // the merge's output, then swapped with pairs
-    bpx_pair_list began, ended;
-    bpx_pair_list spare; // sort scratch
+    bpx_pair_list fat_pairs; // pairs of overlapping fat boxes, (i, j) order
+    bpx_pair_list merged;    // the merge's output, then swapped with fat_pairs
+    bpx_pair_list changes;   // pairs whose fat overlap may have changed this cycle
+    bpx_pair_list spare;     // sort scratch
 } sap_state;
 
 // ---------------------------------------------------------------------------------------------
@@ -115,13 +135,14 @@ static int array_table(sap_arrays *a, size_t capacity, void ***ptrs, size_t *siz
     for (int axis = 0; axis < 3; axis++) {
         ptrs[k] = (void **)&a->ends[axis];
         sizes[k++] = 2 * capacity * sizeof(uint64_t);
-        ptrs[k] = (void **)&a->box_keys[axis];
-        sizes[k++] = 2 * capacity * sizeof(uint32_t);
     }
-    ptrs[k] = (void **)&a->prev;
-    sizes[k++] = capacity * sizeof(bpx_box);
-    ptrs[k] = (void **)&a->cur;
-    sizes[k++] = capacity * sizeof(bpx_box);
+    bpx_box **boxes[] = {&a->fat, &a->fat_prev, &a->cur};
+    for (int b = 0; b < 3; b++) {
+        ptrs[k] = (void **)boxes[b];
+        sizes[k++] = capacity * sizeof(bpx_box);
+    }
+    ptrs[k] = (void **)&a->changed;
+    sizes[k++] = capacity * sizeof(uint32_t);
     uint32_t **radix[] = {&a->keys, &a->ids, &a->scratch_keys, &a->scratch_ids};
     for (int r = 0; r < 4; r++) {
         ptrs[k] = (void **)radix[r];
@@ -163,15 +184,15 @@ static void sap_destroy(bpx_world *w)
     if (!st)
         return;
     free_arrays(&st->a, st->capacity);
-    bpx_pair_list *lists[] = {&st->pairs, &st->merged, &st->began, &st->ended, &st->spare};
+    bpx_pair_list *lists[] = {&st->fat_pairs, &st->merged, &st->changes, &st->spare};
     for (size_t k = 0; k < sizeof lists / sizeof lists[0]; k++)
         list_free(lists[k]);
     bpx__free(st, sizeof *st);
     w->backend_state = NULL;
 }
 
-// Makes the arrays hold n boxes. With `keep`, the endpoint lists (2 * st->n words each) and
-// prev (st->n boxes) survive a move to bigger arrays. All or nothing: on failure st is as it was.
+// Makes the arrays hold n boxes. With `keep`, the endpoint lists (2 * st->n each) and the fat
+// boxes (st->n) survive a move to bigger arrays. All or nothing: on failure st is as it was.
 static bool reserve_arrays(sap_state *st, uint32_t n, bool keep)
 {
     if (n <= st->capacity && st->a.ends[0])
@@ -196,7 +217,8 @@ static bool reserve_arrays(sap_state *st, uint32_t n, bool keep)
     if (keep && st->a.ends[0]) {
         for (int axis = 0; axis < 3; axis++)
             memcpy(grown.ends[axis], st->a.ends[axis], 2 * (size_t)st->n * sizeof(uint64_t));
-        memcpy(grown.prev, st->a.prev, (size_t)st->n * sizeof(bpx_box));
+        memcpy(grown.fat, st->a.fat, (size_t)st->n * sizeof(bpx_box));
+        memcpy(grown.fat_prev, st->a.fat_prev, (size_t)st->n * sizeof(bpx_box));
     }
     free_arrays(&st->a, st->capacity);
     st->a = grown;
@@ -205,7 +227,7 @@ static bool reserve_arrays(sap_state *st, uint32_t n, bool keep)
 }
 
 // ---------------------------------------------------------------------------------------------
-// Keys and endpoint words
+// Keys, boxes, pairs
 
 // Sortable key of a coordinate; -0.0 and +0.0 share one key (they are equal in the contract).
 static inline uint32_t coord_key(float x)
@@ -222,31 +244,29 @@ static inline uint64_t end_word(uint32_t key, uint64_t low)
     return (uint64_t)key << 32 | low;
 }
 
-// This cycle's boxes as an array of boxes (for the overlap tests, by id) and their keys by box
-// (for the endpoint words): two sequential passes over the world's SoA arrays.
-static void load_boxes(const bpx_world *w, sap_arrays *a)
+// The word of box b's endpoint (max or min) on an axis, for fat box f.
+static inline uint64_t fat_word(const bpx_box *f, int axis, bool max, uint32_t b)
 {
-    const bpx_box_arrays *b = &w->boxes;
-    uint32_t n = w->n;
-    for (uint32_t i = 0; i < n; i++)
-        a->cur[i] = (bpx_box){{b->lo[0][i], b->lo[1][i], b->lo[2][i]},
-                              {b->hi[0][i], b->hi[1][i], b->hi[2][i]}};
-    for (int axis = 0; axis < 3; axis++) {
-        const float *lo = b->lo[axis], *hi = b->hi[axis];
-        uint32_t *keys = a->box_keys[axis];
-        for (uint32_t i = 0; i < n; i++) {
-            keys[2 * (size_t)i] = coord_key(lo[i]);
-            keys[2 * (size_t)i + 1] = coord_key(hi[i]);
-        }
-    }
+    return end_word(coord_key(max ? f->max[axis] : f->min[axis]), (max ? MAX_BIT : 0) | b);
 }
 
-// The key of an endpoint word's coordinate: its low half, (is_max << 31) | box, rotated left
-// by one is 2 box + is_max, the endpoint's place in box_keys.
-static inline uint32_t word_key(const uint32_t *box_keys, uint64_t e)
+// Whether two boxes overlap, without branches (inert boxes never do: +inf <= x fails).
+static inline bool overlap(const bpx_box *a, const bpx_box *b)
 {
-    uint32_t low = (uint32_t)e;
-    return box_keys[(low << 1) | (low >> 31)];
+    return (a->min[0] <= b->max[0]) & (b->min[0] <= a->max[0]) & (a->min[1] <= b->max[1]) &
+           (b->min[1] <= a->max[1]) & (a->min[2] <= b->max[2]) & (b->min[2] <= a->max[2]);
+}
+
+// Box b grown by the margins. Rounding is monotone, so lo - m <= lo and hi + m >= hi: the fat
+// box holds the box. An inert box (min +inf, max -inf) stays inert.
+static inline bpx_box fatten(const bpx_box *b, const float margin[3])
+{
+    bpx_box f;
+    for (int axis = 0; axis < 3; axis++) {
+        f.min[axis] = b->min[axis] - margin[axis];
+        f.max[axis] = b->max[axis] + margin[axis];
+    }
+    return f;
 }
 
 static inline bpx_pair ordered(uint32_t a, uint32_t b)
@@ -265,56 +285,6 @@ static inline bool push(bpx_pair_list *list, bpx_pair p)
         return false;
     list->pairs[list->count++] = p;
     return true;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Warm cycle
-
-typedef enum mend_result { MEND_DONE, MEND_GAVE_UP, MEND_NO_MEMORY } mend_result;
-
-typedef struct mend {
-    sap_state *st;
-    uint64_t moves;
-    uint64_t budget;
-    uint64_t tests;
-} mend;
-
-// Insertion sort of one axis's endpoint words, each min/max swap deciding one pair (see the
-// top of the file).
-static mend_result mend_axis(mend *m, uint64_t *ends, uint32_t count)
-{
-    sap_state *st = m->st;
-    const bpx_box *cur = st->a.cur, *prev = st->a.prev;
-    for (uint32_t k = 1; k < count; k++) {
-        uint64_t x = ends[k];
-        if (ends[k - 1] < x)
-            continue;
-        uint32_t box = (uint32_t)x & BOX_MASK;
-        uint32_t at = k;
-        do {
-            uint64_t past = ends[at - 1];
-            uint32_t other = (uint32_t)past & BOX_MASK;
-            if (((past ^ x) & MAX_BIT) && other != box) {
-                m->tests++;
-                bool ok = true;
-                if (!(x & MAX_BIT)) { // a min past a max: maybe began
-                    if (bpx_overlap(&cur[box], &cur[other]))
-                        ok = push(&st->began, ordered(box, other));
-                } else if (bpx_overlap(&prev[box], &prev[other])) { // a max past a min
-                    ok = push(&st->ended, ordered(box, other));
-                }
-                if (!ok)
-                    return MEND_NO_MEMORY;
-            }
-            ends[at] = past;
-            at--;
-        } while (at > 0 && ends[at - 1] > x);
-        ends[at] = x;
-        m->moves += k - at;
-        if (m->moves > m->budget)
-            return MEND_GAVE_UP;
-    }
-    return MEND_DONE;
 }
 
 // Sorts a change list by (i, j) (bottom-up merge sort through st->spare: O(k log k), no
@@ -358,80 +328,250 @@ static bool sort_unique(sap_state *st, bpx_pair_list *list)
     return true;
 }
 
-// merged = pairs - ended + began, all sorted; ended must be a subset of pairs and began
-// disjoint from it. Returns false if ended was not (never, unless this file has a bug: the
-// caller then rebuilds rather than report a wrong set).
-static bool merge_changes(sap_state *st)
+// ---------------------------------------------------------------------------------------------
+// Warm cycle
+
+typedef enum mend_result { MEND_DONE, MEND_GAVE_UP, MEND_NO_MEMORY } mend_result;
+
+// Moves the endpoint at `at` of box b to its place for word x (the list sorted but for it),
+// noting in st->changes every box whose fat overlap with b changes when b's fat box goes from
+// `before` to st->a.fat[b] (the other boxes as they are now). Returns the moves, or
+// UINT64_MAX when memory ran out.
+static uint64_t move_end(sap_state *st, uint64_t *ends, uint32_t count, uint32_t at, uint64_t x,
+                         const bpx_box *before)
 {
-    const bpx_pair *old = st->pairs.pairs, *gone = st->ended.pairs, *added = st->began.pairs;
-    size_t old_count = st->pairs.count, gone_count = st->ended.count;
-    size_t added_count = st->began.count;
-    bpx_pair *out = st->merged.pairs;
-    size_t o = 0, g = 0, a = 0, count = 0;
-    while (o < old_count) {
-        uint64_t p = pair_word(old[o]);
-        if (g < gone_count && pair_word(gone[g]) == p) {
-            o++, g++;
-            continue;
+    const bpx_box *fat = st->a.fat;
+    uint32_t b = (uint32_t)x & BOX_MASK, from = at;
+    if (x > ends[at]) {
+        while (at + 1 < count && ends[at + 1] < x) {
+            uint64_t next = ends[at + 1];
+            uint32_t other = (uint32_t)next & BOX_MASK;
+            if (((next ^ x) & MAX_BIT) && other != b &&
+                overlap(&fat[b], &fat[other]) != overlap(before, &fat[other]) &&
+                !push(&st->changes, ordered(b, other)))
+                return UINT64_MAX;
+            ends[at] = next;
+            at++;
         }
-        while (a < added_count && pair_word(added[a]) < p)
-            out[count++] = added[a++];
-        out[count++] = old[o++];
+    } else {
+        while (at > 0 && ends[at - 1] > x) {
+            uint64_t past = ends[at - 1];
+            uint32_t other = (uint32_t)past & BOX_MASK;
+            if (((past ^ x) & MAX_BIT) && other != b &&
+                overlap(&fat[b], &fat[other]) != overlap(before, &fat[other]) &&
+                !push(&st->changes, ordered(b, other)))
+                return UINT64_MAX;
+            ends[at] = past;
+            at--;
+        }
     }
-    while (a < added_count)
-        out[count++] = added[a++];
-    st->merged.count = count;
-    return g == gone_count;
+    ends[at] = x;
+    return at > from ? at - from : from - at;
 }
 
-// Puts new boxes n_old .. n-1 into the lists as if they had been inert last cycle: maxima at
-// the front, minima at the back (their keys are set by the refresh that follows).
+// Where word x is in a sorted list, or UINT32_MAX.
+static uint32_t find_end(const uint64_t *ends, uint32_t count, uint64_t x)
+{
+    uint32_t lo = 0, hi = count;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (ends[mid] < x)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo < count && ends[lo] == x ? lo : UINT32_MAX;
+}
+
+// Few boxes left their fat boxes: each in turn gets its new fat box, and its six endpoints
+// are found (binary search) and moved to their places, the lists sorted at every step.
+static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_t budget)
+{
+    uint64_t moves = 0;
+    for (uint32_t c = 0; c < changed; c++) {
+        uint32_t b = st->a.changed[c];
+        bpx_box before = st->a.fat[b];
+        st->a.fat[b] = fatten(&st->a.cur[b], st->margin);
+        for (int axis = 0; axis < 3; axis++)
+            for (int max = 0; max < 2; max++) {
+                uint64_t old = fat_word(&before, axis, max, b);
+                uint64_t x = fat_word(&st->a.fat[b], axis, max, b);
+                if (old == x)
+                    continue;
+                uint32_t at = find_end(st->a.ends[axis], 2 * n, old);
+                if (at == UINT32_MAX)
+                    return MEND_GAVE_UP; // never, unless this file has a bug: rebuild
+                uint64_t m = move_end(st, st->a.ends[axis], 2 * n, at, x, &before);
+                if (m == UINT64_MAX)
+                    return MEND_NO_MEMORY;
+                moves += m;
+                if (moves > budget)
+                    return MEND_GAVE_UP;
+            }
+    }
+    return MEND_DONE;
+}
+
+// Many boxes left their fat boxes (or boxes were added): every changed box gets its new fat
+// box at once, and each list is mended by one pass of insertion sort, every endpoint taking
+// its new word as the pass reaches it. A min and a max that swap may change their boxes' fat
+// overlap: the pair is noted when overlap(new, new) differs from overlap(old, old).
+static mend_result mend_all(sap_state *st, uint32_t n, uint32_t changed, uint64_t budget)
+{
+    const bpx_box *fat = st->a.fat, *prev = st->a.fat_prev;
+    for (uint32_t c = 0; c < changed; c++) {
+        uint32_t b = st->a.changed[c];
+        st->a.fat[b] = fatten(&st->a.cur[b], st->margin);
+    }
+    uint64_t moves = 0;
+    for (int axis = 0; axis < 3; axis++) {
+        uint64_t *ends = st->a.ends[axis];
+        uint32_t check = axis == 0 ? CHECK_EVERY : UINT32_MAX;
+        for (uint32_t k = 0; k < 2 * n; k++) {
+            uint32_t low = (uint32_t)ends[k], b = low & BOX_MASK;
+            uint64_t x = fat_word(&fat[b], axis, low & MAX_BIT, b);
+            if (k == 0 || ends[k - 1] < x) {
+                ends[k] = x;
+                continue;
+            }
+            uint32_t at = k;
+            do {
+                uint64_t past = ends[at - 1];
+                uint32_t other = (uint32_t)past & BOX_MASK;
+                if (((past ^ x) & MAX_BIT) && other != b &&
+                    overlap(&fat[b], &fat[other]) != overlap(&prev[b], &prev[other]) &&
+                    !push(&st->changes, ordered(b, other)))
+                    return MEND_NO_MEMORY;
+                ends[at] = past;
+                at--;
+            } while (at > 0 && ends[at - 1] > x);
+            ends[at] = x;
+            moves += k - at;
+            if (moves > budget)
+                return MEND_GAVE_UP;
+            if (k >= check) { // projected over the three lists: far past the budget
+                if (moves * 3 * (uint64_t)n * 2 / k > 2 * budget)
+                    return MEND_GAVE_UP;
+                check = k + CHECK_EVERY;
+            }
+        }
+    }
+    return MEND_DONE;
+}
+
+// fat_pairs after the changes: each pair noted is in the new list iff the fat boxes overlap now,
+// whether or not it was in the old one.
+static void merge_changes(sap_state *st)
+{
+    const bpx_pair *old = st->fat_pairs.pairs, *maybe = st->changes.pairs;
+    size_t old_count = st->fat_pairs.count, maybe_count = st->changes.count;
+    const bpx_box *fat = st->a.fat;
+    bpx_pair *out = st->merged.pairs;
+    size_t o = 0, m = 0, count = 0;
+    while (m < maybe_count) {
+        uint64_t p = pair_word(maybe[m]);
+        while (o < old_count && pair_word(old[o]) < p)
+            out[count++] = old[o++];
+        if (o < old_count && pair_word(old[o]) == p)
+            o++;
+        if (overlap(&fat[maybe[m].i], &fat[maybe[m].j]))
+            out[count++] = maybe[m];
+        m++;
+    }
+    if (o < old_count)
+        memcpy(out + count, old + o, (old_count - o) * sizeof(bpx_pair));
+    st->merged.count = count + (old_count - o);
+}
+
+// Puts new boxes n_old .. n-1 into the lists as if they had been inert last cycle (maxima at
+// the front, minima at the back; the next full pass puts them in order).
 static void append_boxes(sap_state *st, uint32_t n_old, uint32_t n)
 {
     uint32_t added = n - n_old;
+    const float inf = 1.0f / 0.0f;
+    const bpx_box inert = {{inf, inf, inf}, {-inf, -inf, -inf}};
     for (int axis = 0; axis < 3; axis++) {
         uint64_t *ends = st->a.ends[axis];
         memmove(ends + added, ends, 2 * (size_t)n_old * sizeof(uint64_t));
         for (uint32_t k = 0; k < added; k++) {
-            ends[k] = MAX_BIT | (n_old + k);
-            ends[added + 2 * (size_t)n_old + k] = n_old + k;
+            ends[k] = fat_word(&inert, axis, true, n_old + k);
+            ends[added + 2 * (size_t)n_old + k] = fat_word(&inert, axis, false, n_old + k);
         }
     }
-    const float inf = 1.0f / 0.0f;
     for (uint32_t i = n_old; i < n; i++)
-        st->a.prev[i] = (bpx_box){{inf, inf, inf}, {-inf, -inf, -inf}};
+        st->a.fat[i] = st->a.fat_prev[i] = inert;
 }
 
-// The warm cycle into st->pairs. MEND_GAVE_UP: too many moves (or an inconsistency); the
+// This cycle's boxes into cur, and the boxes that left their fat boxes into changed (one
+// sequential pass); returns their count.
+static uint32_t check_boxes(const bpx_world *w, sap_state *st)
+{
+    const bpx_box_arrays *b = &w->boxes;
+    const bpx_box *fat = st->a.fat;
+    bpx_box *cur = st->a.cur;
+    uint32_t *changed = st->a.changed, count = 0;
+    for (uint32_t i = 0; i < w->n; i++) {
+        bpx_box box = {{b->lo[0][i], b->lo[1][i], b->lo[2][i]},
+                       {b->hi[0][i], b->hi[1][i], b->hi[2][i]}};
+        cur[i] = box;
+        bool inside = (box.min[0] >= fat[i].min[0]) & (box.min[1] >= fat[i].min[1]) &
+                      (box.min[2] >= fat[i].min[2]) & (box.max[0] <= fat[i].max[0]) &
+                      (box.max[1] <= fat[i].max[1]) & (box.max[2] <= fat[i].max[2]);
+        changed[count] = i;
+        count += !inside;
+    }
+    return count;
+}
+
+// The exact pairs, fat pairs whose boxes overlap, into out (which holds fat_pairs.count).
+static size_t filter_pairs(const sap_state *st, bpx_pair *out)
+{
+    const bpx_box *cur = st->a.cur;
+    const bpx_pair *fat = st->fat_pairs.pairs;
+    size_t count = 0, total = st->fat_pairs.count;
+    for (size_t k = 0; k < total; k++) {
+        if (k + PREFETCH < total) // j is anywhere: fetch it early (i comes in order)
+            PREFETCH_READ(&cur[fat[k + PREFETCH].j]);
+        out[count] = fat[k];
+        count += overlap(&cur[fat[k].i], &cur[fat[k].j]);
+    }
+    return count;
+}
+
+// The warm cycle into st->fat_pairs. MEND_GAVE_UP: too many moves (or an inconsistency); the
 // caller rebuilds. On MEND_NO_MEMORY the state is invalid (the caller marks it so).
-static mend_result warm_cycle(bpx_world *w, sap_state *st, uint64_t *tests)
+static mend_result warm_cycle(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
-    if (n > st->n)
+    bool grown = n > st->n;
+    if (grown)
         append_boxes(st, st->n, n);
-    load_boxes(w, &st->a);
-    st->began.count = st->ended.count = 0;
-    mend m = {st, 0, (uint64_t)MOVES_PER_BOX * n + MOVES_BASE, 0};
-    for (int axis = 0; axis < 3; axis++) {
-        uint64_t *ends = st->a.ends[axis];
-        const uint32_t *keys = st->a.box_keys[axis];
-        for (size_t k = 0; k < 2 * (size_t)n; k++)
-            ends[k] = end_word(word_key(keys, ends[k]), ends[k] & 0xffffffffu);
-        mend_result r = mend_axis(&m, ends, 2 * n);
-        if (r != MEND_DONE)
-            return r;
+    uint32_t changed = check_boxes(w, st);
+    uint64_t budget = (uint64_t)MOVES_PER_BOX * n + MOVES_BASE;
+    st->changes.count = 0;
+    mend_result r = MEND_DONE;
+    if (grown || changed > n / FEW_DIVISOR + FEW_BASE) {
+        r = mend_all(st, n, changed, budget);
+    } else if (changed > 0) {
+        r = mend_few(st, n, changed, budget);
     }
-    *tests = m.tests;
-    if (!sort_unique(st, &st->began) || !sort_unique(st, &st->ended))
-        return MEND_NO_MEMORY;
-    st->merged.count = 0;
-    if (!bpx__list_reserve(&st->merged, st->pairs.count + st->began.count))
-        return MEND_NO_MEMORY;
-    if (!merge_changes(st))
-        return MEND_GAVE_UP;
-    bpx_pair_list t = st->pairs;
-    st->pairs = st->merged;
-    st->merged = t;
+    if (r != MEND_DONE)
+        return r;
+    for (uint32_t c = 0; c < changed; c++) {
+        uint32_t b = st->a.changed[c];
+        st->a.fat_prev[b] = st->a.fat[b];
+    }
+    if (st->changes.count > 0) {
+        if (!sort_unique(st, &st->changes))
+            return MEND_NO_MEMORY;
+        st->merged.count = 0;
+        if (!bpx__list_reserve(&st->merged, st->fat_pairs.count + st->changes.count))
+            return MEND_NO_MEMORY;
+        merge_changes(st);
+        bpx_pair_list t = st->fat_pairs;
+        st->fat_pairs = st->merged;
+        st->merged = t;
+    }
     return MEND_DONE;
 }
 
@@ -457,24 +597,86 @@ static void sweep_task(int begin, int end, int worker, void *context)
     }
 }
 
-// Rebuilds the lists by radix sort and the pairs by one sweep, into block 0 and st->pairs.
-static bpx_status cold_cycle(bpx_world *w, sap_state *st)
+// Sweeps the `live` boxes of sorted_ids (ids in min order of `axis`), each as `boxes` has it,
+// into block 0, in (i, j) order.
+static bpx_status sweep(bpx_world *w, sap_state *st, const bpx_box *boxes, int axis,
+                        uint32_t live)
+{
+    sap_arrays *a = &st->a;
+    const int order[3] = {axis, axis == 0 ? 1 : 0, axis == 2 ? 1 : 2}; // slot 0: swept axis
+    for (int s = 0; s < 3; s++) {
+        float *slo = a->lo[s], *shi = a->hi[s];
+        for (uint32_t k = 0; k < live; k++) {
+            const bpx_box *box = &boxes[a->sorted_ids[k]];
+            slo[k] = box->min[order[s]];
+            shi[k] = box->max[order[s]];
+        }
+        for (uint32_t k = live; k < live + PAD; k++) {
+            slo[k] = 1.0f / 0.0f;
+            shi[k] = -1.0f / 0.0f;
+        }
+    }
+    for (uint32_t k = live; k < live + PAD; k++)
+        a->sorted_ids[k] = 0;
+
+    int blocks = (int)((live + ROWS_PER_BLOCK - 1) / ROWS_PER_BLOCK);
+    if (blocks < 1)
+        blocks = 1;
+    bpx_status status = bpx__emitter_reserve_blocks(w, blocks);
+    if (status != BPX_OK)
+        return status;
+    for (int k = 0; k < blocks; k++) {
+        uint32_t begin = (uint32_t)k * ROWS_PER_BLOCK;
+        w->blocks[k].row_begin = begin;
+        w->blocks[k].row_end = live - begin < ROWS_PER_BLOCK ? live : begin + ROWS_PER_BLOCK;
+    }
+    w->block_count = blocks;
+    w->planned_n = UINT32_MAX; // the layout is this backend's own
+    sweep_job job = {w,
+                     {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]},
+                      a->sorted_ids, live},
+                     bpx__prune_rows_for(w->simd)};
+    bpx__parallel_for(&w->executor, sweep_task, blocks, &job);
+    return bpx__emitter_sort_blocks(w, &st->merged, &st->spare, a->counts);
+}
+
+// The fat margins: on each axis, the (non-inert) boxes' mean extent / MARGIN_DIVISOR.
+static void set_margins(const bpx_world *w, sap_state *st)
+{
+    const bpx_box *cur = st->a.cur;
+    for (int axis = 0; axis < 3; axis++) {
+        double sum = 0.0;
+        uint32_t live = 0;
+        for (uint32_t i = 0; i < w->n; i++)
+            if (cur[i].min[axis] <= cur[i].max[axis]) {
+                sum += (double)cur[i].max[axis] - (double)cur[i].min[axis];
+                live++;
+            }
+        double margin = live ? sum / live / MARGIN_DIVISOR : 0.0;
+        st->margin[axis] = margin < 1e30 ? (float)margin : 0.0f;
+    }
+}
+
+// Rebuilds the fat boxes, the lists by radix sort and the fat pairs by one sweep (into
+// st->fat_pairs), and the exact pairs into block 0.
+static bpx_status full_rebuild(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     sap_arrays *a = &st->a;
-    load_boxes(w, a);
-    const bpx_box *cur = a->cur;
+    check_boxes(w, st); // for cur
+    set_margins(w, st);
+    for (uint32_t i = 0; i < n; i++)
+        a->fat[i] = a->fat_prev[i] = fatten(&a->cur[i], st->margin);
     const uint32_t inf_key = coord_key(1.0f / 0.0f), minus_inf_key = coord_key(-1.0f / 0.0f);
 
     // Sorted endpoint lists; on each, the pairs whose intervals overlap on that axis (inert
     // boxes, the only ones with infinite keys, left out).
     uint64_t overlaps[3];
     for (int axis = 0; axis < 3; axis++) {
-        const uint32_t *box_keys = a->box_keys[axis];
         for (uint32_t i = 0; i < n; i++) {
-            a->keys[i] = box_keys[2 * (size_t)i];
+            a->keys[i] = coord_key(a->fat[i].min[axis]);
             a->ids[i] = i;
-            a->keys[n + i] = box_keys[2 * (size_t)i + 1];
+            a->keys[n + i] = coord_key(a->fat[i].max[axis]);
             a->ids[n + i] = (uint32_t)MAX_BIT | i;
         }
         bpx__radix_sort(a->keys, a->ids, a->scratch_keys, a->scratch_ids, 2 * n);
@@ -495,68 +697,57 @@ static bpx_status cold_cycle(bpx_world *w, sap_state *st)
         overlaps[axis] = sum;
     }
 
-    // Sweep the axis with the fewest overlaps; the kernel's slot 0 is the swept axis.
+    // Sweep the fat boxes along the axis with the fewest overlaps.
     int axis = 0;
     for (int k = 1; k < 3; k++)
         if (overlaps[k] < overlaps[axis])
             axis = k;
-    const int order[3] = {axis, axis == 0 ? 1 : 0, axis == 2 ? 1 : 2};
+    st->sweep_axis = axis;
     uint32_t live = 0;
     const uint64_t *ends = a->ends[axis];
     for (size_t k = 0; k < 2 * (size_t)n; k++) {
         uint64_t e = ends[k];
         if ((e & MAX_BIT) || (uint32_t)(e >> 32) == inf_key)
             continue; // maxima, and the minima of inert boxes (min +inf)
-        uint32_t box = (uint32_t)e & BOX_MASK;
-        for (int s = 0; s < 3; s++) {
-            a->lo[s][live] = cur[box].min[order[s]];
-            a->hi[s][live] = cur[box].max[order[s]];
-        }
-        a->sorted_ids[live++] = box;
+        a->sorted_ids[live++] = (uint32_t)e & BOX_MASK;
     }
-    for (uint32_t k = live; k < live + PAD; k++) {
-        for (int s = 0; s < 3; s++) {
-            a->lo[s][k] = 1.0f / 0.0f;
-            a->hi[s][k] = -1.0f / 0.0f;
-        }
-        a->sorted_ids[k] = 0;
-    }
-
-    int blocks = (int)((live + ROWS_PER_BLOCK - 1) / ROWS_PER_BLOCK);
-    if (blocks < 1)
-        blocks = 1;
-    bpx_status status = bpx__emitter_reserve_blocks(w, blocks);
-    if (status != BPX_OK)
-        return status;
-    for (int b = 0; b < blocks; b++) {
-        uint32_t begin = (uint32_t)b * ROWS_PER_BLOCK;
-        w->blocks[b].row_begin = begin;
-        w->blocks[b].row_end = live - begin < ROWS_PER_BLOCK ? live : begin + ROWS_PER_BLOCK;
-    }
-    w->block_count = blocks;
-    w->planned_n = UINT32_MAX; // the layout is this backend's own
-    sweep_job job = {w,
-                     {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]},
-                      a->sorted_ids, live},
-                     bpx__prune_rows_for(w->simd)};
-    bpx__parallel_for(&w->executor, sweep_task, blocks, &job);
-    status = bpx__emitter_sort_blocks(w, &st->merged, &st->spare, a->counts);
+    bpx_status status = sweep(w, st, a->fat, axis, live);
     if (status != BPX_OK)
         return status;
 
-    // Keep the pairs, and room for the warm cycles to come.
-    const bpx_pair_list *found = &w->blocks[0].hits;
+    // Keep the fat pairs, with room for the warm cycles to come; block 0 gets the exact ones.
+    bpx_pair_list *found = &w->blocks[0].hits;
     size_t room = found->count + found->count / 2 + FIRST_CHANGES;
     size_t changes = FIRST_CHANGES + n / 16;
-    st->pairs.count = st->began.count = st->ended.count = 0;
-    if (!bpx__list_reserve(&st->pairs, room) || !bpx__list_reserve(&st->merged, room) ||
-        !bpx__list_reserve(&st->began, changes) || !bpx__list_reserve(&st->ended, changes) ||
-        !bpx__list_reserve(&st->spare, changes))
+    st->fat_pairs.count = st->changes.count = 0;
+    if (!bpx__list_reserve(&st->fat_pairs, room) || !bpx__list_reserve(&st->merged, room) ||
+        !bpx__list_reserve(&st->changes, changes) || !bpx__list_reserve(&st->spare, changes))
         return BPX_ERR_OUT_OF_MEMORY;
     if (found->count)
-        memcpy(st->pairs.pairs, found->pairs, found->count * sizeof(bpx_pair));
-    st->pairs.count = found->count;
+        memcpy(st->fat_pairs.pairs, found->pairs, found->count * sizeof(bpx_pair));
+    st->fat_pairs.count = found->count;
+    found->count = filter_pairs(st, found->pairs);
     return BPX_OK;
+}
+
+// The pairs by one sweep over the minima of the last full rebuild's sweep axis, radix sorted;
+// no endpoint lists (the next cycle will not mend).
+static bpx_status lite_rebuild(bpx_world *w, sap_state *st)
+{
+    uint32_t n = w->n;
+    sap_arrays *a = &st->a;
+    check_boxes(w, st); // for cur
+    const uint32_t inf_key = coord_key(1.0f / 0.0f);
+    for (uint32_t i = 0; i < n; i++) {
+        a->keys[i] = coord_key(a->cur[i].min[st->sweep_axis]);
+        a->ids[i] = i;
+    }
+    bpx__radix_sort(a->keys, a->ids, a->scratch_keys, a->scratch_ids, n);
+    uint32_t live = n;
+    while (live > 0 && a->keys[live - 1] == inf_key) // inert boxes (min +inf) sort last
+        live--;
+    memcpy(a->sorted_ids, a->ids, (size_t)live * sizeof(uint32_t));
+    return sweep(w, st, a->cur, st->sweep_axis, live);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -583,9 +774,8 @@ static bpx_status sap_compare(bpx_world *w)
     }
     st->valid = false; // until this cycle completes
     bpx_status status = BPX_OK;
-    uint64_t tests = 0;
     if (warm) {
-        mend_result r = warm_cycle(w, st, &tests);
+        mend_result r = warm_cycle(w, st);
         if (r == MEND_NO_MEMORY)
             return BPX_ERR_OUT_OF_MEMORY;
         st->give_ups = r == MEND_DONE ? 0 : st->give_ups + 1;
@@ -594,32 +784,33 @@ static bpx_status sap_compare(bpx_world *w)
     } else {
         st->waited++;
     }
+    bool lists = true; // the lists describe this cycle at its end
     if (warm) {
-        // Block 0 gets a copy of the pairs; the other blocks, left by the last rebuild, are
+        // Block 0 gets the exact pairs; the other blocks, left by the last rebuild, are
         // dropped.
         status = bpx__emitter_reserve_blocks(w, 1);
         if (status != BPX_OK)
             return status;
         bpx_block *out = &w->blocks[0];
         out->hits.count = 0;
-        if (!bpx__list_reserve(&out->hits, st->pairs.count))
+        if (!bpx__list_reserve(&out->hits, st->fat_pairs.count))
             return BPX_ERR_OUT_OF_MEMORY;
-        if (st->pairs.count)
-            memcpy(out->hits.pairs, st->pairs.pairs, st->pairs.count * sizeof(bpx_pair));
-        out->hits.count = st->pairs.count;
-        out->tests = tests;
+        out->hits.count = filter_pairs(st, out->hits.pairs);
+        out->tests = st->fat_pairs.count;
         out->status = BPX_OK;
         w->block_count = 1;
         w->planned_n = UINT32_MAX;
-    } else if ((status = cold_cycle(w, st)) != BPX_OK) {
-        return status;
+    } else {
+        // The lists are wanted only when the next cycle may mend: while coherent, or on the
+        // cycle before a retry.
+        lists = st->give_ups < 2 || st->waited + 1 >= RETRY_EVERY;
+        status = lists ? full_rebuild(w, st) : lite_rebuild(w, st);
+        if (status != BPX_OK)
+            return status;
     }
     w->stats.rebuilt = !warm;
-    bpx_box *t = st->a.prev; // this cycle's boxes are the next one's "last"
-    st->a.prev = st->a.cur;
-    st->a.cur = t;
     st->n = n;
-    st->valid = true;
+    st->valid = lists;
     return BPX_OK;
 }
 
@@ -631,7 +822,7 @@ static bool sap_query(const bpx_world_def *def, const char **reason, char *detai
         *reason = "SIMD width not supported here";
         return false;
     }
-    snprintf(detail, size, "3-axis endpoint lists mended by insertion sort; rebuild sweep %s",
+    snprintf(detail, size, "3-axis fat endpoint lists mended by insertion; rebuild sweep %s",
              bpx_simd_name(simd));
     return true;
 }
