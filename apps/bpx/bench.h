@@ -26,24 +26,58 @@ typedef struct bench_variant {
 // "prune 2t", "brute avx512 1t", "opencl centres", "bullet-dbvt".
 void bench_variant_name(const bench_variant *v, char *out, size_t size);
 
-// The cycles a variant replays. Either boxes (frames[f]) or the two-phase form (minima once,
-// centres per frame); peers get boxes rebuilt from the latter outside the timed region.
+// Boxes that move on their own: each keeps its size and a velocity (per cycle) and bounces off
+// walls; made cycle by cycle outside the timed region, so motion never repeats or jumps back.
+// Boxes are centre + minimum and centre - minimum, the library's own updater, so the paper's
+// two-phase interface (centres each cycle) sees exactly the same boxes as set_boxes.
+typedef struct bench_motion {
+    uint32_t n;
+    const float *minima;   // 3n origin-centred minima (minus the half extents)
+    const float *centres;  // 3n centres at cycle 0
+    const float *velocity; // 3n moves per cycle at cycle 0
+    float lo[3], hi[3];    // the walls: every box stays inside
+} bench_motion;
+
+// One replay of a motion.
+typedef struct bench_mover {
+    const bench_motion *motion;
+    float *centres, *velocity;
+    bpx_box *boxes;
+    int cycle;
+} bench_mover;
+int bench_mover_init(bench_mover *m, const bench_motion *motion); // 0, or -1 out of memory
+void bench_mover_step(bench_mover *m);                            // to the next cycle
+void bench_mover_free(bench_mover *m);
+
+// The exact pair count of each cycle of a motion, computed once (auto backend, untimed) as far
+// as some variant has gone.
+typedef struct bench_truth {
+    bench_mover mover;
+    bpx_world *world;
+    uint64_t *counts;
+    int done, capacity;
+} bench_truth;
+int bench_truth_init(bench_truth *t, const bench_motion *motion, int capacity);
+int bench_truth_count(bench_truth *t, int cycle, uint64_t *count); // 0, or -1
+void bench_truth_free(bench_truth *t);
+
+// The cycles a variant plays: a motion (scale scenes) or recorded frames in the two-phase form
+// (Table 2: minima once, centres per frame, played once).
 typedef struct bench_frames {
     uint32_t n;
-    int count;              // distinct frames
-    bpx_box *const *boxes;  // [count] frames of n boxes, or NULL
-    const float *minima;    // 3n origin-centred minima (two-phase), or NULL
-    const float *centres;   // count * 3n centres (two-phase)
-    bool once;              // play frames 0..count-1 once (cold cycle first); else ping-pong
-                            // 0..count-1..1.. forever, each step one coherent move
-    float bounds_min[3], bounds_max[3]; // contain every box of every frame (quantising peers)
-    const uint64_t *pairs;  // exact pair count per frame, to check every variant against; or NULL
+    const bench_motion *motion; // or NULL
+    bench_truth *truth;         // exact counts of the motion's cycles
+    int count;                  // recorded frames
+    const float *minima;        // 3n origin-centred minima
+    const float *centres;       // count * 3n centres
+    const uint64_t *pairs;      // exact pair count per recorded frame
+    float bounds_min[3], bounds_max[3]; // contain every box of every cycle (quantising peers)
 } bench_frames;
 
 typedef struct bench_budget {
-    double seconds; // timed cycles stop after this much time (ping-pong frames)
+    double seconds; // timed cycles stop after this much time (motion)
     int max_cycles;
-    int warmup;     // untimed cycles after the cold one (ping-pong frames)
+    int warmup;     // untimed cycles after the cold one (motion)
 } bench_budget;
 
 typedef struct bench_result {
@@ -59,9 +93,6 @@ typedef struct bench_result {
     double in_us, out_us, device_us;    // opencl: device-clock means per timed cycle
     double bytes_in, bytes_out;
 } bench_result;
-
-// The frame a cycle plays.
-int bench_frame_at(const bench_frames *frames, int cycle);
 
 // Times one variant. samples needs room for budget->max_cycles (or frames->count) doubles.
 // Returns 0, or prints the error and returns -1.

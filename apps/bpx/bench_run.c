@@ -92,13 +92,102 @@ void bench_variant_name(const bench_variant *v, char *out, size_t size)
     }
 }
 
-int bench_frame_at(const bench_frames *frames, int cycle)
+// --- Motion ------------------------------------------------------------------------------------
+
+static void mover_boxes(bench_mover *m)
 {
-    if (frames->once || frames->count < 2)
-        return cycle % frames->count;
-    int period = 2 * frames->count - 2, k = cycle % period;
-    return k < frames->count ? k : period - k;
+    const bench_motion *mo = m->motion;
+    for (uint32_t i = 0; i < mo->n; i++)
+        for (int a = 0; a < 3; a++) {
+            float c = m->centres[3 * (size_t)i + a], mn = mo->minima[3 * (size_t)i + a];
+            m->boxes[i].min[a] = c + mn;
+            m->boxes[i].max[a] = c - mn;
+        }
 }
+
+int bench_mover_init(bench_mover *m, const bench_motion *motion)
+{
+    size_t n = motion->n ? motion->n : 1;
+    *m = (bench_mover){.motion = motion,
+                       .centres = malloc(sizeof(float) * 3 * n),
+                       .velocity = malloc(sizeof(float) * 3 * n),
+                       .boxes = malloc(sizeof(bpx_box) * n)};
+    if (!m->centres || !m->velocity || !m->boxes) {
+        bench_mover_free(m);
+        return -1;
+    }
+    memcpy(m->centres, motion->centres, sizeof(float) * 3 * motion->n);
+    memcpy(m->velocity, motion->velocity, sizeof(float) * 3 * motion->n);
+    mover_boxes(m);
+    return 0;
+}
+
+void bench_mover_step(bench_mover *m)
+{
+    const bench_motion *mo = m->motion;
+    for (size_t k = 0; k < 3 * (size_t)mo->n; k++) {
+        int a = (int)(k % 3);
+        float c = m->centres[k] + m->velocity[k], half = -mo->minima[k];
+        if (c - half < mo->lo[a]) { // bounce: back inside, moving away from the wall
+            c = mo->lo[a] + half;
+            m->velocity[k] = fabsf(m->velocity[k]);
+        } else if (c + half > mo->hi[a]) {
+            c = mo->hi[a] - half;
+            m->velocity[k] = -fabsf(m->velocity[k]);
+        }
+        m->centres[k] = c;
+    }
+    mover_boxes(m);
+    m->cycle++;
+}
+
+void bench_mover_free(bench_mover *m)
+{
+    free(m->centres);
+    free(m->velocity);
+    free(m->boxes);
+    *m = (bench_mover){0};
+}
+
+int bench_truth_init(bench_truth *t, const bench_motion *motion, int capacity)
+{
+    *t = (bench_truth){.capacity = capacity};
+    bpx_world_def def = bpx_default_world_def();
+    if (!(t->counts = malloc(sizeof(uint64_t) * (size_t)capacity)) ||
+        bench_mover_init(&t->mover, motion) != 0 || bpx_world_create(&def, &t->world) != BPX_OK) {
+        bench_truth_free(t);
+        return -1;
+    }
+    return 0;
+}
+
+int bench_truth_count(bench_truth *t, int cycle, uint64_t *count)
+{
+    if (cycle >= t->capacity)
+        return -1;
+    for (; t->done <= cycle; t->done++) {
+        if (t->done > 0)
+            bench_mover_step(&t->mover);
+        if (bpx_world_set_boxes(t->world, t->mover.boxes, t->mover.motion->n) != BPX_OK ||
+            bpx_world_collide(t->world) != BPX_OK) {
+            cli_error("bench", "exact pairs: %s", bpx_world_error(t->world)->message);
+            return -1;
+        }
+        t->counts[t->done] = bpx_world_stats(t->world).pair_count;
+    }
+    *count = t->counts[cycle];
+    return 0;
+}
+
+void bench_truth_free(bench_truth *t)
+{
+    bpx_world_destroy(t->world);
+    bench_mover_free(&t->mover);
+    free(t->counts);
+    *t = (bench_truth){0};
+}
+
+// --- One variant ---------------------------------------------------------------------------
 
 // One variant's state: a world or a peer, and where its boxes come from.
 typedef struct runner {
@@ -106,24 +195,40 @@ typedef struct runner {
     const bench_frames *frames;
     bpx_world *world;
     bench_peer *peer;
-    bpx_box *scratch; // peers on two-phase frames: the frame's boxes
-    double create_s;  // peers: creation, with the first frame's proxies and pairs
+    bench_mover mover; // motion: this replay's boxes
+    bpx_box *boxes;    // recorded frames, for peers: the cycle's boxes
+    float *centres;    // motion, for two-phase variants: the cycle's centres
+    double create_s;   // peers: creation, with the first cycle's proxies and pairs
 } runner;
 
-static const bpx_box *frame_boxes(runner *r, int f)
+// The boxes of cycle c (cycles come in order; untimed work).
+static const bpx_box *cycle_boxes(runner *r, int c)
 {
     const bench_frames *fr = r->frames;
-    if (fr->boxes)
-        return fr->boxes[f];
-    const float *c = fr->centres + (size_t)f * 3 * fr->n;
+    if (fr->motion) {
+        while (r->mover.cycle < c)
+            bench_mover_step(&r->mover);
+        return r->mover.boxes;
+    }
+    const float *centres = fr->centres + (size_t)c * 3 * fr->n;
     for (uint32_t i = 0; i < fr->n; i++)
         for (int a = 0; a < 3; a++) {
             // As the library's updater: min = centre + minimum, max = centre - minimum.
-            float m = fr->minima[3 * (size_t)i + a], centre = c[3 * (size_t)i + a];
-            r->scratch[i].min[a] = centre + m;
-            r->scratch[i].max[a] = centre - m;
+            float m = fr->minima[3 * (size_t)i + a], centre = centres[3 * (size_t)i + a];
+            r->boxes[i].min[a] = centre + m;
+            r->boxes[i].max[a] = centre - m;
         }
-    return r->scratch;
+    return r->boxes;
+}
+
+// The centres of cycle c, for the two-phase updater.
+static const float *cycle_centres(runner *r, int c)
+{
+    const bench_frames *fr = r->frames;
+    if (!fr->motion)
+        return fr->centres + (size_t)c * 3 * fr->n;
+    cycle_boxes(r, c);
+    return r->mover.centres;
 }
 
 static int runner_open(runner *r)
@@ -131,13 +236,15 @@ static int runner_open(runner *r)
     const bench_frames *fr = r->frames;
     char name[BENCH_NAME_SIZE];
     bench_variant_name(r->v, name, sizeof name);
+    size_t n = fr->n ? fr->n : 1;
+    if ((fr->motion && bench_mover_init(&r->mover, fr->motion) != 0) ||
+        (!fr->motion && r->v->peer >= 0 && !(r->boxes = malloc(sizeof(bpx_box) * n)))) {
+        cli_error("bench", "%s: out of memory", name);
+        return -1;
+    }
     if (r->v->peer >= 0) {
-        if (!fr->boxes && !(r->scratch = malloc(sizeof(bpx_box) * (fr->n ? fr->n : 1)))) {
-            cli_error("bench", "%s: out of memory", name);
-            return -1;
-        }
         char err[256] = "";
-        const bpx_box *first = frame_boxes(r, 0);
+        const bpx_box *first = cycle_boxes(r, 0);
         double start = cli_now_s();
         r->peer = bench_peer_create(r->v->peer, first, fr->n, fr->bounds_min, fr->bounds_max, err,
                                     sizeof err);
@@ -154,56 +261,23 @@ static int runner_open(runner *r)
     def.worker_count = r->v->threads;
     def.capacity_hint = fr->n;
     bpx_status status = bpx_world_create(&def, &r->world);
-    if (status == BPX_OK && r->v->centres) {
-        if (fr->minima) {
-            status = bpx_world_load_extents(r->world, fr->minima, fr->n);
-        } else {
-            // Boxes as the paper's two phases: the first frame's half extents loaded once (the
-            // motion keeps sizes), then centres each cycle, computed outside the timed region.
-            float *minima = malloc(sizeof(float) * 3 * (fr->n ? fr->n : 1));
-            status = minima ? BPX_OK : BPX_ERR_OUT_OF_MEMORY;
-            for (uint32_t i = 0; minima && i < fr->n; i++)
-                for (int a = 0; a < 3; a++)
-                    minima[3 * (size_t)i + a] =
-                        -(fr->boxes[0][i].max[a] - fr->boxes[0][i].min[a]) * 0.5f;
-            if (status == BPX_OK)
-                status = bpx_world_load_extents(r->world, minima, fr->n);
-            free(minima);
-        }
-    }
+    if (status == BPX_OK && r->v->centres)
+        status = bpx_world_load_extents(r->world, fr->motion ? fr->motion->minima : fr->minima,
+                                        fr->n);
     if (status != BPX_OK) {
         cli_error("bench", "cannot set up %s: %s", name,
                   r->world ? bpx_world_error(r->world)->message : bpx_status_string(status));
         return -1;
     }
-    if (r->v->centres && fr->boxes && !(r->scratch = malloc(sizeof(float) * 3 * (fr->n + 1)))) {
-        cli_error("bench", "%s: out of memory", name);
-        return -1;
-    }
     return 0;
 }
 
-// Centres of a box frame for the two-phase updater (outside the timed region).
-static const float *frame_centres(runner *r, int f)
-{
-    const bench_frames *fr = r->frames;
-    if (!fr->boxes)
-        return fr->centres + (size_t)f * 3 * fr->n;
-    float *c = (float *)r->scratch;
-    for (uint32_t i = 0; i < fr->n; i++)
-        for (int a = 0; a < 3; a++) {
-            const bpx_box *b = &fr->boxes[f][i];
-            c[3 * (size_t)i + a] = b->min[a] + (b->max[a] - b->min[a]) * 0.5f;
-        }
-    return c;
-}
-
-// Runs one cycle; returns its time in seconds, or a negative value after printing the error.
-static double runner_cycle(runner *r, int f, bpx_cycle_stats *stats)
+// Runs cycle c; returns its time in seconds, or a negative value after printing the error.
+static double runner_cycle(runner *r, int c, bpx_cycle_stats *stats)
 {
     const bench_frames *fr = r->frames;
     if (r->peer) {
-        const bpx_box *boxes = frame_boxes(r, f);
+        const bpx_box *boxes = cycle_boxes(r, c);
         double start = cli_now_s();
         int rc = bench_peer_cycle(r->peer, boxes);
         double elapsed = cli_now_s() - start;
@@ -213,10 +287,11 @@ static double runner_cycle(runner *r, int f, bpx_cycle_stats *stats)
         }
         return elapsed;
     }
-    const float *centres = r->v->centres ? frame_centres(r, f) : NULL;
+    const float *centres = r->v->centres ? cycle_centres(r, c) : NULL;
+    const bpx_box *boxes = centres ? NULL : cycle_boxes(r, c);
     double start = cli_now_s();
     bpx_status status = centres ? bpx_world_update_centres(r->world, centres)
-                                : bpx_world_set_boxes(r->world, fr->boxes[f], fr->n);
+                                : bpx_world_set_boxes(r->world, boxes, fr->n);
     if (status == BPX_OK)
         status = bpx_world_collide(r->world);
     double elapsed = cli_now_s() - start;
@@ -234,7 +309,8 @@ static void runner_close(runner *r)
     bpx_world_destroy(r->world);
     if (r->peer)
         bench_peer_destroy(r->peer);
-    free(r->scratch);
+    bench_mover_free(&r->mover);
+    free(r->boxes);
 }
 
 int bench_run(const bench_variant *v, const bench_frames *frames, const bench_budget *budget,
@@ -246,24 +322,28 @@ int bench_run(const bench_variant *v, const bench_frames *frames, const bench_bu
         runner_close(&r);
         return -1;
     }
-    int total = frames->once ? frames->count : 1 + budget->warmup + budget->max_cycles;
+    bool once = !frames->motion;
+    int total = once ? frames->count : 1 + budget->warmup + budget->max_cycles;
     int timed = 0;
     int warm_end = 0;
     double warm_spent = 0, spent = 0, pairs = 0, exact = 0, link[5] = {0}, cold_pairs[2] = {0};
-    for (int c = 0; c < total && (frames->once || spent < budget->seconds); c++) {
-        int f = bench_frame_at(frames, c);
+    for (int c = 0; c < total && (once || spent < budget->seconds); c++) {
         bpx_cycle_stats stats = {0};
-        double elapsed = runner_cycle(&r, f, &stats);
-        if (elapsed < 0) {
+        double elapsed = runner_cycle(&r, c, &stats);
+        uint64_t truth = 0;
+        if (elapsed < 0 ||
+            (frames->motion && bench_truth_count(frames->truth, c, &truth) != 0)) {
             runner_close(&r);
             return -1;
         }
+        if (!frames->motion)
+            truth = frames->pairs[c];
         uint64_t reported = stats.pair_count, checked = stats.pair_count;
         if (r.peer) {
             reported = bench_peer_pair_count(r.peer);
-            checked = bench_peer_exact_pairs(r.peer, frame_boxes(&r, f), NULL, 0);
+            checked = bench_peer_exact_pairs(r.peer, cycle_boxes(&r, c), NULL, 0);
         }
-        if (frames->pairs && checked != frames->pairs[f])
+        if (checked != truth)
             out->mismatches++;
         if (c == 0) {
             // A peer's cold start is its creation: it inserts the first frame and finds its
@@ -273,10 +353,10 @@ int bench_run(const bench_variant *v, const bench_frames *frames, const bench_bu
         }
         // The cold cycle is reported apart; warm-up cycles not at all. Slow variants (a second
         // per cycle at a million boxes) stop warming up after half the budget.
-        if (!frames->once && c > 0 && warm_end == 0 &&
+        if (!once && c > 0 && warm_end == 0 &&
             (c > budget->warmup || (c > 1 && warm_spent > 0.5 * budget->seconds)))
             warm_end = c;
-        if (frames->once ? c == 0 : warm_end == 0) {
+        if (once ? c == 0 : warm_end == 0) {
             warm_spent += c > 0 ? elapsed : 0;
             continue;
         }

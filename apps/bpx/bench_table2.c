@@ -47,7 +47,7 @@ static int record(uint32_t n, int cycles, uint64_t seed, float *minima, float *c
     for (size_t k = 0; k < 3 * (size_t)n; k++)
         minima[k] = -r;
     *frames = (bench_frames){.n = n, .count = cycles, .minima = minima, .centres = centres,
-                             .once = true, .pairs = pairs};
+                             .pairs = pairs};
     for (int a = 0; a < 3; a++)
         frames->bounds_min[a] = INFINITY, frames->bounds_max[a] = -INFINITY;
     for (int c = 0; c < cycles; c++) {

@@ -19,7 +19,7 @@
 #include "peers.h"
 #include "scenes.h"
 
-enum { FRAME_COUNT = 8, MAX_NAMES = 32, SCENES = 3 };
+enum { MAX_NAMES = 32, SCENES = 3 };
 
 // uniform: sizes 0.5..1.5, moved up to 0.05 per axis and frame; heavy: a heavy tail of sizes,
 // the same motion; resting: uniform sizes moved 50 times less (a scene mostly at rest).
@@ -33,6 +33,7 @@ typedef struct bench_options {
     bool scenes[SCENES];
     int threads;
     double seconds;     // time budget per variant and size
+    double step;        // --step: motion per axis and frame for every scene (0: the scene's own)
     int max_cycles;     // timed cycles at most (scale); cycles per n (table 2)
     bool cycles_given;
     uint64_t seed;
@@ -45,8 +46,9 @@ typedef struct bench_options {
 static void print_help(void)
 {
     printf("usage: bpx bench [--quick] [--out DIR] [--backend NAME,...] [--sizes N,...]\n"
-           "                 [--scene uniform,heavy] [--table2] [--threads T] [--seconds S]\n"
-           "                 [--cycles C] [--all-simd] [--seed S] [--csv FILE] [--device P:D]\n"
+           "                 [--scene uniform,heavy,resting] [--step D] [--table2] [--threads T]\n"
+           "                 [--seconds S] [--cycles C] [--all-simd] [--seed S] [--csv FILE]\n"
+           "                 [--device P:D]\n"
            "\n"
            "Times every bpx backend and every peer library built in (Bullet, Box2D: see\n"
            "`bpx backends`) side by side, in two parts:\n"
@@ -67,6 +69,8 @@ static void print_help(void)
            "  --backend   only these (bpx backends and peers, e.g. prune,sap,bullet-dbvt)\n"
            "  --sizes     scale part only, these box counts (default 1000,10000,100000,1000000)\n"
            "  --scene     scale scenes (default uniform,heavy,resting)\n"
+           "  --step      motion per axis and frame in every scene (default 0.05; resting\n"
+           "              0.001; boxes are ~1 wide)\n"
            "  --table2    Table 2 part only (with --sizes: both)\n"
            "  --threads   worker threads of the threaded rows (default: online CPUs)\n"
            "  --seconds   time budget per variant and size (default 0.5; --quick 0.1)\n"
@@ -175,6 +179,11 @@ static int parse_args(int argc, char **argv, bench_options *o)
             o->seconds = m == CLI_MATCH ? strtod(value, &end) : 0;
             if (m == CLI_MISSING_VALUE || *end != '\0' || !(o->seconds > 0 && o->seconds < 1e4))
                 return cli_usage_error("bench", "--seconds wants a positive number");
+        } else if ((m = cli_flag_value(argc, argv, &k, "--step", &value)) != CLI_NO_MATCH) {
+            char *end = NULL;
+            o->step = m == CLI_MATCH ? strtod(value, &end) : 0;
+            if (m == CLI_MISSING_VALUE || *end != '\0' || !(o->step > 0 && o->step < 1e3))
+                return cli_usage_error("bench", "--step wants a positive distance");
         } else if ((m = cli_flag_value(argc, argv, &k, "--seed", &value)) != CLI_NO_MATCH) {
             char *end = NULL;
             o->seed = m == CLI_MATCH ? strtoull(value, &end, 10) : 0;
@@ -268,59 +277,69 @@ static int list_variants(const bench_options *o, uint32_t n, bench_variant *out)
     return kept;
 }
 
-// The frames of one scale scene and their exact pair counts (from the auto backend, untimed).
+// One scale scene: its boxes at cycle 0, each with its own constant velocity (up to `step` per
+// axis and cycle), bouncing off the walls of the scene's bounding box; and the exact pair count
+// of every cycle, computed as the variants get there (bench_truth).
 typedef struct scale_scene {
-    bpx_box *boxes[FRAME_COUNT];
-    uint64_t pairs[FRAME_COUNT];
+    float *minima, *centres, *velocity;
+    bench_motion motion;
+    bench_truth truth;
     bench_frames frames;
 } scale_scene;
 
-static int make_scene(int scene, uint32_t n, uint64_t seed, scale_scene *s)
+static int make_scene(int scene, uint32_t n, uint64_t seed, double step, int cycles,
+                      scale_scene *s)
 {
     *s = (scale_scene){0};
-    for (int f = 0; f < FRAME_COUNT; f++)
-        if (!(s->boxes[f] = malloc(sizeof(bpx_box) * (n ? n : 1))))
-            return -1;
+    size_t count = n ? n : 1;
+    bpx_box *boxes = malloc(sizeof(bpx_box) * count);
+    s->minima = malloc(sizeof(float) * 3 * count);
+    s->centres = malloc(sizeof(float) * 3 * count);
+    s->velocity = malloc(sizeof(float) * 3 * count);
+    if (!boxes || !s->minima || !s->centres || !s->velocity) {
+        free(boxes);
+        return -1;
+    }
     if (scene == 1)
-        scene_heavy_tailed_density(n, seed, s->boxes[0]);
+        scene_heavy_tailed_density(n, seed, boxes);
     else
-        scene_uniform_density(n, 1.0f, seed, s->boxes[0]);
+        scene_uniform_density(n, 1.0f, seed, boxes);
+    float v = step > 0 ? (float)step : scene_steps[scene];
     scene_rng rng;
     scene_rng_seed(&rng, seed ^ 0x9e3779b97f4a7c15ull);
-    for (int f = 1; f < FRAME_COUNT; f++) {
-        memcpy(s->boxes[f], s->boxes[f - 1], sizeof(bpx_box) * n);
-        scene_move(s->boxes[f], n, scene_steps[scene], &rng);
-    }
-    s->frames = (bench_frames){.n = n, .count = FRAME_COUNT, .boxes = s->boxes, .pairs = s->pairs};
+    s->motion = (bench_motion){.n = n, .minima = s->minima, .centres = s->centres,
+                               .velocity = s->velocity};
     for (int a = 0; a < 3; a++) {
-        s->frames.bounds_min[a] = n ? INFINITY : 0.0f;
-        s->frames.bounds_max[a] = n ? -INFINITY : 1.0f;
+        s->motion.lo[a] = n ? INFINITY : 0.0f;
+        s->motion.hi[a] = n ? -INFINITY : 1.0f;
     }
-    bpx_world_def def = bpx_default_world_def();
-    bpx_world *world;
-    if (bpx_world_create(&def, &world) != BPX_OK)
-        return -1;
-    for (int f = 0; f < FRAME_COUNT; f++) {
-        for (uint32_t i = 0; i < n; i++)
-            for (int a = 0; a < 3; a++) {
-                s->frames.bounds_min[a] = fminf(s->frames.bounds_min[a], s->boxes[f][i].min[a]);
-                s->frames.bounds_max[a] = fmaxf(s->frames.bounds_max[a], s->boxes[f][i].max[a]);
-            }
-        if (bpx_world_set_boxes(world, s->boxes[f], n) != BPX_OK ||
-            bpx_world_collide(world) != BPX_OK) {
-            bpx_world_destroy(world);
-            return -1;
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            size_t k = 3 * (size_t)i + a;
+            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
+            s->minima[k] = -half;
+            s->centres[k] = boxes[i].min[a] + half;
+            s->velocity[k] = scene_rng_range(&rng, -v, v);
+            s->motion.lo[a] = fminf(s->motion.lo[a], boxes[i].min[a]);
+            s->motion.hi[a] = fmaxf(s->motion.hi[a], boxes[i].max[a]);
         }
-        s->pairs[f] = bpx_world_stats(world).pair_count;
+    free(boxes);
+    s->frames = (bench_frames){.n = n, .motion = &s->motion, .truth = &s->truth};
+    for (int a = 0; a < 3; a++) {
+        // Boxes are centre -+ half extent, which can round an ulp past a wall.
+        float pad = (s->motion.hi[a] - s->motion.lo[a]) * 1e-6f + 1e-6f;
+        s->frames.bounds_min[a] = s->motion.lo[a] - pad;
+        s->frames.bounds_max[a] = s->motion.hi[a] + pad;
     }
-    bpx_world_destroy(world);
-    return 0;
+    return bench_truth_init(&s->truth, &s->motion, cycles);
 }
 
 static void free_scene(scale_scene *s)
 {
-    for (int f = 0; f < FRAME_COUNT; f++)
-        free(s->boxes[f]);
+    bench_truth_free(&s->truth);
+    free(s->minima);
+    free(s->centres);
+    free(s->velocity);
 }
 
 // The opencl rows again, as Table 2 of the paper: where a cycle's device time goes.
@@ -406,7 +425,8 @@ static int run_size(scale_state *st, int scene, int size_index)
     uint32_t n = o->sizes[size_index];
     scale_scene sc;
     bench_progress("bpx bench: %s n = %u: exact pairs", scene_names[scene], n);
-    if (make_scene(scene, n, o->seed, &sc) != 0) {
+    bench_budget budget = {o->seconds, o->max_cycles, o->quick ? 2 : 5};
+    if (make_scene(scene, n, o->seed, o->step, 1 + budget.warmup + budget.max_cycles, &sc) != 0) {
         free_scene(&sc);
         cli_error("bench", "cannot make the %s scene of %u boxes", scene_names[scene], n);
         return -1;
@@ -414,7 +434,6 @@ static int run_size(scale_state *st, int scene, int size_index)
     bench_variant variants[BENCH_MAX_VARIANTS];
     bench_result results[BENCH_MAX_VARIANTS];
     int count = list_variants(o, n, variants);
-    bench_budget budget = {o->seconds, o->max_cycles, o->quick ? 2 : 5};
     int code = 0;
     for (int v = 0; v < count && code == 0; v++) {
         char name[BENCH_NAME_SIZE];
@@ -494,15 +513,16 @@ static int run_scale(scale_state *st)
 {
     const bench_options *o = st->o;
     bench_printf("Random scenes at constant density (about one overlap per box; \"heavy\": 1%%\n"
-                 "of boxes 4..8 and 0.01%% 16..32 times the others' size), %d frames of coherent\n"
-                 "motion (up to 0.05 per axis and frame for boxes of size ~1; \"resting\": 0.001)\n"
-                 "replayed back and forth. Per variant: cold = first cycle of a fresh\n"
-                 "world (peers: their creation with the first frame), then warm-up, then timed\n"
-                 "cycles for %.2f s (at least one); us per cycle (bpx: set_boxes + collide;\n"
-                 "peers: move every proxy + their pair update). vs sap / vs fastest peer: their\n"
-                 "mean over this row's (means, as the paper: sap's cycles are cheap or dear). check: every cycle's pairs against the exact count\n"
-                 "(peers report more: fat or quantised boxes).\n\n",
-                 FRAME_COUNT, o->seconds);
+                 "of boxes 4..8 and 0.01%% 16..32 times the others' size), every box moving at\n"
+                 "its own constant velocity (up to %s per axis and cycle, boxes ~1 wide;\n"
+                 "\"resting\": %s) and bouncing off the scene's walls. Per variant: cold = first\n"
+                 "cycle of a fresh world (peers: their creation with the first cycle's boxes),\n"
+                 "then warm-up, then timed cycles for %.2f s (at least one); us per cycle (bpx:\n"
+                 "set_boxes + collide; peers: move every proxy + their pair update). vs sap / vs\n"
+                 "fastest peer: their mean over this row's (means, as the paper's; sap's cycles\n"
+                 "are cheap or dear). check: every cycle's pairs against the exact count (peers\n"
+                 "report more: fat or quantised boxes).\n\n",
+                 o->step > 0 ? "--step" : "0.05", o->step > 0 ? "--step" : "0.001", o->seconds);
     bench_printf("| scene | n | variant | pairs/cycle | cold us | mean us | median us | p99 us | "
                  "vs sap | vs fastest peer | check |\n"
                  "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|\n");

@@ -2,8 +2,8 @@
 //
 // The rule (measured with `bpx bench`; the README's Speed section has the runs):
 //   n <= 96                        brute: no sort to pay for, a few SIMD steps per row
-//   boxes at rest, n > 96          sap:   mending sorted endpoint lists costs O(n + swaps), and
-//                                         with little motion there are few swaps
+//   boxes nearly at rest, n > 96   sap:   its fat boxes absorb small moves, so a cycle touches
+//                                         only the few boxes that left theirs
 //   sweep candidates per box <= C  prune: one sort on x, a sweep that meets few boxes per box
 //   above                          grid:  the sweep's candidates grow like n^(2/3) per box at
 //                                         constant density; cells keep them constant
@@ -11,8 +11,8 @@
 //   candidates per box ~ n * mean x extent / x span: the boxes a sweep along x meets per box if
 //     they are spread evenly (for random scenes at constant density it is n^(2/3) / 2); it
 //     grows with n and with the sizes, so a heavy tail of big boxes moves the choice to grid;
-//   swaps per box ~ mean |change of min x| since last cycle * 2n / x span: how many endpoints
-//     each endpoint passes when sorted lists are mended, sap's cost.
+//   motion ~ mean |change of min x| since last cycle / mean x extent: how fast boxes leave the
+//     fat boxes sap keeps (a margin of 1/16 of the mean extent), which is what sap pays for.
 // The choice depends on the boxes only, so it (and so the work done) is reproducible; the output
 // is the same whichever backend runs. Each delegate keeps its own state between cycles.
 #include <math.h>
@@ -25,11 +25,11 @@ enum { AUTO_BRUTE_MAX = 96 };
 // prune up to this many sweep candidates per box, grid beyond (measured: grid 2 threads ahead
 // from n = 20k at constant density, where n^(2/3) / 2 = 368).
 static const double AUTO_PRUNE_MAX_CANDIDATES = 350.0;
-// sap when each endpoint passes fewer than this many others per cycle. Measured at n = 10k,
-// 0.23 swaps: sap 1.8x faster than prune; at 1k, 2.5 swaps: 4x slower. Against grid (whose cost
-// per box is lower) sap wins only near rest: at 100k, 1.07 swaps: 3x slower; at rest: 2x faster.
-// Leaving sap takes twice the swaps of entering it, so the choice doesn't flicker.
-static const double AUTO_SAP_SWAPS_VS_PRUNE = 0.3, AUTO_SAP_SWAPS_VS_GRID = 0.05;
+// sap below this motion (boxes moving at constant velocity, `bpx bench --step`): at 0.0005 sap
+// is 1.5x (10k) to 1.8x (100k) faster than the best of prune and grid, at 0.0015 even with
+// prune at 10k and 1.2x faster than grid at 100k, at 0.005 slower than both. Leaving sap takes
+// twice the motion of entering it, so the choice doesn't flicker.
+static const double AUTO_SAP_MAX_MOTION = 0.002;
 
 typedef struct auto_state {
     void *states[BPX_BACKEND_COUNT]; // each delegate's backend_state
@@ -95,13 +95,12 @@ static bpx_backend choose(bpx_world *w, auto_state *st)
     double span = (double)high - (double)low;
     if (live <= AUTO_BRUTE_MAX || !(span > 0) || !isfinite(span))
         return live <= AUTO_BRUTE_MAX ? BPX_BACKEND_BRUTE : BPX_BACKEND_PRUNE;
-    double swaps = 2.0 * moved / span; // mean |move| * (2 live endpoints / span)
-    double candidates = extent / span;  // live * (mean extent) / span
-    bool big = candidates > AUTO_PRUNE_MAX_CANDIDATES;
-    double limit = big ? AUTO_SAP_SWAPS_VS_GRID : AUTO_SAP_SWAPS_VS_PRUNE;
-    if (have_last && swaps < (st->last == BPX_BACKEND_SAP ? 2 * limit : limit))
+    double motion = moved / extent;    // mean |move| / mean extent
+    double candidates = extent / span; // live * (mean extent) / span
+    double limit = st->last == BPX_BACKEND_SAP ? 2 * AUTO_SAP_MAX_MOTION : AUTO_SAP_MAX_MOTION;
+    if (have_last && motion < limit)
         return BPX_BACKEND_SAP;
-    return big ? BPX_BACKEND_GRID : BPX_BACKEND_PRUNE;
+    return candidates <= AUTO_PRUNE_MAX_CANDIDATES ? BPX_BACKEND_PRUNE : BPX_BACKEND_GRID;
 }
 
 static bpx_status auto_compare(bpx_world *w)
@@ -159,7 +158,7 @@ static bool auto_query(const bpx_world_def *def, const char **reason, char *deta
     if (!bpx__brute_backend.query(def, reason, inner, sizeof inner))
         return false;
     snprintf(detail, size,
-             "brute to n = %d; then sap at rest, prune to %.0f sweep candidates per box, grid "
+             "brute to n = %d; then sap near rest, prune to %.0f sweep candidates per box, grid "
              "beyond (%.40s)",
              AUTO_BRUTE_MAX, AUTO_PRUNE_MAX_CANDIDATES, inner);
     return true;
