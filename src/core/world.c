@@ -275,6 +275,91 @@ bpx_cycle_stats bpx_world_stats(const bpx_world *w)
 // ---------------------------------------------------------------------------------------------
 // Updater
 
+// The updater's passes split into chunks of box ids for large n (below, one chunk: threads
+// would cost more than they save). Chunks depend on n only; each writes its own range of the
+// spare set and its own verdict, so the result is the same for any worker count.
+enum { UPDATE_PARALLEL_MIN = 32768, UPDATE_CHUNK_MIN = 16384, UPDATE_CHUNKS_MAX = 64 };
+
+typedef struct update_job {
+    const bpx_box *boxes;     // set_boxes
+    const float *centres;     // update_centres
+    const float *minima[3];   // update_centres
+    bpx_box_arrays *out;
+    uint32_t n;
+    int chunks;
+    int ok[UPDATE_CHUNKS_MAX];
+} update_job;
+
+static void chunk_range(const update_job *job, int c, uint32_t *begin, uint32_t *end)
+{
+    *begin = (uint32_t)((uint64_t)job->n * (uint64_t)c / (uint64_t)job->chunks);
+    *end = (uint32_t)((uint64_t)job->n * (uint64_t)(c + 1) / (uint64_t)job->chunks);
+}
+
+// Valid iff -FLT_MAX <= min <= max <= FLT_MAX: NaN fails a comparison, infinity a bound.
+static void set_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    update_job *job = context;
+    float *lx = job->out->lo[0], *ly = job->out->lo[1], *lz = job->out->lo[2];
+    float *hx = job->out->hi[0], *hy = job->out->hi[1], *hz = job->out->hi[2];
+    for (int c = begin; c < end; c++) {
+        uint32_t i0, i1;
+        chunk_range(job, c, &i0, &i1);
+        int ok = 1;
+        for (uint32_t i = i0; i < i1; i++) {
+            const bpx_box *box = &job->boxes[i];
+            for (int a = 0; a < 3; a++)
+                ok &= (-FLT_MAX <= box->min[a]) & (box->min[a] <= box->max[a]) &
+                      (box->max[a] <= FLT_MAX);
+            lx[i] = box->min[0], ly[i] = box->min[1], lz[i] = box->min[2];
+            hx[i] = box->max[0], hy[i] = box->max[1], hz[i] = box->max[2];
+        }
+        job->ok[c] = ok;
+    }
+}
+
+// min = centre + stored minimum, max = centre - stored minimum; finiteness checked (see
+// bpx_world_update_centres).
+static void centres_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    update_job *job = context;
+    const float *centres = job->centres;
+    for (int c = begin; c < end; c++) {
+        uint32_t i0, i1;
+        chunk_range(job, c, &i0, &i1);
+        int ok = 1;
+        for (int a = 0; a < 3; a++) {
+            float *lo = job->out->lo[a], *hi = job->out->hi[a];
+            const float *m = job->minima[a];
+            for (uint32_t i = i0; i < i1; i++) {
+                float v = centres[3 * (size_t)i + a];
+                lo[i] = v + m[i];
+                hi[i] = v - m[i];
+                ok &= (-FLT_MAX <= lo[i]) & (hi[i] <= FLT_MAX);
+            }
+        }
+        job->ok[c] = ok;
+    }
+}
+
+// Runs an updater pass over all n boxes; true when every box passed its check.
+static int run_update(bpx_world *w, bpx_task_fn *task, update_job *job)
+{
+    int chunks = 1;
+    if (job->n >= UPDATE_PARALLEL_MIN && w->executor.worker_count > 1) {
+        uint32_t by_size = job->n / UPDATE_CHUNK_MIN;
+        chunks = by_size < UPDATE_CHUNKS_MAX ? (int)by_size : UPDATE_CHUNKS_MAX;
+    }
+    job->chunks = chunks;
+    bpx__parallel_for(&w->executor, task, chunks, job);
+    int ok = 1;
+    for (int c = 0; c < chunks; c++)
+        ok &= job->ok[c];
+    return ok;
+}
+
 bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
 {
     if (!w)
@@ -289,19 +374,11 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
     if (!reserve_arrays(&w->spare, n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u boxes", n);
-    // One pass: transpose into the spare set and check every box, without branching on data.
-    // Valid iff -FLT_MAX <= min <= max <= FLT_MAX: NaN fails a comparison, infinity a bound.
-    float *lx = w->spare.lo[0], *ly = w->spare.lo[1], *lz = w->spare.lo[2];
-    float *hx = w->spare.hi[0], *hy = w->spare.hi[1], *hz = w->spare.hi[2];
-    int ok = 1;
-    for (uint32_t i = 0; i < n; i++) {
-        const bpx_box *box = &boxes[i];
-        for (int a = 0; a < 3; a++)
-            ok &= (-FLT_MAX <= box->min[a]) & (box->min[a] <= box->max[a]) &
-                  (box->max[a] <= FLT_MAX);
-        lx[i] = box->min[0], ly[i] = box->min[1], lz[i] = box->min[2];
-        hx[i] = box->max[0], hy[i] = box->max[1], hz[i] = box->max[2];
-    }
+    // One pass: transpose into the spare set and check every box, without branching on data,
+    // in parallel for large n (each chunk writes its own range; a bad box anywhere sends the
+    // serial check over all of them, which names the first).
+    update_job job = {.boxes = boxes, .out = &w->spare, .n = n};
+    int ok = run_update(w, set_task, &job);
     if (!ok)
         return bpx__check_boxes(boxes, n, &w->error); // names the first bad box
     if (!bpx__objects_reset(w, n))
@@ -381,18 +458,10 @@ bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
     // The paper's updater: min = centre + stored minimum, max = centre - stored minimum, into
     // the spare set. min <= max holds by construction (rounding is monotone and minimum <= 0), so
     // only finiteness is checked: a NaN or infinite centre, or an overflow, fails a bound.
-    bpx_box_arrays *b = &w->spare;
-    int ok = 1;
-    for (int a = 0; a < 3; a++) {
-        float *lo = b->lo[a], *hi = b->hi[a];
-        const float *m = w->minima[a];
-        for (uint32_t i = 0; i < n; i++) {
-            float c = centres[3 * (size_t)i + a];
-            lo[i] = c + m[i];
-            hi[i] = c - m[i];
-            ok &= (-FLT_MAX <= lo[i]) & (hi[i] <= FLT_MAX);
-        }
-    }
+    update_job job = {.centres = centres, .out = &w->spare, .n = n};
+    for (int a = 0; a < 3; a++)
+        job.minima[a] = w->minima[a];
+    int ok = run_update(w, centres_task, &job);
     if (!ok) {
         const float *const minima[3] = {w->minima[0], w->minima[1], w->minima[2]};
         return bpx__check_centres(centres, minima, n, &w->error); // names the first bad one

@@ -16,7 +16,9 @@
 //     cells at that level) it covers; per-chunk histograms of columns.
 //  3. Levels: the top levels holding few boxes become "big" boxes, tested against all (the
 //     rest never look for them); the others get columns: a prefix of the histograms.
-//  4. Scatter: each box (coordinates, id, x cell, flags) to its columns, 32 bytes a write.
+//  4. Scatter: each box (coordinates, id, x cell, flags) to its columns, 32 bytes an entry;
+//     two entries of a column that share a cache line go out together as one streamed line
+//     (the second waits in a small per-worker stash), so no line is read before it is written.
 //  5. Per column: a counting sort on the x cell, mended by insertion sort on min x (radix when
 //     that gives up), written out as SoA runs.
 //  6. Tests (grid_kernel.h): each box against the rest of its run, and from its home column
@@ -37,6 +39,10 @@
 #include "kernels.h"
 #include "sort.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 enum {
     SAMPLE = 1023,            // boxes sampled for sizes (and first-cycle bounds)
     GRID_SWEEP_BOXES = 8,     // boxes one sweep should meet at the scene's density
@@ -45,7 +51,8 @@ enum {
     CHUNKS_MAX = 64,          // box ranges of the key and scatter passes
     ITEM_ENTRIES = 4096,      // positions per test item (at least)
     ITEMS_MAX = 512,
-    BIG_SPAN = 1 << 16,       // ids per big-box work item
+    BIG_SPAN = 1 << 14,       // ids per big-box work item (all big boxes against them)
+    BIG_STEP = 2048,          // ids in cache at a time while every big box passes over them
     EMIT_SHIFT = 11,          // at most 2^11 ids per bucket of pairs, 11-bit sort digits
     EMIT_BUCKET_PAIRS = 8192, // pairs per bucket wanted (the in-cache sort)
     EMIT_GROUPS = 64,
@@ -103,6 +110,13 @@ typedef struct grid_state {
     size_t column_capacity;
     grid_entry *entries;
     size_t entry_capacity;
+    // Scatter's write-combining, per worker: a column's entry waiting for the other half of its
+    // cache line, and the position it goes to.
+    grid_entry *stash;
+    size_t stash_capacity;
+    uint32_t wcolumns; // columns of the windowed levels
+    uint32_t *stash_at;
+    size_t stash_at_capacity;
     // Positions of the coarser levels' runs (level 0's are sorted in the workers' scratch).
     grid_soa positions;
     grid_soa scratch[WORKERS_MAX];
@@ -111,7 +125,7 @@ typedef struct grid_state {
     size_t big_capacity;
     uint32_t item_column[ITEMS_MAX + 1];
     int item_count, big_items;
-    uint32_t big_per_box; // work items per big box
+    uint32_t big_parts; // work items of the big boxes, BIG_SPAN ids each
 
     // Emitter.
     bpx_pair_list a, b;
@@ -201,6 +215,8 @@ static void grid_destroy(bpx_world *w)
     bpx__free(st->hist, st->hist_capacity * sizeof(uint32_t));
     bpx__free(st->column_start, st->column_capacity * sizeof(uint32_t));
     bpx__free(st->entries, st->entry_capacity * sizeof(grid_entry));
+    bpx__free(st->stash, st->stash_capacity * sizeof(grid_entry));
+    bpx__free(st->stash_at, st->stash_at_capacity * sizeof(uint32_t));
     bpx__free(st->big_ids, st->big_capacity * sizeof(uint32_t));
     bpx__free(st->a.pairs, st->a.capacity * sizeof(bpx_pair));
     bpx__free(st->b.pairs, st->b.capacity * sizeof(bpx_pair));
@@ -470,17 +486,55 @@ static void key_task(int begin, int end, int worker, void *context)
     }
 }
 
+// Entries are 32 bytes, positions 64-byte aligned in pairs: an entry at an even position waits
+// in the stash until the odd one after it comes from the same chunk, and the two go out as one
+// whole line, bypassing the cache (no read for ownership of a line about to be overwritten).
+// Entries whose other half belongs to another chunk (a range's ends) are stored plainly.
+static inline void put_line(grid_entry *to, const grid_entry *first, const grid_entry *second)
+{
+#if defined(__SSE2__)
+    const __m128i *a = (const __m128i *)(const void *)first;
+    const __m128i *b = (const __m128i *)(const void *)second;
+    __m128i *d = (__m128i *)(void *)to;
+    __m128i a0 = _mm_loadu_si128(a), a1 = _mm_loadu_si128(a + 1);
+    __m128i b0 = _mm_loadu_si128(b), b1 = _mm_loadu_si128(b + 1);
+    _mm_stream_si128(d, a0);
+    _mm_stream_si128(d + 1, a1);
+    _mm_stream_si128(d + 2, b0);
+    _mm_stream_si128(d + 3, b1);
+#else
+    to[0] = *first;
+    to[1] = *second;
+#endif
+}
+
+static inline void put(grid_state *st, grid_entry *stash, uint32_t *stash_at, uint32_t column,
+                       uint32_t at, const grid_entry *e)
+{
+    if (!(at & 1)) {
+        stash[column] = *e;
+        stash_at[column] = at;
+    } else if (stash_at[column] == at - 1) {
+        put_line(st->entries + at - 1, &stash[column], e);
+    } else {
+        st->entries[at] = *e;
+    }
+}
+
 static void scatter_task(int begin, int end, int worker, void *context)
 {
-    (void)worker;
     grid_job *job = context;
     grid_state *st = job->st;
     const bpx_soa *s = &job->soa;
     const grid_params *p = &st->params;
     uint32_t windowed = (uint32_t)st->layout.windowed, columns = p->columns;
+    uint32_t wcolumns = st->wcolumns;
+    grid_entry *stash = st->stash + (size_t)worker * wcolumns;
+    uint32_t *stash_at = st->stash_at + (size_t)worker * wcolumns;
     for (int c = begin; c < end; c++) {
         const grid_chunk *ch = &st->chunks[c];
         uint32_t *offset = st->hist + (size_t)c * columns;
+        memset(stash_at, 0xff, sizeof(uint32_t) * wcolumns);
         for (uint32_t i = ch->begin; i < ch->end; i++) {
             uint32_t key = st->key[i];
             uint32_t l = bpx__grid_key_level(key);
@@ -495,21 +549,28 @@ static void scatter_task(int begin, int end, int worker, void *context)
                             i,
                             cx | (spans | BPX_GRID_HOME) << 24};
             uint32_t column = bpx__grid_key_column(key), nz = st->layout.level[l].nz;
-            st->entries[offset[column]++] = e;
+            put(st, stash, stash_at, column, offset[column]++, &e);
             if (key & BPX_GRID_SPAN_Z) {
                 e.fx = cx | (spans | BPX_GRID_FIRST_Y) << 24;
-                st->entries[offset[column + 1]++] = e;
+                put(st, stash, stash_at, column + 1, offset[column + 1]++, &e);
             }
             if (key & BPX_GRID_SPAN_Y) {
                 e.fx = cx | (spans | BPX_GRID_FIRST_Z) << 24;
-                st->entries[offset[column + nz]++] = e;
+                put(st, stash, stash_at, column + nz, offset[column + nz]++, &e);
                 if (key & BPX_GRID_SPAN_Z) {
                     e.fx = cx | spans << 24;
-                    st->entries[offset[column + nz + 1]++] = e;
+                    put(st, stash, stash_at, column + nz + 1, offset[column + nz + 1]++, &e);
                 }
             }
         }
+        // Entries still waiting: the last of their column's range, at an even position.
+        for (uint32_t k = 0; k < wcolumns; k++)
+            if (stash_at[k] != UINT32_MAX && stash_at[k] + 1 == offset[k])
+                st->entries[stash_at[k]] = stash[k];
     }
+#if defined(__SSE2__)
+    _mm_sfence(); // the streamed lines are visible before the tests read them
+#endif
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -628,11 +689,15 @@ static void test_task(int begin, int end, int worker, void *context)
             continue;
         }
         uint32_t k = (uint32_t)(b - st->item_count);
-        uint32_t box = k / st->big_per_box, part = k % st->big_per_box;
         uint32_t stop = (job->soa.n + PAD - 1) / PAD * PAD;
-        uint32_t j0 = part * BIG_SPAN, j1 = j0 + BIG_SPAN < stop ? j0 + BIG_SPAN : stop;
-        if (j0 < j1)
-            job->big(&st->layout, box, j0, j1, block);
+        uint32_t j0 = k * BIG_SPAN, j1 = j0 + BIG_SPAN < stop ? j0 + BIG_SPAN : stop;
+        // Every big box over a few thousand ids at a time: the boxes are read from memory
+        // once per cycle, not once per big box.
+        for (uint32_t js = j0; js < j1 && block->status == BPX_OK; js += BIG_STEP) {
+            uint32_t je = js + BIG_STEP < j1 ? js + BIG_STEP : j1;
+            for (uint32_t box = 0; box < st->layout.big_count && block->status == BPX_OK; box++)
+                job->big(&st->layout, box, js, je, block);
+        }
     }
 }
 
@@ -933,6 +998,12 @@ static bpx_status grid_compare(bpx_world *w)
     for (int k = 0; k < workers && k < WORKERS_MAX; k++)
         if (!reserve_soa(&st->scratch[k], (size_t)longest + PAD))
             return BPX_ERR_OUT_OF_MEMORY;
+    st->wcolumns = wcolumns;
+    if (!reserve_array((void **)&st->stash, &st->stash_capacity, (size_t)workers * wcolumns,
+                       sizeof(grid_entry)) ||
+        !reserve_array((void **)&st->stash_at, &st->stash_at_capacity,
+                       (size_t)workers * wcolumns, sizeof(uint32_t)))
+        return BPX_ERR_OUT_OF_MEMORY;
     if (big) {
         uint32_t k = 0;
         for (uint32_t i = 0; i < n; i++) {
@@ -966,10 +1037,8 @@ static bpx_status grid_compare(bpx_world *w)
     g->big_ids = st->big_ids;
     g->big_count = big;
     g->key = st->key;
-    st->big_per_box = (uint32_t)((((size_t)n + PAD - 1) / PAD * PAD + BIG_SPAN - 1) / BIG_SPAN);
-    if (!st->big_per_box)
-        st->big_per_box = 1;
-    st->big_items = (int)(big * st->big_per_box);
+    st->big_parts = (uint32_t)((((size_t)n + PAD - 1) / PAD * PAD + BIG_SPAN - 1) / BIG_SPAN);
+    st->big_items = big ? (int)st->big_parts : 0;
     int blocks = st->item_count + st->big_items;
     bpx_status status = bpx__emitter_reserve_blocks(w, blocks);
     if (status != BPX_OK)
