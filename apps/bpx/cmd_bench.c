@@ -572,6 +572,27 @@ static int write_plots(const scale_state *st)
     return 0;
 }
 
+// mkdir -p: 0, or -1 with errno set.
+static int make_dirs(const char *path)
+{
+    char buffer[4096];
+    if (snprintf(buffer, sizeof buffer, "%s", path) >= (int)sizeof buffer) {
+        errno = ENAMETOOLONG;
+        return -1;
+    }
+    for (char *p = buffer + 1;; p++) {
+        bool end = *p == '\0';
+        if (*p == '/' || end) {
+            *p = '\0';
+            if (mkdir(buffer, 0777) != 0 && errno != EEXIST)
+                return -1;
+            if (end)
+                return 0;
+            *p = '/';
+        }
+    }
+}
+
 static FILE *open_out(const bench_options *o, const char *name)
 {
     char path[4096];
@@ -610,7 +631,7 @@ int cmd_bench(int argc, char **argv)
             o.seconds = 0.1;
     }
     int table2_cycles = o.cycles_given ? o.max_cycles : o.quick ? 300 : 10000;
-    if (o.out_dir && mkdir(o.out_dir, 0777) != 0 && errno != EEXIST) {
+    if (o.out_dir && make_dirs(o.out_dir) != 0) {
         cli_error("bench", "cannot create %s: %s", o.out_dir, strerror(errno));
         return CLI_EXIT_ERROR;
     }
