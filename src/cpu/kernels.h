@@ -14,3 +14,7 @@ typedef void bpx_prune_rows_fn(const bpx_sorted *s, uint32_t row_begin, uint32_t
 /// The kernels for a supported width (AUTO: the widest); the scalar ones otherwise.
 bpx_brute_rows_fn *bpx__brute_rows_for(bpx_simd simd);
 bpx_prune_rows_fn *bpx__prune_rows_for(bpx_simd simd);
+
+/// Sweeps the world's first `blocks` blocks (their row ranges of `sorted`) on its workers with the
+/// prune kernel of its SIMD width; hits land in each block (prune.c; sap's rebuild uses it too).
+void bpx__prune_sweep_blocks(bpx_world *w, const bpx_sorted *sorted, int blocks);

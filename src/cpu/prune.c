@@ -148,6 +148,12 @@ static void prune_task(int begin, int end, int worker, void *context)
     }
 }
 
+void bpx__prune_sweep_blocks(bpx_world *w, const bpx_sorted *sorted, int blocks)
+{
+    prune_job job = {w, *sorted, bpx__prune_rows_for(w->simd)};
+    bpx__parallel_for(&w->executor, prune_task, blocks, &job);
+}
+
 static bpx_status prune_compare(bpx_world *w)
 {
     uint32_t n = w->n;
@@ -162,11 +168,9 @@ static bpx_status prune_compare(bpx_world *w)
     sort_by_min_x(w, st);
     gather(w, st);
 
-    prune_job job = {w,
-                     {{st->lo[0], st->lo[1], st->lo[2]}, {st->hi[0], st->hi[1], st->hi[2]},
-                      st->ids, n},
-                     bpx__prune_rows_for(w->simd)};
-    bpx__parallel_for(&w->executor, prune_task, w->block_count, &job);
+    bpx_sorted sorted = {{st->lo[0], st->lo[1], st->lo[2]}, {st->hi[0], st->hi[1], st->hi[2]},
+                         st->ids, n};
+    bpx__prune_sweep_blocks(w, &sorted, w->block_count);
 
     bpx_status status = bpx__emitter_sort_blocks(w, &st->sorted, &st->spare, st->counts);
     return status;

@@ -578,25 +578,6 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
 // ---------------------------------------------------------------------------------------------
 // Cold cycle
 
-typedef struct sweep_job {
-    bpx_world *world;
-    bpx_sorted sorted;
-    bpx_prune_rows_fn *rows;
-} sweep_job;
-
-static void sweep_task(int begin, int end, int worker, void *context)
-{
-    (void)worker;
-    sweep_job *job = context;
-    for (int b = begin; b < end; b++) {
-        bpx_block *block = &job->world->blocks[b];
-        block->hits.count = 0;
-        block->tests = 0;
-        block->status = BPX_OK;
-        job->rows(&job->sorted, block->row_begin, block->row_end, block);
-    }
-}
-
 // Sweeps the `live` boxes of sorted_ids (ids in min order of `axis`), each as `boxes` has it,
 // into block 0, in (i, j) order.
 static bpx_status sweep(bpx_world *w, sap_state *st, const bpx_box *boxes, int axis,
@@ -632,11 +613,9 @@ static bpx_status sweep(bpx_world *w, sap_state *st, const bpx_box *boxes, int a
     }
     w->block_count = blocks;
     w->planned_n = UINT32_MAX; // the layout is this backend's own
-    sweep_job job = {w,
-                     {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]},
-                      a->sorted_ids, live},
-                     bpx__prune_rows_for(w->simd)};
-    bpx__parallel_for(&w->executor, sweep_task, blocks, &job);
+    bpx_sorted sorted = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]},
+                         a->sorted_ids, live};
+    bpx__prune_sweep_blocks(w, &sorted, blocks);
     return bpx__emitter_sort_blocks(w, &st->merged, &st->spare, a->counts);
 }
 
