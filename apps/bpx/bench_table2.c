@@ -73,17 +73,16 @@ static int record(uint32_t n, int cycles, uint64_t seed, float *minima, float *c
 
 static int list_variants(const bench_table2_options *o, bench_variant *out)
 {
-    bench_variant all[BENCH_MAX_VARIANTS] = {
-        {-1, BPX_BACKEND_BRUTE, BPX_SIMD_AUTO, 1, true},
-        {-1, BPX_BACKEND_BRUTE, BPX_SIMD_AUTO, o->threads, true},
-        {-1, BPX_BACKEND_PRUNE, BPX_SIMD_AUTO, 1, true},
-        {-1, BPX_BACKEND_SAP, BPX_SIMD_AUTO, 1, true},
-        {-1, BPX_BACKEND_GRID, BPX_SIMD_AUTO, 1, true},
-        {-1, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, true},
-    };
-    int count = o->threads > 1 ? 6 : 5;
-    if (o->threads <= 1)
-        memmove(&all[1], &all[2], sizeof(bench_variant) * 4);
+    // The CPU backends the paper's way (centres each cycle); brute also on every thread.
+    static const bpx_backend cpu[] = {BPX_BACKEND_BRUTE, BPX_BACKEND_PRUNE, BPX_BACKEND_SAP,
+                                      BPX_BACKEND_GRID, BPX_BACKEND_AUTO};
+    bench_variant all[BENCH_MAX_VARIANTS];
+    int count = 0;
+    for (size_t k = 0; k < sizeof cpu / sizeof cpu[0]; k++) {
+        all[count++] = (bench_variant){-1, cpu[k], BPX_SIMD_AUTO, 1, true};
+        if (cpu[k] == BPX_BACKEND_BRUTE && o->threads > 1)
+            all[count++] = (bench_variant){-1, cpu[k], BPX_SIMD_AUTO, o->threads, true};
+    }
     if (bpx_backend_query(BPX_BACKEND_OPENCL).available)
         all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true};
     for (int p = 0; p < bench_peer_count() && count < BENCH_MAX_VARIANTS; p++)
