@@ -466,6 +466,41 @@ static void test_resting_with_jumps(void)
     duo_free(&d);
 }
 
+// Many boxes, dense: the rebuild finds its fat pairs with the grid (a sweep on the best axis
+// would meet more than BPX_SWEEP_MAX_CANDIDATES boxes per box), and from 16384 boxes the warm
+// cycle's check, filter and one-pass mend run on the workers. Checked against prune (itself
+// checked against the reference by test_differential; the reference would take seconds here).
+static void test_many_boxes(int workers)
+{
+    enum { n = 20000, cycles = 40 };
+    const uint64_t seed = 121;
+    check_set_seed(seed);
+    duo d = {0};
+    d.sap = make_world(BPX_BACKEND_SAP, workers, true);
+    d.ref = make_world(BPX_BACKEND_PRUNE, 1, false);
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 4.0f, seed, boxes);
+    scene_rng r;
+    scene_rng_seed(&r, seed);
+    for (int cycle = 0; cycle < cycles; cycle++) {
+        check_set_context("many boxes workers=%d cycle=%d", workers, cycle);
+        // Slow drift (boxes leave their fat boxes a few, then many, at a time), a jump (cold:
+        // the grid), faster drift (the one-pass mend, or give-ups).
+        if (cycle == 25)
+            shuffle(boxes, n, &r);
+        else if (cycle > 0)
+            scene_move(boxes, n, cycle < 25 ? 0.01f : 0.05f, &r);
+        bool cold = duo_step(&d, boxes, n);
+        if (cycle == 0 || cycle == 25)
+            CHECK_MSG(cold, "cycle %d: not rebuilt", cycle);
+        else if (cycle < 25)
+            CHECK_MSG(!cold, "coherent cycle %d: rebuilt", cycle);
+    }
+    CHECK(d.want.count > (uint64_t)n);
+    free(boxes);
+    duo_free(&d);
+}
+
 static bool pair_less(bpx_pair a, bpx_pair b)
 {
     return a.i < b.i || (a.i == b.i && a.j < b.j);
@@ -698,6 +733,11 @@ int main(void)
         double t = now_s();
         test_coherent_and_jumps(workers);
         printf("  coherent and jumps, %d worker(s): %.2f s\n", workers, now_s() - t);
+    }
+    for (int workers = 1; workers <= 2; workers++) {
+        double t = now_s();
+        test_many_boxes(workers);
+        printf("  many boxes, %d worker(s): %.2f s\n", workers, now_s() - t);
     }
     // The rebuild sweeps with the prune kernel of the world's SIMD width: the narrowest too.
     forced_simd = BPX_SIMD_SCALAR;

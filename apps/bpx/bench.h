@@ -78,6 +78,7 @@ typedef struct bench_budget {
     double seconds; // timed cycles stop after this much time (motion)
     int max_cycles;
     int warmup;     // untimed cycles after the cold one (motion)
+    double warmup_seconds; // warm-up stops early past this much time (slow variants)
 } bench_budget;
 
 typedef struct bench_result {

@@ -352,9 +352,9 @@ int bench_run(const bench_variant *v, const bench_frames *frames, const bench_bu
             cold_pairs[0] = (double)reported, cold_pairs[1] = (double)checked;
         }
         // The cold cycle is reported apart; warm-up cycles not at all. Slow variants (a second
-        // per cycle at a million boxes) stop warming up after half the budget.
+        // per cycle at a million boxes) stop warming up early.
         if (!once && c > 0 && warm_end == 0 &&
-            (c > budget->warmup || (c > 1 && warm_spent > 0.5 * budget->seconds)))
+            (c > budget->warmup || (c > 1 && warm_spent > budget->warmup_seconds)))
             warm_end = c;
         if (once ? c == 0 : warm_end == 0) {
             warm_spent += c > 0 ? elapsed : 0;

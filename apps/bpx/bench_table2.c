@@ -123,7 +123,7 @@ int bench_table2(const bench_table2_options *o)
         code = record(n, cycles, o->seed, minima, centres, pairs, &frames);
         for (int c = 0; c < cycles && code == 0; c++)
             sim_pairs[r] += (double)pairs[c] / cycles;
-        bench_budget budget = {INFINITY, cycles, 0};
+        bench_budget budget = {INFINITY, cycles, 0, 0};
         for (int v = 0; v < count && code == 0; v++) {
             char name[BENCH_NAME_SIZE];
             bench_variant_name(&variants[v], name, sizeof name);

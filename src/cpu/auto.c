@@ -20,11 +20,9 @@
 
 #include "core/alloc.h"
 #include "core/world.h"
+#include "kernels.h"
 
 enum { AUTO_BRUTE_MAX = 96 };
-// prune up to this many sweep candidates per box, grid beyond (measured: grid 2 threads ahead
-// from n = 20k at constant density, where n^(2/3) / 2 = 368).
-static const double AUTO_PRUNE_MAX_CANDIDATES = 350.0;
 // sap below this motion (boxes moving at constant velocity, `bpx bench --step`): at 0.0005 sap
 // is 1.5x (10k) to 1.8x (100k) faster than the best of prune and grid, at 0.0015 even with
 // prune at 10k and 1.2x faster than grid at 100k, at 0.005 slower than both. Leaving sap takes
@@ -76,14 +74,15 @@ static bpx_backend choose(bpx_world *w, auto_state *st)
     float low = INFINITY, high = -INFINITY;
     uint32_t live = 0;
     for (uint32_t i = 0; i < n; i++) {
-        if (!(lo[i] <= hi[i]))
+        float l = lo[i], h = hi[i];
+        if (!(l <= h))
             continue; // removed objects are inert (min +inf, max -inf)
         live++;
-        extent += (double)hi[i] - (double)lo[i];
-        low = fminf(low, lo[i]);
-        high = fmaxf(high, hi[i]);
+        extent += (double)h - (double)l;
+        low = l < low ? l : low; // not fminf: a call into libm here
+        high = h > high ? h : high;
         if (have_last)
-            moved += fabs((double)lo[i] - (double)st->last_min_x[i]); // inf if just added
+            moved += fabs((double)l - (double)st->last_min_x[i]); // inf if just added
     }
     if (st->capacity >= n) {
         for (uint32_t i = 0; i < n; i++)
@@ -100,7 +99,7 @@ static bpx_backend choose(bpx_world *w, auto_state *st)
     double limit = st->last == BPX_BACKEND_SAP ? 2 * AUTO_SAP_MAX_MOTION : AUTO_SAP_MAX_MOTION;
     if (have_last && motion < limit)
         return BPX_BACKEND_SAP;
-    return candidates <= AUTO_PRUNE_MAX_CANDIDATES ? BPX_BACKEND_PRUNE : BPX_BACKEND_GRID;
+    return candidates <= BPX_SWEEP_MAX_CANDIDATES ? BPX_BACKEND_PRUNE : BPX_BACKEND_GRID;
 }
 
 static bpx_status auto_compare(bpx_world *w)
@@ -160,7 +159,7 @@ static bool auto_query(const bpx_world_def *def, const char **reason, char *deta
     snprintf(detail, size,
              "brute to n = %d; then sap near rest, prune to %.0f sweep candidates per box, grid "
              "beyond (%.40s)",
-             AUTO_BRUTE_MAX, AUTO_PRUNE_MAX_CANDIDATES, inner);
+             AUTO_BRUTE_MAX, BPX_SWEEP_MAX_CANDIDATES, inner);
     return true;
 }
 

@@ -203,9 +203,9 @@ static void pad_soa(grid_soa *r, size_t at)
     }
 }
 
-static void grid_destroy(bpx_world *w)
+void bpx__grid_free(void **state)
 {
-    grid_state *st = w->backend_state;
+    grid_state *st = *state;
     if (!st)
         return;
     free_soa(&st->positions);
@@ -224,7 +224,12 @@ static void grid_destroy(bpx_world *w)
     bpx__free(st->bucket_start, st->bucket_capacity * sizeof(uint32_t));
     bpx__free(st->block_hits, st->block_hits_capacity * sizeof(size_t));
     bpx__free(st, sizeof *st);
-    w->backend_state = NULL;
+    *state = NULL;
+}
+
+static void grid_destroy(bpx_world *w)
+{
+    bpx__grid_free(&w->backend_state);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -809,7 +814,7 @@ static void emit_sort_task(int begin, int end, int worker, void *context)
     }
 }
 
-static bpx_status emit_sorted(bpx_world *w, grid_state *st)
+static bpx_status emit_sorted(bpx_world *w, grid_state *st, uint32_t n)
 {
     size_t total = 0;
     bpx_status status = bpx__emitter_total(w, &total);
@@ -820,7 +825,6 @@ static bpx_status emit_sorted(bpx_world *w, grid_state *st)
         tests += w->blocks[k].tests;
     if (total > UINT32_MAX)
         return BPX_ERR_OUT_OF_MEMORY; // bucket offsets are 32-bit
-    uint32_t n = w->n;
     // Buckets of 2^shift ids holding about EMIT_BUCKET_PAIRS pairs (dense pair sets: fewer ids).
     int shift = EMIT_SHIFT;
     while (shift > 0 && (double)total * (double)(1u << shift) > (double)EMIT_BUCKET_PAIRS * n)
@@ -902,18 +906,18 @@ static void plan_items(grid_state *st, uint32_t columns, uint32_t positions)
     st->item_count = items;
 }
 
-static bpx_status grid_compare(bpx_world *w)
+bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes)
 {
-    grid_state *st = w->backend_state;
+    grid_state *st = *state;
     if (!st) {
         if (!(st = bpx__alloc(sizeof *st)))
             return BPX_ERR_OUT_OF_MEMORY;
         *st = (grid_state){0};
-        w->backend_state = st;
+        *state = st;
     }
-    uint32_t n = w->n;
+    uint32_t n = boxes.n;
     grid_kernels kernels = kernels_for(w->simd);
-    grid_job job = {w, st, bpx__world_soa(w), kernels.column, kernels.big};
+    grid_job job = {w, st, boxes, kernels.column, kernels.big};
 
     // 1. Parameters, levels, chunks.
     choose_params(&job.soa, st, &st->params);
@@ -1063,7 +1067,12 @@ static bpx_status grid_compare(bpx_world *w)
         st->block_hits[b] = w->blocks[b].hits.count;
 
     // 7. Hits to (i, j) order.
-    return emit_sorted(w, st);
+    return emit_sorted(w, st, n);
+}
+
+static bpx_status grid_compare(bpx_world *w)
+{
+    return bpx__grid_find(w, &w->backend_state, bpx__world_soa(w));
 }
 
 static bool grid_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)

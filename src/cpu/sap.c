@@ -50,14 +50,20 @@
 // fat boxes once: the prune kernel, on the world's workers, in min order of the axis whose
 // intervals overlap least (counted in O(n) from the sorted lists, so boxes that all share one
 // x interval make the sweep quadratic only if y and z overlap as much); the emitter's counting
-// sorts put the fat pairs in (i, j) order, and the exact filter gives the cycle's pairs. While
+// sorts put the fat pairs in (i, j) order, and the exact filter gives the cycle's pairs. When
+// even that axis meets more than BPX_SWEEP_MAX_CANDIDATES boxes per box (hundreds of thousands
+// of boxes at constant density: the sweep's cost grows like n^(5/3)), the grid finds the fat
+// pairs instead, so a rebuild at a million boxes costs a grid cycle, not seconds. While
 // the motion is incoherent (two give-ups in a row), a cycle not followed by an attempt only
 // sorts the n minima of that axis and sweeps the boxes themselves (prune's work, no lists).
 // bpx_cycle_stats.rebuilt tells warm and cold apart. There is no "boxes replaced wholesale"
 // trigger: set_boxes is the general mode's per-cycle call, so a replaced scene is told from a
 // moved one by the move budget alone, as prune does.
 //
-// Threads: the warm path is serial; the cold sweep runs on the world's workers. The output is
+// Threads: from PARALLEL_MIN boxes, the warm cycle's check of the boxes and its exact filter
+// split into ranges on the world's workers (each range's output packed after, in order), and
+// the one-pass mend runs the three lists at once; the few-boxes mend is serial; the cold sweep
+// (or grid) runs on the workers. The output is
 // the same bytes either way. Memory: about 200 bytes per box (three endpoint lists, three box
 // copies, the cold sweep's arrays) plus a few pair lists; grown with slack, so steady cycles
 // allocate nothing.
@@ -76,6 +82,11 @@ enum {
     // a move costs a few ns, a full rebuild 150 to 300 ns per box (2-vCPU Xeon VM), so past
     // the budget a cycle costs at most about two rebuilds.
     MOVES_PER_BOX = 32,
+    // Past CACHED_BOXES the fat boxes no longer fit in cache: a move's overlap test misses, so
+    // the budget is this much smaller (measured at 1M boxes: a give-up at 32 moves per box
+    // cost 0.9 s, six rebuilds).
+    CACHED_BOXES = 1 << 16,
+    UNCACHED_DIVISOR = 4,
     MOVES_BASE = 4096,
     RETRY_EVERY = 8,     // after two give-ups in a row, try mending once in this many cycles
     FIRST_CHANGES = 256, // change lists start with room for this many (+ n / 16)
@@ -84,6 +95,8 @@ enum {
     MARGIN_DIVISOR = 16, // fat margin on an axis: the boxes' mean extent there / this
     CHECK_EVERY = 4096,  // endpoints between the early give-up checks of the first list
     PREFETCH = 16,       // pairs ahead whose second box the exact filter prefetches
+    PARALLEL_MIN = 16384, // boxes (or fat pairs) from which a warm pass splits over the workers
+    CHUNKS_MAX = 64,      // ranges of a split pass
 };
 
 #if defined(__GNUC__)
@@ -102,13 +115,14 @@ typedef struct sap_arrays {
     bpx_box *fat_prev;                                 // the same at the last cycle's end
     bpx_box *cur;                                      // this cycle's boxes
     uint32_t *changed;                                 // boxes that left their fat box
+    uint8_t *moved;                                    // 1 for those while mending, else 0
     uint32_t *keys, *ids, *scratch_keys, *scratch_ids; // 2 * capacity: cold radix sorts
     float *lo[3], *hi[3];                              // capacity + PAD: cold sweep SoA
     uint32_t *sorted_ids;                              // capacity + PAD
     uint32_t *counts;                                  // capacity + 1: pair counting sorts
 } sap_arrays;
 
-enum { ARRAY_COUNT = 3 + 4 + 4 + 6 + 2 };
+enum { ARRAY_COUNT = 3 + 5 + 4 + 6 + 2 };
 
 typedef struct sap_state {
     uint32_t capacity; // boxes the arrays hold
@@ -117,11 +131,15 @@ typedef struct sap_state {
     uint32_t give_ups; // warm attempts in a row that ran out of moves
     uint32_t waited;   // cycles rebuilt since the last warm attempt
     int sweep_axis;    // the axis the last full rebuild swept
+    bool use_grid;     // the last full rebuild found the fat pairs with the grid
+    void *grid;        // the grid's state, when it did
     float margin[3];   // fat margin per axis, set by each full rebuild
     sap_arrays a;
     bpx_pair_list fat_pairs; // pairs of overlapping fat boxes, (i, j) order
     bpx_pair_list merged;    // the merge's output, then swapped with fat_pairs
     bpx_pair_list changes;   // pairs whose fat overlap may have changed this cycle
+    bpx_pair_list axis_changes[3]; // the same, noted by each list's mending
+    uint32_t chunk_count[CHUNKS_MAX]; // a split pass's output per range
     bpx_pair_list spare;     // sort scratch
 } sap_state;
 
@@ -143,6 +161,8 @@ static int array_table(sap_arrays *a, size_t capacity, void ***ptrs, size_t *siz
     }
     ptrs[k] = (void **)&a->changed;
     sizes[k++] = capacity * sizeof(uint32_t);
+    ptrs[k] = (void **)&a->moved;
+    sizes[k++] = capacity;
     uint32_t **radix[] = {&a->keys, &a->ids, &a->scratch_keys, &a->scratch_ids};
     for (int r = 0; r < 4; r++) {
         ptrs[k] = (void **)radix[r];
@@ -184,7 +204,10 @@ static void sap_destroy(bpx_world *w)
     if (!st)
         return;
     free_arrays(&st->a, st->capacity);
-    bpx_pair_list *lists[] = {&st->fat_pairs, &st->merged, &st->changes, &st->spare};
+    bpx__grid_free(&st->grid);
+    bpx_pair_list *lists[] = {&st->fat_pairs,      &st->merged,         &st->changes,
+                              &st->spare,          &st->axis_changes[0], &st->axis_changes[1],
+                              &st->axis_changes[2]};
     for (size_t k = 0; k < sizeof lists / sizeof lists[0]; k++)
         list_free(lists[k]);
     bpx__free(st, sizeof *st);
@@ -214,6 +237,7 @@ static bool reserve_arrays(sap_state *st, uint32_t n, bool keep)
             free_arrays(&grown, (uint32_t)capacity);
             return false;
         }
+    memset(grown.moved, 0, capacity);
     if (keep && st->a.ends[0]) {
         for (int axis = 0; axis < 3; axis++)
             memcpy(grown.ends[axis], st->a.ends[axis], 2 * (size_t)st->n * sizeof(uint64_t));
@@ -413,23 +437,28 @@ static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_
 }
 
 // Many boxes left their fat boxes (or boxes were added): every changed box gets its new fat
-// box at once, and each list is mended by one pass of insertion sort, every endpoint taking
-// its new word as the pass reaches it. A min and a max that swap may change their boxes' fat
+// box at once, and each list is mended by one pass of insertion sort, the changed boxes'
+// endpoints taking their new words as the pass reaches them (the others keep theirs: a flag
+// per box, not a read of its fat box). A min and a max that swap may change their boxes' fat
 // overlap: the pair is noted when overlap(new, new) differs from overlap(old, old).
-static mend_result mend_all(sap_state *st, uint32_t n, uint32_t changed, uint64_t budget)
+// One axis's list; its budget is a third of the cycle's, and it gives up early when its first
+// part projects far past that. The lists are independent: the three run on the workers at once.
+static mend_result mend_list(sap_state *st, uint32_t n, uint64_t budget, int axis)
 {
     const bpx_box *fat = st->a.fat, *prev = st->a.fat_prev;
-    for (uint32_t c = 0; c < changed; c++) {
-        uint32_t b = st->a.changed[c];
-        st->a.fat[b] = fatten(&st->a.cur[b], st->margin);
-    }
+    const uint8_t *moved = st->a.moved;
+    bpx_pair_list *changes = &st->axis_changes[axis];
     uint64_t moves = 0;
-    for (int axis = 0; axis < 3; axis++) {
+    budget /= 3;
+    changes->count = 0;
+    {
         uint64_t *ends = st->a.ends[axis];
-        uint32_t check = axis == 0 ? CHECK_EVERY : UINT32_MAX;
+        uint32_t check = CHECK_EVERY;
         for (uint32_t k = 0; k < 2 * n; k++) {
-            uint32_t low = (uint32_t)ends[k], b = low & BOX_MASK;
-            uint64_t x = fat_word(&fat[b], axis, low & MAX_BIT, b);
+            uint64_t x = ends[k];
+            uint32_t b = (uint32_t)x & BOX_MASK;
+            if (moved[b])
+                x = fat_word(&fat[b], axis, (uint32_t)x & MAX_BIT, b);
             if (k == 0 || ends[k - 1] < x) {
                 ends[k] = x;
                 continue;
@@ -440,7 +469,7 @@ static mend_result mend_all(sap_state *st, uint32_t n, uint32_t changed, uint64_
                 uint32_t other = (uint32_t)past & BOX_MASK;
                 if (((past ^ x) & MAX_BIT) && other != b &&
                     overlap(&fat[b], &fat[other]) != overlap(&prev[b], &prev[other]) &&
-                    !push(&st->changes, ordered(b, other)))
+                    !push(changes, ordered(b, other)))
                     return MEND_NO_MEMORY;
                 ends[at] = past;
                 at--;
@@ -449,12 +478,65 @@ static mend_result mend_all(sap_state *st, uint32_t n, uint32_t changed, uint64_
             moves += k - at;
             if (moves > budget)
                 return MEND_GAVE_UP;
-            if (k >= check) { // projected over the three lists: far past the budget
-                if (moves * 3 * (uint64_t)n * 2 / k > 2 * budget)
+            if (k >= check) { // projected over the list: far past its budget
+                if (moves * (uint64_t)n * 2 / k > 2 * budget)
                     return MEND_GAVE_UP;
                 check = k + CHECK_EVERY;
             }
         }
+    }
+    return MEND_DONE;
+}
+
+typedef struct sap_job {
+    sap_state *st;
+    const bpx_world *w;
+    uint32_t n, chunks;
+    uint64_t budget;
+    mend_result result[3];
+    bpx_pair *out;
+} sap_job;
+
+static void mend_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    sap_job *job = context;
+    for (int axis = begin; axis < end; axis++)
+        job->result[axis] = mend_list(job->st, job->n, job->budget, axis);
+}
+
+static mend_result mend_all(bpx_world *w, sap_state *st, uint32_t n, uint32_t changed,
+                            uint64_t budget)
+{
+    for (uint32_t c = 0; c < changed; c++) {
+        uint32_t b = st->a.changed[c];
+        st->a.fat[b] = fatten(&st->a.cur[b], st->margin);
+        st->a.moved[b] = 1;
+    }
+    sap_job job = {.st = st, .n = n, .budget = budget};
+    if (n >= PARALLEL_MIN && w->executor.worker_count > 1)
+        bpx__parallel_for(&w->executor, mend_task, 3, &job);
+    else
+        mend_task(0, 3, 0, &job);
+    for (uint32_t c = 0; c < changed; c++)
+        st->a.moved[st->a.changed[c]] = 0;
+    mend_result r = MEND_DONE; // running out of memory outranks giving up
+    size_t noted = 0;
+    for (int axis = 0; axis < 3; axis++) {
+        if (job.result[axis] == MEND_NO_MEMORY || (job.result[axis] == MEND_GAVE_UP && r == MEND_DONE))
+            r = job.result[axis];
+        noted += st->axis_changes[axis].count;
+    }
+    if (r != MEND_DONE)
+        return r;
+    if (!bpx__list_reserve(&st->changes, noted))
+        return MEND_NO_MEMORY;
+    for (int axis = 0; axis < 3; axis++) {
+        const bpx_pair_list *from = &st->axis_changes[axis];
+        if (from->count)
+            memcpy(st->changes.pairs + st->changes.count, from->pairs,
+                   from->count * sizeof(bpx_pair));
+        st->changes.count += from->count;
     }
     return MEND_DONE;
 }
@@ -502,15 +584,15 @@ static void append_boxes(sap_state *st, uint32_t n_old, uint32_t n)
         st->a.fat[i] = st->a.fat_prev[i] = inert;
 }
 
-// This cycle's boxes into cur, and the boxes that left their fat boxes into changed (one
-// sequential pass); returns their count.
-static uint32_t check_boxes(const bpx_world *w, sap_state *st)
+// Boxes [i0, i1) into cur, and those that left their fat boxes into changed from i0 on;
+// returns their count.
+static uint32_t check_range(const bpx_world *w, sap_state *st, uint32_t i0, uint32_t i1)
 {
     const bpx_box_arrays *b = &w->boxes;
     const bpx_box *fat = st->a.fat;
     bpx_box *cur = st->a.cur;
-    uint32_t *changed = st->a.changed, count = 0;
-    for (uint32_t i = 0; i < w->n; i++) {
+    uint32_t *changed = st->a.changed + i0, count = 0;
+    for (uint32_t i = i0; i < i1; i++) {
         bpx_box box = {{b->lo[0][i], b->lo[1][i], b->lo[2][i]},
                        {b->hi[0][i], b->hi[1][i], b->hi[2][i]}};
         cur[i] = box;
@@ -523,17 +605,93 @@ static uint32_t check_boxes(const bpx_world *w, sap_state *st)
     return count;
 }
 
-// The exact pairs, fat pairs whose boxes overlap, into out (which holds fat_pairs.count).
-static size_t filter_pairs(const sap_state *st, bpx_pair *out)
+static inline uint32_t chunk_begin(uint64_t total, uint32_t chunks, uint32_t c)
+{
+    return (uint32_t)(total * c / chunks);
+}
+
+static void check_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    sap_job *job = context;
+    for (int c = begin; c < end; c++)
+        job->st->chunk_count[c] =
+            check_range(job->w, job->st, chunk_begin(job->n, job->chunks, (uint32_t)c),
+                        chunk_begin(job->n, job->chunks, (uint32_t)c + 1));
+}
+
+// How many ranges a pass over `count` items splits into (1: serial).
+static uint32_t chunks_for(const bpx_world *w, size_t count)
+{
+    int workers = w->executor.worker_count;
+    if (count < PARALLEL_MIN || workers < 2)
+        return 1;
+    return 4 * (uint32_t)workers < CHUNKS_MAX ? 4 * (uint32_t)workers : CHUNKS_MAX;
+}
+
+// This cycle's boxes into cur, and the boxes that left their fat boxes into changed, in id
+// order (ranges on the workers, then packed); returns their count.
+static uint32_t check_boxes(const bpx_world *w, sap_state *st)
+{
+    uint32_t chunks = chunks_for(w, w->n);
+    if (chunks == 1)
+        return check_range(w, st, 0, w->n);
+    sap_job job = {.st = st, .w = w, .n = w->n, .chunks = chunks};
+    bpx__parallel_for(&w->executor, check_task, (int)chunks, &job);
+    uint32_t count = 0;
+    for (uint32_t c = 0; c < chunks; c++) {
+        uint32_t at = chunk_begin(w->n, chunks, c);
+        if (at != count)
+            memmove(st->a.changed + count, st->a.changed + at,
+                    st->chunk_count[c] * sizeof(uint32_t));
+        count += st->chunk_count[c];
+    }
+    return count;
+}
+
+// The fat pairs [k0, k1) whose boxes overlap, into out from k0 on; returns their count.
+static uint32_t filter_range(const sap_state *st, bpx_pair *out, size_t k0, size_t k1)
 {
     const bpx_box *cur = st->a.cur;
     const bpx_pair *fat = st->fat_pairs.pairs;
-    size_t count = 0, total = st->fat_pairs.count;
-    for (size_t k = 0; k < total; k++) {
-        if (k + PREFETCH < total) // j is anywhere: fetch it early (i comes in order)
+    uint32_t count = 0;
+    out += k0;
+    for (size_t k = k0; k < k1; k++) {
+        if (k + PREFETCH < k1) // j is anywhere: fetch it early (i comes in order)
             PREFETCH_READ(&cur[fat[k + PREFETCH].j]);
         out[count] = fat[k];
         count += overlap(&cur[fat[k].i], &cur[fat[k].j]);
+    }
+    return count;
+}
+
+static void filter_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    sap_job *job = context;
+    size_t total = job->st->fat_pairs.count;
+    for (int c = begin; c < end; c++)
+        job->st->chunk_count[c] =
+            filter_range(job->st, job->out, (size_t)((uint64_t)total * c / job->chunks),
+                         (size_t)((uint64_t)total * (c + 1) / job->chunks));
+}
+
+// The exact pairs, fat pairs whose boxes overlap, into out (which holds fat_pairs.count), in
+// the fat pairs' order (ranges on the workers, then packed).
+static size_t filter_pairs(const bpx_world *w, sap_state *st, bpx_pair *out)
+{
+    size_t total = st->fat_pairs.count;
+    uint32_t chunks = total <= UINT32_MAX ? chunks_for(w, total) : 1;
+    if (chunks == 1)
+        return filter_range(st, out, 0, total);
+    sap_job job = {.st = st, .chunks = chunks, .out = out};
+    bpx__parallel_for(&w->executor, filter_task, (int)chunks, &job);
+    size_t count = 0;
+    for (uint32_t c = 0; c < chunks; c++) {
+        size_t at = (size_t)((uint64_t)total * c / chunks);
+        if (at != count)
+            memmove(out + count, out + at, st->chunk_count[c] * sizeof(bpx_pair));
+        count += st->chunk_count[c];
     }
     return count;
 }
@@ -547,11 +705,12 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
     if (grown)
         append_boxes(st, st->n, n);
     uint32_t changed = check_boxes(w, st);
-    uint64_t budget = (uint64_t)MOVES_PER_BOX * n + MOVES_BASE;
+    uint64_t budget = (uint64_t)MOVES_PER_BOX * n / (n > CACHED_BOXES ? UNCACHED_DIVISOR : 1) +
+                      MOVES_BASE;
     st->changes.count = 0;
     mend_result r = MEND_DONE;
     if (grown || changed > n / FEW_DIVISOR + FEW_BASE) {
-        r = mend_all(st, n, changed, budget);
+        r = mend_all(w, st, n, changed, budget);
     } else if (changed > 0) {
         r = mend_few(st, n, changed, budget);
     }
@@ -619,6 +778,27 @@ static bpx_status sweep(bpx_world *w, sap_state *st, const bpx_box *boxes, int a
     return bpx__emitter_sort_blocks(w, &st->merged, &st->spare, a->counts);
 }
 
+// The pairs of `boxes` (all n, by id) by the grid, into block 0 in (i, j) order: for rebuilds
+// where one axis's sweep would meet too many boxes per box (millions at constant density).
+static bpx_status grid_pairs(bpx_world *w, sap_state *st, const bpx_box *boxes)
+{
+    sap_arrays *a = &st->a;
+    uint32_t n = w->n, padded = (n + PAD - 1) / PAD * PAD;
+    for (int axis = 0; axis < 3; axis++) {
+        float *lo = a->lo[axis], *hi = a->hi[axis];
+        for (uint32_t i = 0; i < n; i++) {
+            lo[i] = boxes[i].min[axis];
+            hi[i] = boxes[i].max[axis];
+        }
+        for (uint32_t i = n; i < padded; i++) {
+            lo[i] = 1.0f / 0.0f;
+            hi[i] = -1.0f / 0.0f;
+        }
+    }
+    bpx_soa soa = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]}, n};
+    return bpx__grid_find(w, &st->grid, soa);
+}
+
 // The fat margins: on each axis, the (non-inert) boxes' mean extent / MARGIN_DIVISOR.
 static void set_margins(const bpx_world *w, sap_state *st)
 {
@@ -676,7 +856,8 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
         overlaps[axis] = sum;
     }
 
-    // Sweep the fat boxes along the axis with the fewest overlaps.
+    // Sweep the fat boxes along the axis with the fewest overlaps, unless even that one meets
+    // too many boxes per box: then the grid.
     int axis = 0;
     for (int k = 1; k < 3; k++)
         if (overlaps[k] < overlaps[axis])
@@ -690,7 +871,8 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
             continue; // maxima, and the minima of inert boxes (min +inf)
         a->sorted_ids[live++] = (uint32_t)e & BOX_MASK;
     }
-    bpx_status status = sweep(w, st, a->fat, axis, live);
+    st->use_grid = (double)overlaps[axis] > BPX_SWEEP_MAX_CANDIDATES * live;
+    bpx_status status = st->use_grid ? grid_pairs(w, st, a->fat) : sweep(w, st, a->fat, axis, live);
     if (status != BPX_OK)
         return status;
 
@@ -702,20 +884,25 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
     if (!bpx__list_reserve(&st->fat_pairs, room) || !bpx__list_reserve(&st->merged, room) ||
         !bpx__list_reserve(&st->changes, changes) || !bpx__list_reserve(&st->spare, changes))
         return BPX_ERR_OUT_OF_MEMORY;
+    for (int k = 0; k < 3; k++)
+        if (!bpx__list_reserve(&st->axis_changes[k], changes / 2))
+            return BPX_ERR_OUT_OF_MEMORY;
     if (found->count)
         memcpy(st->fat_pairs.pairs, found->pairs, found->count * sizeof(bpx_pair));
     st->fat_pairs.count = found->count;
-    found->count = filter_pairs(st, found->pairs);
+    found->count = filter_pairs(w, st, found->pairs);
     return BPX_OK;
 }
 
-// The pairs by one sweep over the minima of the last full rebuild's sweep axis, radix sorted;
-// no endpoint lists (the next cycle will not mend).
+// The pairs by one sweep over the minima of the last full rebuild's sweep axis, radix sorted
+// (or by the grid, if that rebuild used it); no endpoint lists (the next cycle will not mend).
 static bpx_status lite_rebuild(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     sap_arrays *a = &st->a;
     check_boxes(w, st); // for cur
+    if (st->use_grid)
+        return grid_pairs(w, st, a->cur);
     const uint32_t inf_key = coord_key(1.0f / 0.0f);
     for (uint32_t i = 0; i < n; i++) {
         a->keys[i] = coord_key(a->cur[i].min[st->sweep_axis]);
@@ -774,7 +961,7 @@ static bpx_status sap_compare(bpx_world *w)
         out->hits.count = 0;
         if (!bpx__list_reserve(&out->hits, st->fat_pairs.count))
             return BPX_ERR_OUT_OF_MEMORY;
-        out->hits.count = filter_pairs(st, out->hits.pairs);
+        out->hits.count = filter_pairs(w, st, out->hits.pairs);
         out->tests = st->fat_pairs.count;
         out->status = BPX_OK;
         w->block_count = 1;
