@@ -496,6 +496,20 @@ static void test_many_boxes(int workers)
         else if (cycle < 25)
             CHECK_MSG(!cold, "coherent cycle %d: rebuilt", cycle);
     }
+    // Boxes at the ends of the float range among the many (the mean extent is then ~1e34, so
+    // the fat margins fall back to 0): rebuilt, then drifting.
+    const float big = FLT_MAX;
+    boxes[0] = (bpx_box){{-big, -big, -big}, {-big / 2, -big / 2, -big / 2}};
+    boxes[1] = (bpx_box){{big / 2, big / 2, big / 2}, {big, big, big}};
+    boxes[2] = (bpx_box){{-big, -big, -big}, {big, big, big}};
+    boxes[3] = (bpx_box){{big, big, big}, {big, big, big}};
+    shuffle(boxes, n, &r);
+    for (int cycle = 0; cycle < 6; cycle++) {
+        check_set_context("many boxes, float range's ends, workers=%d cycle=%d", workers, cycle);
+        if (cycle > 0)
+            scene_move(boxes, n, 0.01f, &r);
+        duo_step(&d, boxes, n);
+    }
     CHECK(d.want.count > (uint64_t)n);
     free(boxes);
     duo_free(&d);

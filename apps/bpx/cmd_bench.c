@@ -429,13 +429,13 @@ static bench_series *series_for(scale_state *st, int scene, const bench_variant 
 // state and not the first cycles after the fat boxes were made, where a box at rest costs
 // nothing (at 0.001 per cycle: 150 cycles; sap at 1M averaged 38 ms over 13 cycles after
 // creation, 41 ms over 360; bullet-dbvt 68 ms, then 250 ms). Slow variants stop warming up
-// after 20 times the timed budget.
+// after 20 times the timed budget (10 with --quick).
 static bench_budget warmup_budget(const bench_options *o, int scene)
 {
     double step = o->step > 0 ? o->step : scene_steps[scene];
     double turnover = ceil(0.15 / step);
     int warmup = turnover < 5 ? 5 : turnover > 1000 ? 1000 : (int)turnover;
-    return (bench_budget){o->seconds, o->max_cycles, warmup, 20 * o->seconds};
+    return (bench_budget){o->seconds, o->max_cycles, warmup, (o->quick ? 10 : 20) * o->seconds};
 }
 
 static int run_size(scale_state *st, int scene, int size_index)

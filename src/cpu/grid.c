@@ -227,6 +227,12 @@ void bpx__grid_free(void **state)
     *state = NULL;
 }
 
+void bpx__grid_forget(void *state)
+{
+    if (state)
+        ((grid_state *)state)->have_stats = false;
+}
+
 static void grid_destroy(bpx_world *w)
 {
     bpx__grid_free(&w->backend_state);

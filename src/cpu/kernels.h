@@ -30,3 +30,6 @@ void bpx__prune_sweep_blocks(bpx_world *w, const bpx_sorted *sorted, int blocks)
 /// between calls; bpx__grid_free releases it.
 bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes);
 void bpx__grid_free(void **state);
+/// Makes the grid's next call pick its cells from those boxes alone, not from its last call's
+/// bounds (state may be NULL).
+void bpx__grid_forget(void *state);

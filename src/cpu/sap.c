@@ -18,12 +18,13 @@
 // most of its time on mispredicted branches and random reads, one per endpoint per axis).
 //
 // A warm cycle (O(n + p_fat) plus the mending, k the fat pairs that may have changed):
-//  1. One sequential pass copies the boxes (AoS, for the exact filter) and lists the boxes that
-//     left their fat boxes.
+//  1. One pass (ranges on the workers) copies the boxes (AoS, for the exact filter) and lists
+//     the boxes that left their fat boxes.
 //  2. None: nothing to mend. A few (at most n / 64 + 16): each in turn gets a new fat box, and
 //     its six endpoints are found by binary search and moved to their places, the lists sorted
 //     at every step. More (or boxes were added): each list is mended by one pass of insertion
-//     sort, every endpoint taking its new word as the pass reaches it. Insertion swaps exactly
+//     sort (the three at once on the workers), the moved boxes' endpoints taking their new
+//     words as the pass reaches them. Insertion swaps exactly
 //     the endpoints whose relative order changed, and the order of min_a and max_b is the truth
 //     of lo_a <= hi_b, so a pair whose fat overlap changed has at least one of its six
 //     conditions flipped: it is met at least once as a swap of a min with a max, and noted when
@@ -42,7 +43,9 @@
 //
 // A cold cycle rebuilds: on the first cycle; when n shrank, or grew by more than an eighth;
 // after a failed cycle; when a warm cycle passes MOVES_PER_BOX * n + MOVES_BASE element moves
-// (abandoned part way, or early when the first part of the first list projects far past it);
+// (a quarter of that past CACHED_BOXES; in the one-pass mend, a third of it per list, each
+// abandoned part way, or early when its first part projects far past it, and the other lists
+// stop too);
 // and, after two such give-ups in a row, on every cycle but one in RETRY_EVERY, so that
 // incoherent motion does not pay a wasted attempt each cycle. A full rebuild makes new fat
 // boxes and margins, sorts each axis's 2n fat endpoints with the radix sort of sort.c (minima
@@ -67,6 +70,8 @@
 // the same bytes either way. Memory: about 200 bytes per box (three endpoint lists, three box
 // copies, the cold sweep's arrays) plus a few pair lists; grown with slack, so steady cycles
 // allocate nothing.
+#include <float.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -281,14 +286,18 @@ static inline bool overlap(const bpx_box *a, const bpx_box *b)
            (b->min[1] <= a->max[1]) & (a->min[2] <= b->max[2]) & (b->min[2] <= a->max[2]);
 }
 
-// Box b grown by the margins. Rounding is monotone, so lo - m <= lo and hi + m >= hi: the fat
-// box holds the box. An inert box (min +inf, max -inf) stays inert.
+// Box b grown by the margins, kept within +-FLT_MAX: the lists take infinite keys for inert
+// boxes only, and the grid wants finite input (margins are capped at 1e30, under half an ulp of
+// FLT_MAX, so no sum rounds to infinity today; the clamp keeps that true here). Rounding is
+// monotone and boxes are finite, so the fat box holds the box. An inert box (min +inf, max -inf)
+// stays inert.
 static inline bpx_box fatten(const bpx_box *b, const float margin[3])
 {
     bpx_box f;
     for (int axis = 0; axis < 3; axis++) {
-        f.min[axis] = b->min[axis] - margin[axis];
-        f.max[axis] = b->max[axis] + margin[axis];
+        float lo = b->min[axis] - margin[axis], hi = b->max[axis] + margin[axis];
+        f.min[axis] = lo < -FLT_MAX ? -FLT_MAX : lo;
+        f.max[axis] = hi > FLT_MAX ? FLT_MAX : hi;
     }
     return f;
 }
@@ -443,7 +452,8 @@ static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_
 // overlap: the pair is noted when overlap(new, new) differs from overlap(old, old).
 // One axis's list; its budget is a third of the cycle's, and it gives up early when its first
 // part projects far past that. The lists are independent: the three run on the workers at once.
-static mend_result mend_list(sap_state *st, uint32_t n, uint64_t budget, int axis)
+static mend_result mend_list(sap_state *st, uint32_t n, uint64_t budget, int axis,
+                             atomic_bool *stop)
 {
     const bpx_box *fat = st->a.fat, *prev = st->a.fat_prev;
     const uint8_t *moved = st->a.moved;
@@ -479,7 +489,8 @@ static mend_result mend_list(sap_state *st, uint32_t n, uint64_t budget, int axi
             if (moves > budget)
                 return MEND_GAVE_UP;
             if (k >= check) { // projected over the list: far past its budget
-                if (moves * (uint64_t)n * 2 / k > 2 * budget)
+                if (atomic_load_explicit(stop, memory_order_relaxed) ||
+                    moves * (uint64_t)n * 2 / k > 2 * budget)
                     return MEND_GAVE_UP;
                 check = k + CHECK_EVERY;
             }
@@ -493,6 +504,7 @@ typedef struct sap_job {
     const bpx_world *w;
     uint32_t n, chunks;
     uint64_t budget;
+    atomic_bool stop; // a list gave up (or ran out of memory): the others stop too
     mend_result result[3];
     bpx_pair *out;
 } sap_job;
@@ -501,8 +513,14 @@ static void mend_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
     sap_job *job = context;
-    for (int axis = begin; axis < end; axis++)
-        job->result[axis] = mend_list(job->st, job->n, job->budget, axis);
+    for (int axis = begin; axis < end; axis++) {
+        mend_result r = MEND_GAVE_UP;
+        if (!atomic_load_explicit(&job->stop, memory_order_relaxed))
+            r = mend_list(job->st, job->n, job->budget, axis, &job->stop);
+        if (r != MEND_DONE)
+            atomic_store_explicit(&job->stop, true, memory_order_relaxed);
+        job->result[axis] = r;
+    }
 }
 
 static mend_result mend_all(bpx_world *w, sap_state *st, uint32_t n, uint32_t changed,
@@ -514,6 +532,7 @@ static mend_result mend_all(bpx_world *w, sap_state *st, uint32_t n, uint32_t ch
         st->a.moved[b] = 1;
     }
     sap_job job = {.st = st, .n = n, .budget = budget};
+    atomic_init(&job.stop, false);
     if (n >= PARALLEL_MIN && w->executor.worker_count > 1)
         bpx__parallel_for(&w->executor, mend_task, 3, &job);
     else
@@ -650,11 +669,11 @@ static uint32_t check_boxes(const bpx_world *w, sap_state *st)
 }
 
 // The fat pairs [k0, k1) whose boxes overlap, into out from k0 on; returns their count.
-static uint32_t filter_range(const sap_state *st, bpx_pair *out, size_t k0, size_t k1)
+static size_t filter_range(const sap_state *st, bpx_pair *out, size_t k0, size_t k1)
 {
     const bpx_box *cur = st->a.cur;
     const bpx_pair *fat = st->fat_pairs.pairs;
-    uint32_t count = 0;
+    size_t count = 0;
     out += k0;
     for (size_t k = k0; k < k1; k++) {
         if (k + PREFETCH < k1) // j is anywhere: fetch it early (i comes in order)
@@ -671,8 +690,7 @@ static void filter_task(int begin, int end, int worker, void *context)
     sap_job *job = context;
     size_t total = job->st->fat_pairs.count;
     for (int c = begin; c < end; c++)
-        job->st->chunk_count[c] =
-            filter_range(job->st, job->out, (size_t)((uint64_t)total * c / job->chunks),
+        job->st->chunk_count[c] = (uint32_t)filter_range(job->st, job->out, (size_t)((uint64_t)total * c / job->chunks),
                          (size_t)((uint64_t)total * (c + 1) / job->chunks));
 }
 
@@ -796,6 +814,7 @@ static bpx_status grid_pairs(bpx_world *w, sap_state *st, const bpx_box *boxes)
         }
     }
     bpx_soa soa = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]}, n};
+    bpx__grid_forget(st->grid); // its last call may be long ago, on other boxes
     return bpx__grid_find(w, &st->grid, soa);
 }
 
@@ -884,9 +903,11 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
     if (!bpx__list_reserve(&st->fat_pairs, room) || !bpx__list_reserve(&st->merged, room) ||
         !bpx__list_reserve(&st->changes, changes) || !bpx__list_reserve(&st->spare, changes))
         return BPX_ERR_OUT_OF_MEMORY;
-    for (int k = 0; k < 3; k++)
-        if (!bpx__list_reserve(&st->axis_changes[k], changes / 2))
+    for (int k = 0; k < 3; k++) {
+        st->axis_changes[k].count = 0;
+        if (!bpx__list_reserve(&st->axis_changes[k], changes))
             return BPX_ERR_OUT_OF_MEMORY;
+    }
     if (found->count)
         memcpy(st->fat_pairs.pairs, found->pairs, found->count * sizeof(bpx_pair));
     st->fat_pairs.count = found->count;
@@ -988,7 +1009,8 @@ static bool sap_query(const bpx_world_def *def, const char **reason, char *detai
         *reason = "SIMD width not supported here";
         return false;
     }
-    snprintf(detail, size, "3-axis fat endpoint lists mended by insertion; rebuild sweep %s",
+    snprintf(detail, size,
+             "3-axis fat endpoint lists mended by insertion; rebuild sweep %s (grid when dense)",
              bpx_simd_name(simd));
     return true;
 }
