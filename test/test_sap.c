@@ -639,23 +639,36 @@ static void fail_free(void *memory, void *user)
     free(memory);
 }
 
+// A sequence of cycles: cycle k's boxes (`stride` apart) are a coherent move of cycle k-1's
+// (warm), n changes at steps 2 (growth, still warm) and 4 (shrinking: a rebuild).
+enum { ALLOC_STEPS = 6 };
+typedef struct alloc_case {
+    const char *name;
+    uint32_t sizes[ALLOC_STEPS];
+    uint32_t stride;
+    float density; // overlaps per box
+    int workers;
+} alloc_case;
+
 // One sequence with the first `budget` allocations succeeding; true when nothing failed.
-static bool failing_run(long long budget, const bpx_box *boxes, const pair_list *wants)
+static bool failing_run(long long budget, const alloc_case *c, const bpx_box *boxes,
+                        const pair_list *wants)
 {
-    static const uint32_t sizes[] = {400, 400, 402, 402, 300, 300};
-    enum { steps = sizeof sizes / sizeof sizes[0] };
+    const uint32_t *sizes = c->sizes;
+    enum { steps = ALLOC_STEPS };
     atomic_store(&fail_budget, budget);
     bool all_ok = true;
     bpx_world_def def = bpx_default_world_def();
     def.backend = BPX_BACKEND_SAP;
     def.track_events = true;
+    def.worker_count = c->workers;
     bpx_world *w = NULL;
     bpx_status s = bpx_world_create(&def, &w);
     CHECK(s == BPX_OK || s == BPX_ERR_OUT_OF_MEMORY);
     if (s != BPX_OK)
         return false;
     for (int k = 0; k < steps; k++) {
-        const bpx_box *cycle_boxes = boxes + (size_t)k * 410;
+        const bpx_box *cycle_boxes = boxes + (size_t)k * c->stride;
         s = bpx_world_set_boxes(w, cycle_boxes, sizes[k]);
         CHECK_MSG(s == BPX_OK || s == BPX_ERR_OUT_OF_MEMORY, "step %d set_boxes: %s", k,
                   check_status_name(s));
@@ -675,7 +688,7 @@ static bool failing_run(long long budget, const bpx_box *boxes, const pair_list 
     // Memory back: the world recovers on the next cycles.
     atomic_store(&fail_budget, -1);
     for (int k = steps - 2; k < steps; k++) {
-        CHECK_STATUS(bpx_world_set_boxes(w, boxes + (size_t)k * 410, sizes[k]), BPX_OK);
+        CHECK_STATUS(bpx_world_set_boxes(w, boxes + (size_t)k * c->stride, sizes[k]), BPX_OK);
         CHECK_STATUS(bpx_world_collide(w), BPX_OK);
         size_t count = 0;
         const bpx_pair *pairs = bpx_world_pairs(w, &count);
@@ -685,16 +698,28 @@ static bool failing_run(long long budget, const bpx_box *boxes, const pair_list 
     return all_ok;
 }
 
-static void test_allocation_failure(void)
+// The expected pairs by prune (checked against the reference by test_differential).
+static void pairs_by_prune(pair_list *out, const bpx_box *boxes, uint32_t n)
 {
-    enum { steps = 6, stride = 410 };
-    // Cycle k's boxes are a coherent move of cycle k-1's (warm), n changes at steps 2 and 4.
+    bpx_world *w = make_world(BPX_BACKEND_PRUNE, 1, false);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    size_t count = 0;
+    const bpx_pair *pairs = bpx_world_pairs(w, &count);
+    pair_list_set(out, pairs, count);
+    bpx_world_destroy(w);
+}
+
+static void allocation_failure(const alloc_case *c)
+{
+    enum { steps = ALLOC_STEPS };
+    const uint32_t stride = c->stride;
+    const uint32_t *sizes = c->sizes;
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * stride * steps);
-    scene_uniform_density(stride, 1.0f, 81, boxes);
+    scene_uniform_density(stride, c->density, 81, boxes);
     scene_rng r;
     scene_rng_seed(&r, 81);
     check_set_seed(81);
-    static const uint32_t sizes[] = {400, 400, 402, 402, 300, 300};
     pair_list wants[steps] = {{0}};
     for (int k = 0; k < steps; k++) {
         if (k > 0) {
@@ -702,27 +727,42 @@ static void test_allocation_failure(void)
                    sizeof(bpx_box) * stride);
             scene_move(boxes + (size_t)k * stride, stride, 0.02f, &r);
         }
-        pair_list_brute(&wants[k], boxes + (size_t)k * stride, sizes[k]);
+        pairs_by_prune(&wants[k], boxes + (size_t)k * stride, sizes[k]);
     }
     int64_t start = bpx_allocated_bytes();
     bpx_set_allocator(fail_alloc, fail_free, &fail_tag);
     long long budget = 0;
     for (; budget < 10000; budget++) {
-        check_set_context("allocation failure after %lld allocations", budget);
-        bool done = failing_run(budget, boxes, wants);
+        check_set_context("allocation failure (%s) after %lld allocations", c->name, budget);
+        bool done = failing_run(budget, c, boxes, wants);
         CHECK_MSG(bpx_allocated_bytes() == start, "allocated %lld bytes, started at %lld",
                   (long long)bpx_allocated_bytes(), (long long)start);
         if (done)
             break;
     }
     bpx_set_allocator(NULL, NULL, NULL);
-    printf("  allocation failure: a full run needs %lld allocations; every shorter budget "
+    printf("  allocation failure, %s: a full run needs %lld allocations; every shorter budget "
            "failed cleanly\n",
-           budget);
+           c->name, budget);
     CHECK(budget > 5 && budget < 10000);
     for (int k = 0; k < steps; k++)
         pair_list_free(&wants[k]);
     free(boxes);
+}
+
+static void test_allocation_failure(void)
+{
+    static const alloc_case cases[] = {
+        {"400 boxes", {400, 400, 402, 402, 300, 300}, 410, 1.0f, 1},
+        // Dense and many: rebuilds by the grid, warm passes on 2 workers (and their threads).
+        {"17000 boxes, 2 workers",
+         {17000, 17000, 17002, 17002, 16500, 16500},
+         17010,
+         4.0f,
+         2},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++)
+        allocation_failure(&cases[k]);
 }
 
 int main(void)
