@@ -68,8 +68,8 @@
 // the one-pass mend runs the three lists at once; the few-boxes mend is serial; the cold sweep
 // (or grid) runs on the workers. The output is
 // the same bytes either way. Memory: about 200 bytes per box (three endpoint lists, three box
-// copies, the cold sweep's arrays) plus a few pair lists; grown with slack, so steady cycles
-// allocate nothing.
+// copies, the cold sweep's arrays) plus a few pair lists, and the grid's own state once a
+// rebuild has used it (kept for the next); grown with slack, so steady cycles allocate nothing.
 #include <float.h>
 #include <stdatomic.h>
 #include <stdio.h>
