@@ -8,6 +8,7 @@
 
 #include "alloc.h"
 #include "clock.h"
+#include "transpose.h"
 #include "validate.h"
 
 // Names of every backend id; an id whose implementation is not in this build has no entry in
@@ -307,7 +308,28 @@ static void set_task(int begin, int end, int worker, void *context)
         uint32_t i0, i1;
         chunk_range(job, c, &i0, &i1);
         int ok = 1;
-        for (uint32_t i = i0; i < i1; i++) {
+        uint32_t i = i0;
+#ifdef BPX_HAVE_TRANSPOSE4
+        // Four boxes at a time: one transpose, three range checks on whole vectors.
+        const __m128 low = _mm_set1_ps(-FLT_MAX), high = _mm_set1_ps(FLT_MAX);
+        __m128 good = _mm_castsi128_ps(_mm_set1_epi32(-1));
+        for (; i + 4 <= i1; i += 4) {
+            __m128 v[6];
+            bpx__boxes4_to_soa(&job->boxes[i], v);
+            for (int a = 0; a < 3; a++)
+                good = _mm_and_ps(good, _mm_and_ps(_mm_and_ps(_mm_cmple_ps(low, v[a]),
+                                                              _mm_cmple_ps(v[a], v[3 + a])),
+                                                   _mm_cmple_ps(v[3 + a], high)));
+            _mm_storeu_ps(lx + i, v[0]);
+            _mm_storeu_ps(ly + i, v[1]);
+            _mm_storeu_ps(lz + i, v[2]);
+            _mm_storeu_ps(hx + i, v[3]);
+            _mm_storeu_ps(hy + i, v[4]);
+            _mm_storeu_ps(hz + i, v[5]);
+        }
+        ok &= _mm_movemask_ps(good) == 0xf;
+#endif
+        for (; i < i1; i++) {
             const bpx_box *box = &job->boxes[i];
             for (int a = 0; a < 3; a++)
                 ok &= (-FLT_MAX <= box->min[a]) & (box->min[a] <= box->max[a]) &
