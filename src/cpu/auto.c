@@ -68,6 +68,19 @@ bpx_backend bpx__auto_choice(const bpx_world *w)
     return st && st->last != BPX_BACKEND_AUTO ? st->last : choice_by_n(w->n);
 }
 
+// Every how many boxes the statistics look at one (the same for the same n), and how many they
+// look at: last cycle's min x is kept for those only.
+static uint32_t sample_stride(uint32_t n)
+{
+    return n > 4 * AUTO_SAMPLE ? n / AUTO_SAMPLE : 1;
+}
+
+static uint32_t sample_count(uint32_t n)
+{
+    uint32_t stride = sample_stride(n);
+    return n / stride + (n % stride != 0);
+}
+
 // Measures the two statistics (and keeps this cycle's min x for the next) and picks.
 static bpx_backend choose(bpx_world *w, auto_state *st)
 {
@@ -76,7 +89,7 @@ static bpx_backend choose(bpx_world *w, auto_state *st)
         return BPX_BACKEND_BRUTE;
     const float *lo = w->boxes.lo[0], *hi = w->boxes.hi[0];
     bool have_last = st->last_min_x && st->last_n == n;
-    uint32_t stride = n > 4 * AUTO_SAMPLE ? n / AUTO_SAMPLE : 1; // the same for the same n
+    uint32_t stride = sample_stride(n);
     double extent = 0, moved = 0;
     float low = INFINITY, high = -INFINITY;
     uint32_t live = 0;
@@ -119,9 +132,10 @@ static bpx_status auto_compare(bpx_world *w)
         *st = (auto_state){.last = BPX_BACKEND_AUTO};
         w->backend_state = st;
     }
-    if (w->n > st->capacity && w->n > AUTO_BRUTE_MAX) {
+    uint32_t wanted = sample_count(w->n);
+    if (wanted > st->capacity && w->n > AUTO_BRUTE_MAX) {
         // Room for the motion statistic. On failure auto goes on without it (no sap).
-        uint32_t capacity = w->n + w->n / 2;
+        uint32_t capacity = wanted + wanted / 2;
         float *grown = bpx__alloc(sizeof(float) * capacity);
         if (grown) {
             bpx__free(st->last_min_x, sizeof(float) * st->capacity);

@@ -451,8 +451,10 @@ static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_
 // endpoints taking their new words as the pass reaches them (the others keep theirs: a flag
 // per box, not a read of its fat box). A min and a max that swap may change their boxes' fat
 // overlap: the pair is noted when overlap(new, new) differs from overlap(old, old).
-// One axis's list; its budget is a third of the cycle's, and it gives up early when its first
-// part projects far past that. The lists are independent: the three run on the workers at once.
+//
+// mend_list mends one axis's list: its budget is a third of the cycle's, and it gives up early
+// when its first part projects far past that. The lists are independent: the three run on the
+// workers at once (mend_all).
 static mend_result mend_list(sap_state *st, uint32_t n, uint64_t budget, int axis,
                              atomic_bool *stop)
 {
@@ -462,39 +464,37 @@ static mend_result mend_list(sap_state *st, uint32_t n, uint64_t budget, int axi
     uint64_t moves = 0;
     budget /= 3;
     changes->count = 0;
-    {
-        uint64_t *ends = st->a.ends[axis];
-        uint32_t check = CHECK_EVERY;
-        for (uint32_t k = 0; k < 2 * n; k++) {
-            uint64_t x = ends[k];
-            uint32_t b = (uint32_t)x & BOX_MASK;
-            if (moved[b])
-                x = fat_word(&fat[b], axis, (uint32_t)x & MAX_BIT, b);
-            if (k == 0 || ends[k - 1] < x) {
-                ends[k] = x;
-                continue;
-            }
-            uint32_t at = k;
-            do {
-                uint64_t past = ends[at - 1];
-                uint32_t other = (uint32_t)past & BOX_MASK;
-                if (((past ^ x) & MAX_BIT) && other != b &&
-                    overlap(&fat[b], &fat[other]) != overlap(&prev[b], &prev[other]) &&
-                    !push(changes, ordered(b, other)))
-                    return MEND_NO_MEMORY;
-                ends[at] = past;
-                at--;
-            } while (at > 0 && ends[at - 1] > x);
-            ends[at] = x;
-            moves += k - at;
-            if (moves > budget)
+    uint64_t *ends = st->a.ends[axis];
+    uint32_t check = CHECK_EVERY;
+    for (uint32_t k = 0; k < 2 * n; k++) {
+        uint64_t x = ends[k];
+        uint32_t b = (uint32_t)x & BOX_MASK;
+        if (moved[b])
+            x = fat_word(&fat[b], axis, (uint32_t)x & MAX_BIT, b);
+        if (k == 0 || ends[k - 1] < x) {
+            ends[k] = x;
+            continue;
+        }
+        uint32_t at = k;
+        do {
+            uint64_t past = ends[at - 1];
+            uint32_t other = (uint32_t)past & BOX_MASK;
+            if (((past ^ x) & MAX_BIT) && other != b &&
+                overlap(&fat[b], &fat[other]) != overlap(&prev[b], &prev[other]) &&
+                !push(changes, ordered(b, other)))
+                return MEND_NO_MEMORY;
+            ends[at] = past;
+            at--;
+        } while (at > 0 && ends[at - 1] > x);
+        ends[at] = x;
+        moves += k - at;
+        if (moves > budget)
+            return MEND_GAVE_UP;
+        if (k >= check) { // projected over the list: far past its budget
+            if (atomic_load_explicit(stop, memory_order_relaxed) ||
+                moves * (uint64_t)n * 2 / k > 2 * budget)
                 return MEND_GAVE_UP;
-            if (k >= check) { // projected over the list: far past its budget
-                if (atomic_load_explicit(stop, memory_order_relaxed) ||
-                    moves * (uint64_t)n * 2 / k > 2 * budget)
-                    return MEND_GAVE_UP;
-                check = k + CHECK_EVERY;
-            }
+            check = k + CHECK_EVERY;
         }
     }
     return MEND_DONE;
