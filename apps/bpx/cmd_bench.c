@@ -241,8 +241,9 @@ static bool fits(const bench_variant *v, uint32_t n, bool quick)
     case BPX_BACKEND_REFERENCE:
         return n <= (quick ? 5000u : 20000u);
     case BPX_BACKEND_BRUTE:
-    case BPX_BACKEND_OPENCL:
         return n <= quadratic;
+    case BPX_BACKEND_OPENCL: // sort and sweep on the device from 4096 boxes (BPX_OPENCL_AUTO)
+        return n <= (quick ? quadratic : 1000000u);
     default:
         return true;
     }
