@@ -95,10 +95,23 @@ typedef struct bench_result {
     double bytes_in, bytes_out;
 } bench_result;
 
-// Times one variant. samples needs room for budget->max_cycles (or frames->count) doubles.
-// Returns 0, or prints the error and returns -1.
+// Times one variant: bench_open, bench_step for budget->seconds, bench_close. Returns 0, or
+// prints the error and returns -1.
 int bench_run(const bench_variant *v, const bench_frames *frames, const bench_budget *budget,
-              double *samples, bench_result *out);
+              bench_result *out);
+
+// The same in steps, so that the variants of one row can take turns (machine noise that drifts
+// over seconds then falls on all of them alike): bench_open makes the world or peer and plays
+// the cold cycle and the warm-up; each bench_step plays timed cycles for about `seconds` (at
+// least one in the first; none once the budget's seconds are spent; recorded frames: all of
+// them); bench_close gives the result and frees the session, bench_abandon frees it. The
+// functions that return int return 0, or print the error and return -1.
+typedef struct bench_session bench_session;
+int bench_open(const bench_variant *v, const bench_frames *frames, const bench_budget *budget,
+               bench_session **out);
+int bench_step(bench_session *s, double seconds);
+void bench_close(bench_session *s, bench_result *out);
+void bench_abandon(bench_session *s);
 
 // The bench's Markdown goes to stdout and, with --out, to DIR/bench.md as well.
 void bench_set_markdown_copy(FILE *file);

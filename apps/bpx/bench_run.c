@@ -313,73 +313,135 @@ static void runner_close(runner *r)
     free(r->boxes);
 }
 
-int bench_run(const bench_variant *v, const bench_frames *frames, const bench_budget *budget,
-              double *samples, bench_result *out)
+// --- A variant in steps ----------------------------------------------------------------------
+
+struct bench_session {
+    runner r;
+    bench_budget budget;
+    double *samples; // timed cycles' us, budget.max_cycles (or frames->count) of them
+    bool once;       // recorded frames, each played once (else a motion, timed for seconds)
+    int total, c, timed, warm_end;
+    double warm_spent, spent, pairs, exact, link[5], cold_pairs[2];
+    bench_result out;
+};
+
+// Whether cycle s->c is timed: motion cycles after the cold one and the warm-up (which slow
+// variants, a second per cycle at a million boxes, cut short), recorded frames after the first.
+static bool timed_next(const bench_session *s)
 {
-    *out = (bench_result){0};
-    runner r = {.v = v, .frames = frames};
-    if (runner_open(&r) != 0) {
-        runner_close(&r);
+    if (s->once || s->warm_end != 0)
+        return s->c > 0;
+    return s->c > 0 && (s->c > s->budget.warmup || (s->c > 1 && s->warm_spent > s->budget.warmup_seconds));
+}
+
+// Runs cycle s->c and books it; returns its time in seconds, or -1 after printing the error.
+static double session_cycle(bench_session *s)
+{
+    const bench_frames *frames = s->r.frames;
+    int c = s->c;
+    bool timed = timed_next(s);
+    if (timed && s->warm_end == 0)
+        s->warm_end = c;
+    bpx_cycle_stats stats = {0};
+    double elapsed = runner_cycle(&s->r, c, &stats);
+    uint64_t truth = 0;
+    if (elapsed < 0 || (frames->motion && bench_truth_count(frames->truth, c, &truth) != 0))
         return -1;
+    if (!frames->motion)
+        truth = frames->pairs[c];
+    s->c++;
+    uint64_t reported = stats.pair_count, checked = stats.pair_count;
+    if (s->r.peer) {
+        reported = bench_peer_pair_count(s->r.peer);
+        checked = bench_peer_exact_pairs(s->r.peer, cycle_boxes(&s->r, c), NULL, 0);
     }
+    if (checked != truth)
+        s->out.mismatches++;
+    if (c == 0) {
+        // A peer's cold start is its creation: it inserts the first frame and finds its pairs
+        // there, as bpx's first collide does.
+        s->out.cold_us = (s->r.peer ? s->r.create_s : elapsed) * 1e6;
+        s->cold_pairs[0] = (double)reported, s->cold_pairs[1] = (double)checked;
+    }
+    if (!timed) { // the cold cycle is reported apart; warm-up cycles not at all
+        s->warm_spent += c > 0 ? elapsed : 0;
+        return elapsed;
+    }
+    s->samples[s->timed++] = elapsed * 1e6;
+    s->out.rebuilt += stats.rebuilt;
+    if (s->r.world)
+        s->out.ran |= 1u << bpx_world_backend(s->r.world);
+    *(stats.rebuilt ? &s->out.rebuilt_us : &s->out.mended_us) += elapsed * 1e6;
+    s->spent += elapsed;
+    s->pairs += (double)reported;
+    s->exact += (double)checked;
+    s->link[0] += (double)stats.transfer_in_ns * 1e-3;
+    s->link[1] += (double)stats.transfer_out_ns * 1e-3;
+    s->link[2] += (double)stats.device_ns * 1e-3;
+    s->link[3] += (double)stats.bytes_in;
+    s->link[4] += (double)stats.bytes_out;
+    return elapsed;
+}
+
+static void session_free(bench_session *s)
+{
+    runner_close(&s->r);
+    free(s->samples);
+    free(s);
+}
+
+int bench_open(const bench_variant *v, const bench_frames *frames, const bench_budget *budget,
+               bench_session **out)
+{
+    *out = NULL;
+    bench_session *s = calloc(1, sizeof *s);
     bool once = !frames->motion;
     int total = once ? frames->count : 1 + budget->warmup + budget->max_cycles;
-    int timed = 0;
-    int warm_end = 0;
-    double warm_spent = 0, spent = 0, pairs = 0, exact = 0, link[5] = {0}, cold_pairs[2] = {0};
-    for (int c = 0; c < total && (once || spent < budget->seconds); c++) {
-        bpx_cycle_stats stats = {0};
-        double elapsed = runner_cycle(&r, c, &stats);
-        uint64_t truth = 0;
-        if (elapsed < 0 ||
-            (frames->motion && bench_truth_count(frames->truth, c, &truth) != 0)) {
-            runner_close(&r);
+    if (!s || !(s->samples = malloc(sizeof(double) * (size_t)(total > 1 ? total : 1)))) {
+        free(s);
+        cli_error("bench", "out of memory");
+        return -1;
+    }
+    s->r = (runner){.v = v, .frames = frames};
+    s->budget = *budget;
+    s->once = once;
+    s->total = total;
+    if (runner_open(&s->r) != 0) {
+        session_free(s);
+        return -1;
+    }
+    while (s->c < s->total && !timed_next(s))
+        if (session_cycle(s) < 0) {
+            session_free(s);
             return -1;
         }
-        if (!frames->motion)
-            truth = frames->pairs[c];
-        uint64_t reported = stats.pair_count, checked = stats.pair_count;
-        if (r.peer) {
-            reported = bench_peer_pair_count(r.peer);
-            checked = bench_peer_exact_pairs(r.peer, cycle_boxes(&r, c), NULL, 0);
-        }
-        if (checked != truth)
-            out->mismatches++;
-        if (c == 0) {
-            // A peer's cold start is its creation: it inserts the first frame and finds its
-            // pairs there, as bpx's first collide does.
-            out->cold_us = (r.peer ? r.create_s : elapsed) * 1e6;
-            cold_pairs[0] = (double)reported, cold_pairs[1] = (double)checked;
-        }
-        // The cold cycle is reported apart; warm-up cycles not at all. Slow variants (a second
-        // per cycle at a million boxes) stop warming up early.
-        if (!once && c > 0 && warm_end == 0 &&
-            (c > budget->warmup || (c > 1 && warm_spent > budget->warmup_seconds)))
-            warm_end = c;
-        if (once ? c == 0 : warm_end == 0) {
-            warm_spent += c > 0 ? elapsed : 0;
-            continue;
-        }
-        samples[timed++] = elapsed * 1e6;
-        out->rebuilt += stats.rebuilt;
-        if (r.world)
-            out->ran |= 1u << bpx_world_backend(r.world);
-        *(stats.rebuilt ? &out->rebuilt_us : &out->mended_us) += elapsed * 1e6;
-        spent += elapsed;
-        pairs += (double)reported;
-        exact += (double)checked;
-        link[0] += (double)stats.transfer_in_ns * 1e-3;
-        link[1] += (double)stats.transfer_out_ns * 1e-3;
-        link[2] += (double)stats.device_ns * 1e-3;
-        link[3] += (double)stats.bytes_in;
-        link[4] += (double)stats.bytes_out;
+    *out = s;
+    return 0;
+}
+
+int bench_step(bench_session *s, double seconds)
+{
+    double slice = 0;
+    while (s->c < s->total &&
+           (s->once || (s->spent < s->budget.seconds && (slice < seconds || s->timed == 0)))) {
+        double elapsed = session_cycle(s);
+        if (elapsed < 0)
+            return -1;
+        slice += elapsed;
     }
-    runner_close(&r);
+    return 0;
+}
+
+void bench_close(bench_session *s, bench_result *result)
+{
+    bench_result *out = &s->out;
+    double *samples = s->samples;
+    int timed = s->timed;
+    double pairs = s->pairs, exact = s->exact;
     if (timed == 0) { // one frame played once: the cold cycle is all there is
         samples[timed++] = out->cold_us;
-        pairs = cold_pairs[0], exact = cold_pairs[1];
+        pairs = s->cold_pairs[0], exact = s->cold_pairs[1];
     }
-
     double sum = 0;
     for (int c = 0; c < timed; c++)
         sum += samples[c];
@@ -394,10 +456,32 @@ int bench_run(const bench_variant *v, const bench_frames *frames, const bench_bu
     out->min_us = samples[0];
     out->pairs = pairs / timed;
     out->exact_pairs = exact / timed;
-    out->in_us = link[0] / timed;
-    out->out_us = link[1] / timed;
-    out->device_us = link[2] / timed;
-    out->bytes_in = link[3] / timed;
-    out->bytes_out = link[4] / timed;
+    out->in_us = s->link[0] / timed;
+    out->out_us = s->link[1] / timed;
+    out->device_us = s->link[2] / timed;
+    out->bytes_in = s->link[3] / timed;
+    out->bytes_out = s->link[4] / timed;
+    *result = *out;
+    session_free(s);
+}
+
+void bench_abandon(bench_session *s)
+{
+    if (s)
+        session_free(s);
+}
+
+int bench_run(const bench_variant *v, const bench_frames *frames, const bench_budget *budget,
+              bench_result *out)
+{
+    *out = (bench_result){0};
+    bench_session *s;
+    if (bench_open(v, frames, budget, &s) != 0)
+        return -1;
+    if (bench_step(s, budget->seconds) != 0) {
+        bench_abandon(s);
+        return -1;
+    }
+    bench_close(s, out);
     return 0;
 }

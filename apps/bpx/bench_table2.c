@@ -112,10 +112,9 @@ int bench_table2(const bench_table2_options *o)
     float *minima = malloc(sizeof(float) * 3 * most);
     float *centres = malloc(sizeof(float) * 3 * most * (size_t)cycles);
     uint64_t *pairs = malloc(sizeof(uint64_t) * (size_t)cycles);
-    double *samples = malloc(sizeof(double) * (size_t)cycles);
     bench_result(*results)[BENCH_MAX_VARIANTS] = calloc(ROWS, sizeof *results);
     double sim_pairs[ROWS] = {0};
-    int code = minima && centres && pairs && samples && results ? 0 : -1;
+    int code = minima && centres && pairs && results ? 0 : -1;
     for (int r = 0; r < ROWS && code == 0; r++) {
         uint32_t n = paper[r].n;
         bench_frames frames;
@@ -128,7 +127,7 @@ int bench_table2(const bench_table2_options *o)
             char name[BENCH_NAME_SIZE];
             bench_variant_name(&variants[v], name, sizeof name);
             bench_progress("bpx bench: table 2, n = %u: %s (%d/%d)", n, name, v + 1, count);
-            code = bench_run(&variants[v], &frames, &budget, samples, &results[r][v]);
+            code = bench_run(&variants[v], &frames, &budget, &results[r][v]);
         }
     }
     bench_progress(NULL);
@@ -230,7 +229,7 @@ int bench_table2(const bench_table2_options *o)
                             x->min_us, x->mismatches, paper[r].fpga_m8, paper[r].solid_excl);
                 }
         }
-    } else if (minima && centres && pairs && samples && results) {
+    } else if (minima && centres && pairs && results) {
         cli_error("bench", "table 2 failed");
     } else {
         cli_error("bench", "out of memory for %d cycles of table 2", cycles);
@@ -238,7 +237,6 @@ int bench_table2(const bench_table2_options *o)
     free(minima);
     free(centres);
     free(pairs);
-    free(samples);
     free(results);
     return code == 0 ? wrong : -1;
 }

@@ -19,7 +19,11 @@
 #include "peers.h"
 #include "scenes.h"
 
-enum { MAX_NAMES = 32, SCENES = 3 };
+enum {
+    MAX_NAMES = 32,
+    SCENES = 3,
+    ROUNDS = 5, // turns the variants of a scale row take at their timed cycles
+};
 
 // uniform: sizes 0.5..1.5, moved up to 0.05 per axis and frame; heavy: a heavy tail of sizes,
 // the same motion; resting: uniform sizes moved 50 times less (a scene mostly at rest).
@@ -399,7 +403,6 @@ typedef struct scale_summary {
 typedef struct scale_state {
     const bench_options *o;
     FILE *csv;
-    double *samples;
     bench_series series[SCENES][BENCH_MAX_VARIANTS];
     int series_count[SCENES];
     link_row links[MAX_LINK_ROWS];
@@ -455,12 +458,28 @@ static int run_size(scale_state *st, int scene, int size_index)
     bench_result results[BENCH_MAX_VARIANTS];
     int count = list_variants(o, n, variants);
     int code = 0;
+    // Every variant's cold cycle and warm-up, then the timed cycles in ROUNDS turns, each
+    // round starting one variant later: noise that drifts over seconds (a shared VM) falls on
+    // every variant of the row alike, and so stays out of their ratios.
+    bench_session *sessions[BENCH_MAX_VARIANTS] = {0};
     for (int v = 0; v < count && code == 0; v++) {
         char name[BENCH_NAME_SIZE];
         bench_variant_name(&variants[v], name, sizeof name);
         bench_progress("bpx bench: %s n = %u: %s (%d/%d)", scene_names[scene], n, name, v + 1,
                        count);
-        code = bench_run(&variants[v], &sc.frames, &budget, st->samples, &results[v]);
+        code = bench_open(&variants[v], &sc.frames, &budget, &sessions[v]);
+    }
+    for (int round = 0; round < ROUNDS && code == 0; round++) {
+        bench_progress("bpx bench: %s n = %u: timed round %d/%d", scene_names[scene], n,
+                       round + 1, ROUNDS);
+        for (int k = 0; k < count && code == 0; k++)
+            code = bench_step(sessions[(k + round) % count], budget.seconds / ROUNDS);
+    }
+    for (int v = 0; v < count; v++) {
+        if (code == 0)
+            bench_close(sessions[v], &results[v]);
+        else
+            bench_abandon(sessions[v]);
     }
     bench_progress(NULL);
     free_scene(&sc);
@@ -539,12 +558,15 @@ static int run_scale(scale_state *st)
                  "\"resting\": %s) and bouncing off the scene's walls. Per variant: cold = first\n"
                  "cycle of a fresh world (peers: their creation with the first cycle's boxes),\n"
                  "then warm-up (0.15 / step cycles, at least 5: fat boxes turn over), then\n"
-                 "timed cycles for %.2f s (at least one); us per cycle (bpx:\n"
+                 "timed cycles for %.2f s (at least one), in %d turns taken by the row's\n"
+                 "variants in rotation (slow drift of a shared machine falls on all alike);\n"
+                 "us per cycle (bpx:\n"
                  "set_boxes + collide; peers: move every proxy + their pair update). vs sap / vs\n"
                  "fastest peer: their mean over this row's (means, as the paper's; sap's cycles\n"
                  "are cheap or dear). check: every cycle's pairs against the exact count (peers\n"
                  "report more: fat or quantised boxes).\n\n",
-                 o->step > 0 ? "--step" : "0.05", o->step > 0 ? "--step" : "0.001", o->seconds);
+                 o->step > 0 ? "--step" : "0.05", o->step > 0 ? "--step" : "0.001", o->seconds,
+                 ROUNDS);
     bench_printf("| scene | n | variant | pairs/cycle | cold us | mean us | median us | p99 us | "
                  "vs sap | vs fastest peer | check |\n"
                  "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|\n");
@@ -675,10 +697,7 @@ int cmd_bench(int argc, char **argv)
     }
     st->o = &o;
     st->csv = csv;
-    st->samples = malloc(sizeof(double) * ((size_t)(table2_cycles > o.max_cycles ? table2_cycles
-                                                                                  : o.max_cycles) +
-                                           8));
-    if (!st->samples || (o.csv_path && !csv) || (o.out_dir && scale && !csv) ||
+    if ((o.csv_path && !csv) || (o.out_dir && scale && !csv) ||
         (o.out_dir && run_table2 && !table2_csv))
         code = CLI_EXIT_ERROR;
     if (csv)
@@ -719,7 +738,6 @@ int cmd_bench(int argc, char **argv)
             code = CLI_EXIT_ERROR;
         }
     bench_set_markdown_copy(NULL);
-    free(st->samples);
     free(st);
     return code;
 }
