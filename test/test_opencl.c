@@ -180,16 +180,15 @@ static void test_paths(void)
 // ---------------------------------------------------------------------------------------------
 // Pair buffer: grow and emit again; past the memory limit, windows
 
-static void test_pair_buffer(void)
+static void pair_buffer_case(uint32_t n, uint64_t memory_limit)
 {
-    enum { n = 1234 };
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
     CHECK(scene_generate(SCENE_ALL_OVERLAP, n, 3, boxes) == 0);
     pair_list want = {0};
     reference_pairs(boxes, n, &want);
     CHECK_EQ_U64(want.count, (uint64_t)n * (n - 1) / 2);
 
-    check_set_context("pair buffer grows");
+    check_set_context("n=%u pair buffer grows", n);
     bpx_world_def def = opencl_def();
     def.opencl_method = BPX_OPENCL_BRUTE;
     def.opencl_pair_capacity = 1000;
@@ -209,9 +208,10 @@ static void test_pair_buffer(void)
         bpx_world_destroy(world);
     }
 
-    // 760k pairs need 6 MB; with 2 MB the buffer cannot grow: the pairs come in windows.
-    check_set_context("pair windows under a memory limit");
-    def.opencl_memory_limit = 2u << 20;
+    // The pairs need more than the limit: the buffer cannot grow, the pairs come in windows
+    // (small sets too: their one-launch kernel gives way to the windowed emitter).
+    check_set_context("n=%u pair windows under a memory limit", n);
+    def.opencl_memory_limit = memory_limit;
     def.opencl_pair_capacity = 0;
     world = make(&def);
     if (world) {
@@ -220,7 +220,7 @@ static void test_pair_buffer(void)
         bpx_world_destroy(world);
     }
     // Sort and sweep cannot hold those pairs either: it gives way to brute force's windows.
-    check_set_context("sweep falls back under a memory limit");
+    check_set_context("n=%u sweep falls back under a memory limit", n);
     def.opencl_method = BPX_OPENCL_SWEEP;
     world = make(&def);
     if (world) {
@@ -230,6 +230,16 @@ static void test_pair_buffer(void)
     }
     pair_list_free(&want);
     free(boxes);
+}
+
+// Sizes on both sides of the one-launch kernel's limits (256 boxes on a CPU device, 1024 on
+// others) and memory limits under the pairs' need (250 boxes: 249 KB of pairs, a limit that
+// holds the keys, the sweep's buffers and a window of pairs; 1000: 4 MB; 1234: 6 MB).
+static void test_pair_buffer(void)
+{
+    pair_buffer_case(250, 240u << 10);
+    pair_buffer_case(1000, 2u << 20);
+    pair_buffer_case(1234, 2u << 20);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -303,6 +313,7 @@ static void test_updater(void)
     CHECK_STATUS(bpx_world_load_extents(world, minima, n), BPX_OK);
     scene_rng motion;
     scene_rng_seed(&motion, 9);
+    size_t last_count = 0;
     for (int cycle = 0; cycle < cycles; cycle++) {
         check_set_context("updater on the device, cycle %d", cycle);
         for (uint32_t i = 0; i < 3 * n && cycle > 0; i++)
@@ -321,7 +332,12 @@ static void test_updater(void)
         bpx_cycle_stats stats = bpx_world_stats(world);
         // The paper's link: 3 floats per object per cycle, the minima once more at first.
         CHECK_EQ_U64(stats.bytes_in, (cycle == 0 ? 24u : 12u) * n);
-        CHECK_EQ_U64(stats.bytes_out, sizeof(uint64_t) + 8 * want.count);
+        // Back: the count and the pairs, and for small sets (read with the count, before it is
+        // known) at most last cycle's count, a quarter more and 64 pairs beside them.
+        uint64_t guess = (uint64_t)last_count + last_count / 4 + 64;
+        CHECK(stats.bytes_out >= sizeof(uint64_t) + 8 * want.count &&
+              stats.bytes_out <= sizeof(uint64_t) + 8 * (want.count + guess));
+        last_count = want.count;
         CHECK(stats.transfer_in_ns > 0 && stats.transfer_out_ns > 0 && stats.device_ns > 0);
     }
     check_set_context("set_boxes after the two-phase mode");
@@ -566,6 +582,17 @@ static void test_objects_released(void)
     cl_uint before = 0, after = 0;
     CHECK(clGetContextInfo(context, CL_CONTEXT_REFERENCE_COUNT, sizeof before, &before, NULL) ==
           CL_SUCCESS);
+    // Earlier worlds' last references may still be on their way out too (seen once in twenty
+    // runs beside another: 7 before, 6 after): count from when the figure has held still for
+    // 50 ms (at most five seconds).
+    for (int tries = 0, still = 0; tries < 1000 && still < 10; tries++) {
+        nanosleep(&(struct timespec){0, 5000000}, NULL);
+        cl_uint now = 0;
+        CHECK(clGetContextInfo(context, CL_CONTEXT_REFERENCE_COUNT, sizeof now, &now, NULL) ==
+              CL_SUCCESS);
+        still = now == before ? still + 1 : 0;
+        before = now;
+    }
     enum { n = 1500 };
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
     CHECK(scene_generate(SCENE_DENSE, n, 4, boxes) == 0);
@@ -591,8 +618,8 @@ static void test_objects_released(void)
     // world has released them: wait up to five seconds (its threads may be starved on a loaded
     // machine) before calling a difference a leak.
     for (int tries = 0; tries < 1000; tries++) {
-        CHECK(clGetContextInfo(context, CL_CONTEXT_REFERENCE_COUNT, sizeof after, &after,
-                               NULL) == CL_SUCCESS);
+        CHECK(clGetContextInfo(context, CL_CONTEXT_REFERENCE_COUNT, sizeof after, &after, NULL) ==
+              CL_SUCCESS);
         if (after == before)
             break;
         nanosleep(&(struct timespec){0, 5000000}, NULL);

@@ -262,8 +262,8 @@ static int runner_open(runner *r)
     def.capacity_hint = fr->n;
     bpx_status status = bpx_world_create(&def, &r->world);
     if (status == BPX_OK && r->v->centres)
-        status = bpx_world_load_extents(r->world, fr->motion ? fr->motion->minima : fr->minima,
-                                        fr->n);
+        status =
+            bpx_world_load_extents(r->world, fr->motion ? fr->motion->minima : fr->minima, fr->n);
     if (status != BPX_OK) {
         cli_error("bench", "cannot set up %s: %s", name,
                   r->world ? bpx_world_error(r->world)->message : bpx_status_string(status));
@@ -331,7 +331,8 @@ static bool timed_next(const bench_session *s)
 {
     if (s->once || s->warm_end != 0)
         return s->c > 0;
-    return s->c > 0 && (s->c > s->budget.warmup || (s->c > 1 && s->warm_spent > s->budget.warmup_seconds));
+    return s->c > 0 &&
+           (s->c > s->budget.warmup || (s->c > 1 && s->warm_spent > s->budget.warmup_seconds));
 }
 
 // Runs cycle s->c and books it; returns its time in seconds, or -1 after printing the error.
@@ -450,8 +451,8 @@ void bench_close(bench_session *s, bench_result *result)
     out->rebuilt_us = out->rebuilt ? out->rebuilt_us / out->rebuilt : NAN;
     out->mended_us = timed > out->rebuilt ? out->mended_us / (timed - out->rebuilt) : NAN;
     out->mean_us = sum / timed;
-    out->median_us = timed % 2 ? samples[timed / 2]
-                               : 0.5 * (samples[timed / 2 - 1] + samples[timed / 2]);
+    out->median_us =
+        timed % 2 ? samples[timed / 2] : 0.5 * (samples[timed / 2 - 1] + samples[timed / 2]);
     out->p99_us = samples[(int)ceil(0.99 * timed) - 1];
     out->min_us = samples[0];
     out->pairs = pairs / timed;

@@ -35,6 +35,7 @@ enum kernel_id {
     K_SWEEP_COUNT,
     K_SWEEP_WRITE,
     K_SWEEP_INTERLEAVE,
+    K_BRUTE_SMALL,
     K_COUNT
 };
 
@@ -42,7 +43,7 @@ static const char *const kernel_names[K_COUNT] = {
     "bpx_update",      "bpx_convert",       "bpx_validate",         "bpx_brute_count",
     "bpx_brute_emit",  "bpx_scan_reduce",   "bpx_scan_sums",        "bpx_scan_apply",
     "bpx_radix_count", "bpx_radix_scatter", "bpx_sweep_keys",       "bpx_sweep_gather",
-    "bpx_sweep_count", "bpx_sweep_write",   "bpx_sweep_interleave",
+    "bpx_sweep_count", "bpx_sweep_write",   "bpx_sweep_interleave", "bpx_brute_small",
 };
 
 enum {
@@ -302,17 +303,30 @@ static bpx_status write_buffer(cl_state *st, cl_mem mem, size_t offset, size_t s
     return BPX_OK;
 }
 
-static bpx_status read_buffer(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host)
+// Reads device memory into host memory, waiting for it, or (read_later) only enqueued: the
+// host memory is filled once the queue has run that far (clFinish).
+static bpx_status read_some(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host,
+                            cl_bool blocking)
 {
     if (size == 0)
         return BPX_OK;
     CL_CHECK(st,
-             clEnqueueReadBuffer(st->queue, mem, CL_TRUE, offset, size, host, 0, NULL,
+             clEnqueueReadBuffer(st->queue, mem, blocking, offset, size, host, 0, NULL,
                                  event_slot(st, EV_OUT)),
              "clEnqueueReadBuffer");
     event_commit(st);
     st->bytes_out += size;
     return BPX_OK;
+}
+
+static bpx_status read_buffer(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host)
+{
+    return read_some(st, mem, offset, size, host, CL_TRUE);
+}
+
+static bpx_status read_later(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host)
+{
+    return read_some(st, mem, offset, size, host, CL_FALSE);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -648,6 +662,50 @@ static bpx_status brute_all(cl_state *st, bpx_world *w, bpx_block *block)
                        &block->hits);
 }
 
+// Small sets: one launch (bpx_brute_small), then the count and the pairs read back together,
+// as many pairs as last cycle's count and a quarter more (a second read when that was short).
+static bpx_status brute_small(cl_state *st, bpx_world *w, bpx_block *block)
+{
+    uint32_t n = w->n;
+    uint32_t padded = (uint32_t)round_up(n, st->tile);
+    TRY(upload_keys(st, w, 0, n, padded, 0, &st->lo, &st->hi));
+    if (st->pairs.size == 0)
+        TRY(reserve_pair_window(st));
+    cl_ulong capacity = st->pairs.size / sizeof(bpx_pair);
+    cl_uint n_arg = n, slot = 0;
+    const kernel_arg args[] = {ARG(st->lo.mem),    ARG(st->hi.mem), ARG(n_arg),
+                               ARG(st->pairs.mem), ARG(capacity),   ARG(st->registers.mem),
+                               ARG(slot)};
+    TRY(launch(st, K_BRUTE_SMALL, st->dev->small_wg, st->dev->small_wg, 7, args));
+    st->tests += (uint64_t)n * (n - 1) / 2;
+    st->counters.brute_cycles++;
+    uint64_t guess = st->last_pairs + st->last_pairs / 4 + 64;
+    size_t first = (size_t)(guess < capacity ? guess : capacity);
+    TRY(pinned_reserve(st, &st->down, first * sizeof(bpx_pair)));
+    TRY(read_later(st, st->registers.mem, 0, sizeof(cl_ulong), st->reg.host));
+    TRY(read_later(st, st->pairs.mem, 0, first * sizeof(bpx_pair), st->down.host));
+    CL_CHECK(st, clFinish(st->queue), "clFinish");
+    cl_ulong total;
+    memcpy(&total, st->reg.host, sizeof total);
+    if (total > capacity) { // the buffer was too small: grow it to the need and run again
+        bpx_status grown = dbuf_reserve(st, &st->pairs, total * sizeof(bpx_pair));
+        if (grown == BPX_ERR_DEVICE_MEMORY)
+            return brute_all(st, w, block); // past the memory limit: it reads in windows
+        if (grown != BPX_OK)
+            return grown;
+        st->counters.emit_reruns++;
+        capacity = total;
+        TRY(launch(st, K_BRUTE_SMALL, st->dev->small_wg, st->dev->small_wg, 7, args));
+    }
+    if (total > first) // the guess was short: read them all
+        return read_pairs(st, st->pairs.mem, (size_t)total, &block->hits);
+    if (!bpx__list_reserve(&block->hits, (size_t)total))
+        return BPX_ERR_OUT_OF_MEMORY;
+    memcpy(block->hits.pairs, st->down.host, (size_t)total * sizeof(bpx_pair));
+    block->hits.count = (size_t)total;
+    return BPX_OK;
+}
+
 // The paper's "streaming AABBs between CPU and FPGA": blocks of `block_boxes` boxes; each row
 // block stays on the device while every later column block passes through. A row block's pairs
 // arrive column block by column block, and are put back in row order on the host (stable
@@ -858,6 +916,8 @@ static bpx_status run_cycle(cl_state *st, bpx_world *w, bpx_block *block)
             st->counters.sweep_fallbacks++;
             clFinish(st->queue);
         }
+        if (n <= st->dev->small_n)
+            return brute_small(st, w, block);
         return brute_all(st, w, block);
     }
     // Streaming: free what a whole-set cycle kept, then blocks as large as the limit allows.

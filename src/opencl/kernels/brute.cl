@@ -171,3 +171,75 @@ void bpx_brute_emit(__global const uint4 *lo_a, __global const uint4 *hi_a, uint
         barrier(CLK_LOCAL_MEM_FENCE);
     }
 }
+
+/// Small sets (n <= BPX_SMALL_N, the paper's sizes) in one launch: one work-group loads every
+/// box into local memory, counts each row's hits, scans the counts and writes the pairs in
+/// (i, j) order, and its first item writes the total to registers[slot] -- the comparator and
+/// the emitter of the paper on one chip, with one call and one read-back per cycle instead of
+/// three calls and two. Pairs whose place is at or past capacity are not written (the host
+/// grows the buffer and runs again). Rows are dealt out in turn (row i has n - 1 - i columns);
+/// the scan gives each item a run of consecutive rows.
+__kernel __attribute__((reqd_work_group_size(BPX_SMALL_WG, 1, 1)))
+void bpx_brute_small(__global const uint4 *lo, __global const uint4 *hi, uint n,
+                     __global uint2 *pairs, ulong capacity, __global ulong *registers, uint slot)
+{
+    __local uint lx[BPX_SMALL_N], ly[BPX_SMALL_N], lz[BPX_SMALL_N];
+    __local uint hx[BPX_SMALL_N], hy[BPX_SMALL_N], hz[BPX_SMALL_N];
+    __local uint offset[BPX_SMALL_N]; // hits per row, then where the row's pairs start
+    __local uint part[BPX_SMALL_WG];
+    uint l = get_local_id(0);
+    for (uint k = l; k < n; k += BPX_SMALL_WG) {
+        uint4 a = lo[k], b = hi[k];
+        lx[k] = a.x;
+        ly[k] = a.y;
+        lz[k] = a.z;
+        hx[k] = b.x;
+        hy[k] = b.y;
+        hz[k] = b.z;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint i = l; i < n; i += BPX_SMALL_WG) {
+        uint4 my_lo = (uint4)(lx[i], ly[i], lz[i], 0u), my_hi = (uint4)(hx[i], hy[i], hz[i], 0u);
+        uint hits = 0;
+        for (uint j = i + 1; j < n; j++)
+            hits += (my_lo.x <= hx[j]) & (lx[j] <= my_hi.x) & (my_lo.y <= hy[j]) &
+                    (ly[j] <= my_hi.y) & (my_lo.z <= hz[j]) & (lz[j] <= my_hi.z);
+        offset[i] = hits;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    // Exclusive scan of offset[0, n): each item sums its run, the runs' sums are scanned
+    // (n(n - 1) / 2 pairs at most: a uint holds them), each item rewrites its run as offsets.
+    uint per = (n + BPX_SMALL_WG - 1) / BPX_SMALL_WG;
+    uint r0 = min(l * per, n), r1 = min(r0 + per, n);
+    uint sum = 0;
+    for (uint r = r0; r < r1; r++)
+        sum += offset[r];
+    part[l] = sum;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint step = 1; step < BPX_SMALL_WG; step <<= 1) {
+        uint add = l >= step ? part[l - step] : 0u;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        part[l] += add;
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    uint run = part[l] - sum;
+    for (uint r = r0; r < r1; r++) {
+        uint count = offset[r];
+        offset[r] = run;
+        run += count;
+    }
+    if (l == 0)
+        registers[slot] = part[BPX_SMALL_WG - 1];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint i = l; i < n; i += BPX_SMALL_WG) {
+        uint4 my_lo = (uint4)(lx[i], ly[i], lz[i], 0u), my_hi = (uint4)(hx[i], hy[i], hz[i], 0u);
+        ulong place = offset[i];
+        for (uint j = i + 1; j < n && place < capacity; j++) {
+            uint hit = (my_lo.x <= hx[j]) & (lx[j] <= my_hi.x) & (my_lo.y <= hy[j]) &
+                       (ly[j] <= my_hi.y) & (my_lo.z <= hz[j]) & (lz[j] <= my_hi.z);
+            if (hit)
+                pairs[place] = (uint2)(i, j);
+            place += hit;
+        }
+    }
+}
