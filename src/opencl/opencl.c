@@ -113,6 +113,7 @@ typedef struct cl_state {
     uint64_t ns[EV_CLASSES];
     uint64_t bytes_in, bytes_out, tests;
     uint64_t last_pairs; // the previous cycle's, for the auto method
+    bool small_off;      // the small-set kernel's pairs did not fit under the memory limit
 
     uint32_t *row_hist; // streaming: per-row counts of one row block (host)
     size_t row_hist_count;
@@ -689,8 +690,13 @@ static bpx_status brute_small(cl_state *st, bpx_world *w, bpx_block *block)
     memcpy(&total, st->reg.host, sizeof total);
     if (total > capacity) { // the buffer was too small: grow it to the need and run again
         bpx_status grown = dbuf_reserve(st, &st->pairs, total * sizeof(bpx_pair));
-        if (grown == BPX_ERR_DEVICE_MEMORY)
-            return brute_all(st, w, block); // past the memory limit: it reads in windows
+        if (grown == BPX_ERR_DEVICE_MEMORY) {
+            // Past the memory limit: the tiled path reads the pairs in windows, from now on
+            // (its own buffers first, then a window in the room left).
+            st->small_off = true;
+            dbuf_release(st, &st->pairs);
+            return brute_all(st, w, block);
+        }
         if (grown != BPX_OK)
             return grown;
         st->counters.emit_reruns++;
@@ -886,6 +892,16 @@ static uint32_t block_capacity(const cl_state *st, uint64_t bytes_per_box)
     return boxes > BPX_MAX_BOXES ? BPX_MAX_BOXES : (uint32_t)boxes;
 }
 
+// The sort and sweep's own buffers (a whole-set cycle keeps them for the next).
+static void release_sweep_buffers(cl_state *st)
+{
+    dbuf *sweep_set[] = {&st->keys[0],   &st->keys[1],   &st->values[0], &st->values[1],
+                         &st->sorted_lo, &st->sorted_hi, &st->counts,    &st->offsets,
+                         &st->pi[0],     &st->pi[1],     &st->pj[0],     &st->pj[1]};
+    for (size_t k = 0; k < sizeof sweep_set / sizeof sweep_set[0]; k++)
+        dbuf_release(st, sweep_set[k]);
+}
+
 static bpx_status run_cycle(cl_state *st, bpx_world *w, bpx_block *block)
 {
     uint32_t n = w->n;
@@ -915,17 +931,14 @@ static bpx_status run_cycle(cl_state *st, bpx_world *w, bpx_block *block)
             block->hits.count = 0;
             st->counters.sweep_fallbacks++;
             clFinish(st->queue);
+            release_sweep_buffers(st); // brute force may need the room
         }
-        if (n <= st->dev->small_n)
+        if (n <= st->dev->small_n && !st->small_off)
             return brute_small(st, w, block);
         return brute_all(st, w, block);
     }
     // Streaming: free what a whole-set cycle kept, then blocks as large as the limit allows.
-    dbuf *whole_set[] = {&st->keys[0],   &st->keys[1],   &st->values[0], &st->values[1],
-                         &st->sorted_lo, &st->sorted_hi, &st->counts,    &st->offsets,
-                         &st->pi[0],     &st->pi[1],     &st->pj[0],     &st->pj[1]};
-    for (size_t k = 0; k < sizeof whole_set / sizeof whole_set[0]; k++)
-        dbuf_release(st, whole_set[k]);
+    release_sweep_buffers(st);
     uint32_t block_boxes = block_capacity(st, BYTES_PER_STREAMED_BOX);
     if (block_boxes < st->tile && st->pairs.size) {
         // A pair buffer grown in an earlier cycle leaves no room: start again from a window.
