@@ -100,16 +100,18 @@ typedef struct bench_result {
 int bench_run(const bench_variant *v, const bench_frames *frames, const bench_budget *budget,
               bench_result *out);
 
-// The same in steps, so that the variants of one row can take turns (machine noise that drifts
-// over seconds then falls on all of them alike): bench_open makes the world or peer and plays
-// the cold cycle and the warm-up; each bench_step plays timed cycles for about `seconds` (at
-// least one in the first; none once the budget's seconds are spent; recorded frames: all of
-// them); bench_close gives the result and frees the session, bench_abandon frees it. The
-// functions that return int return 0, or print the error and return -1.
+// The same in steps, so that the variants of one row can take turns, BENCH_ROUNDS of them
+// (machine noise that drifts over seconds then falls on all of them alike): bench_open makes
+// the world or peer and plays the cold cycle and the warm-up; each bench_step plays timed
+// cycles, at most `cycles` of them, for about `seconds` (at least one in the first; none once
+// the budget's seconds are spent; recorded frames: `cycles` of them, seconds aside);
+// bench_close gives the result and frees the session, bench_abandon frees it. The functions
+// that return int return 0, or print the error and return -1.
+enum { BENCH_ROUNDS = 5 };
 typedef struct bench_session bench_session;
 int bench_open(const bench_variant *v, const bench_frames *frames, const bench_budget *budget,
                bench_session **out);
-int bench_step(bench_session *s, double seconds);
+int bench_step(bench_session *s, double seconds, int cycles);
 void bench_close(bench_session *s, bench_result *out);
 void bench_abandon(bench_session *s);
 

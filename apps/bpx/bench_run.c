@@ -8,6 +8,7 @@
 // set_boxes (or update_centres) + collide. A peer cycle is its own equivalent: every proxy moved,
 // then its pair update. Every cycle's pair count is checked against the frame's exact count.
 #define _POSIX_C_SOURCE 200809L
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -420,11 +421,13 @@ int bench_open(const bench_variant *v, const bench_frames *frames, const bench_b
     return 0;
 }
 
-int bench_step(bench_session *s, double seconds)
+int bench_step(bench_session *s, double seconds, int cycles)
 {
     double slice = 0;
-    while (s->c < s->total &&
-           (s->once || (s->spent < s->budget.seconds && (slice < seconds || s->timed == 0)))) {
+    for (int played = 0;
+         s->c < s->total && played < cycles &&
+         (s->once || (s->spent < s->budget.seconds && (slice < seconds || s->timed == 0)));
+         played++) {
         double elapsed = session_cycle(s);
         if (elapsed < 0)
             return -1;
@@ -479,7 +482,7 @@ int bench_run(const bench_variant *v, const bench_frames *frames, const bench_bu
     bench_session *s;
     if (bench_open(v, frames, budget, &s) != 0)
         return -1;
-    if (bench_step(s, budget->seconds) != 0) {
+    if (bench_step(s, budget->seconds, INT_MAX) != 0) {
         bench_abandon(s);
         return -1;
     }

@@ -9,6 +9,7 @@
 // count; a mismatch makes the run fail.
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,11 +20,7 @@
 #include "peers.h"
 #include "scenes.h"
 
-enum {
-    MAX_NAMES = 32,
-    SCENES = 3,
-    ROUNDS = 5, // turns the variants of a scale row take at their timed cycles
-};
+enum { MAX_NAMES = 32, SCENES = 3 };
 
 // uniform: sizes 0.5..1.5, moved up to 0.05 per axis and frame; heavy: a heavy tail of sizes,
 // the same motion; resting: uniform sizes moved 50 times less (a scene mostly at rest).
@@ -458,7 +455,7 @@ static int run_size(scale_state *st, int scene, int size_index)
     bench_result results[BENCH_MAX_VARIANTS];
     int count = list_variants(o, n, variants);
     int code = 0;
-    // Every variant's cold cycle and warm-up, then the timed cycles in ROUNDS turns, each
+    // Every variant's cold cycle and warm-up, then the timed cycles in BENCH_ROUNDS turns, each
     // round starting one variant later: noise that drifts over seconds (a shared VM) falls on
     // every variant of the row alike, and so stays out of their ratios.
     bench_session *sessions[BENCH_MAX_VARIANTS] = {0};
@@ -469,11 +466,12 @@ static int run_size(scale_state *st, int scene, int size_index)
                        count);
         code = bench_open(&variants[v], &sc.frames, &budget, &sessions[v]);
     }
-    for (int round = 0; round < ROUNDS && code == 0; round++) {
+    for (int round = 0; round < BENCH_ROUNDS && code == 0; round++) {
         bench_progress("bpx bench: %s n = %u: timed round %d/%d", scene_names[scene], n,
-                       round + 1, ROUNDS);
+                       round + 1, BENCH_ROUNDS);
         for (int k = 0; k < count && code == 0; k++)
-            code = bench_step(sessions[(k + round) % count], budget.seconds / ROUNDS);
+            code = bench_step(sessions[(k + round) % count], budget.seconds / BENCH_ROUNDS,
+                              INT_MAX);
     }
     for (int v = 0; v < count; v++) {
         if (code == 0)
@@ -566,7 +564,7 @@ static int run_scale(scale_state *st)
                  "are cheap or dear). check: every cycle's pairs against the exact count (peers\n"
                  "report more: fat or quantised boxes).\n\n",
                  o->step > 0 ? "--step" : "0.05", o->step > 0 ? "--step" : "0.001", o->seconds,
-                 ROUNDS);
+                 BENCH_ROUNDS);
     bench_printf("| scene | n | variant | pairs/cycle | cold us | mean us | median us | p99 us | "
                  "vs sap | vs fastest peer | check |\n"
                  "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|\n");
