@@ -210,7 +210,7 @@ static const char *build(cache_entry *e, cl_platform_id platform, int platform_i
     while (d->small_wg > 32 && d->small_wg > max_group)
         d->small_wg /= 2;
     if (d->small_wg > max_group ||
-        local_memory < (7 * BPX_CL_SMALL_N + 1 + d->small_wg) * sizeof(cl_uint) + 1024)
+        local_memory < 7 * BPX_CL_SMALL_N * sizeof(cl_uint) + d->small_wg * sizeof(cl_ulong) + 1024)
         d->small_wg = 0;
     d->small_n = d->small_wg == 0                      ? 0
                  : type_mask(device) == BPX_OPENCL_CPU ? BPX_CL_SMALL_N_CPU

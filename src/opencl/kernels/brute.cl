@@ -54,20 +54,21 @@ inline void load_tile(__local tile_planes *t, __global const uint4 *lo, __global
     t->hz[l] = b.z;
 }
 
-// Exclusive scan of one uint per work-item over the group; returns this item's prefix and
-// leaves the group's sum in *total. scratch holds BPX_TILE ulongs.
-inline ulong group_scan(uint value, __local ulong *scratch, ulong *total)
+// Exclusive scan of one value per work-item over a work-group of `width` items (every item
+// calls it); returns this item's prefix and leaves the group's sum in *total. scratch holds
+// `width` ulongs. The tiled kernels, the small-set kernel and scan.cl all scan with it.
+inline ulong bpx_local_scan(ulong value, __local ulong *scratch, uint width, ulong *total)
 {
     uint l = get_local_id(0);
     scratch[l] = value;
     barrier(CLK_LOCAL_MEM_FENCE);
-    for (uint step = 1; step < BPX_TILE; step <<= 1) {
+    for (uint step = 1; step < width; step <<= 1) {
         ulong add = l >= step ? scratch[l - step] : 0ul;
         barrier(CLK_LOCAL_MEM_FENCE);
         scratch[l] += add;
         barrier(CLK_LOCAL_MEM_FENCE);
     }
-    *total = scratch[BPX_TILE - 1];
+    *total = scratch[width - 1];
     ulong inclusive = scratch[l];
     barrier(CLK_LOCAL_MEM_FENCE);
     return inclusive - value;
@@ -106,7 +107,7 @@ void bpx_brute_count(__global const uint4 *lo_a, __global const uint4 *hi_a, uin
     }
     row_count[r] = count;
     ulong total;
-    group_scan(count, scratch, &total);
+    bpx_local_scan(count, scratch, BPX_TILE, &total);
     // Whether some row of the group has more hits than its stash holds.
     if (l == 0)
         any_long = 0;
@@ -136,7 +137,7 @@ void bpx_brute_emit(__global const uint4 *lo_a, __global const uint4 *hi_a, uint
     uint i = ia + r;
     uint count = row_count[r];
     ulong total;
-    ulong place = group_offset[g] + group_scan(count, scratch, &total);
+    ulong place = group_offset[g] + bpx_local_scan(count, scratch, BPX_TILE, &total);
     ulong end = window + capacity;
     // Nothing of this group lands in the window: done (uniform over the group).
     if (total == 0 || group_offset[g] >= end || group_offset[g] + total <= window)
@@ -186,7 +187,7 @@ void bpx_brute_small(__global const uint4 *lo, __global const uint4 *hi, uint n,
     __local uint lx[BPX_SMALL_N], ly[BPX_SMALL_N], lz[BPX_SMALL_N];
     __local uint hx[BPX_SMALL_N], hy[BPX_SMALL_N], hz[BPX_SMALL_N];
     __local uint offset[BPX_SMALL_N]; // hits per row, then where the row's pairs start
-    __local uint part[BPX_SMALL_WG];
+    __local ulong part[BPX_SMALL_WG];
     uint l = get_local_id(0);
     for (uint k = l; k < n; k += BPX_SMALL_WG) {
         uint4 a = lo[k], b = hi[k];
@@ -198,12 +199,14 @@ void bpx_brute_small(__global const uint4 *lo, __global const uint4 *hi, uint n,
         hz[k] = b.z;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
+// Algorithm 1 for row i against box j, both in local memory.
+#define BPX_SMALL_HIT(i, j)                                                                        \
+    ((lx[i] <= hx[j]) & (lx[j] <= hx[i]) & (ly[i] <= hy[j]) & (ly[j] <= hy[i]) &                  \
+     (lz[i] <= hz[j]) & (lz[j] <= hz[i]))
     for (uint i = l; i < n; i += BPX_SMALL_WG) {
-        uint4 my_lo = (uint4)(lx[i], ly[i], lz[i], 0u), my_hi = (uint4)(hx[i], hy[i], hz[i], 0u);
         uint hits = 0;
         for (uint j = i + 1; j < n; j++)
-            hits += (my_lo.x <= hx[j]) & (lx[j] <= my_hi.x) & (my_lo.y <= hy[j]) &
-                    (ly[j] <= my_hi.y) & (my_lo.z <= hz[j]) & (lz[j] <= my_hi.z);
+            hits += BPX_SMALL_HIT(i, j);
         offset[i] = hits;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -214,32 +217,24 @@ void bpx_brute_small(__global const uint4 *lo, __global const uint4 *hi, uint n,
     uint sum = 0;
     for (uint r = r0; r < r1; r++)
         sum += offset[r];
-    part[l] = sum;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (uint step = 1; step < BPX_SMALL_WG; step <<= 1) {
-        uint add = l >= step ? part[l - step] : 0u;
-        barrier(CLK_LOCAL_MEM_FENCE);
-        part[l] += add;
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
-    uint run = part[l] - sum;
+    ulong total;
+    uint run = (uint)bpx_local_scan(sum, part, BPX_SMALL_WG, &total);
     for (uint r = r0; r < r1; r++) {
         uint count = offset[r];
         offset[r] = run;
         run += count;
     }
     if (l == 0)
-        registers[slot] = part[BPX_SMALL_WG - 1];
+        registers[slot] = total;
     barrier(CLK_LOCAL_MEM_FENCE);
     for (uint i = l; i < n; i += BPX_SMALL_WG) {
-        uint4 my_lo = (uint4)(lx[i], ly[i], lz[i], 0u), my_hi = (uint4)(hx[i], hy[i], hz[i], 0u);
         ulong place = offset[i];
         for (uint j = i + 1; j < n && place < capacity; j++) {
-            uint hit = (my_lo.x <= hx[j]) & (lx[j] <= my_hi.x) & (my_lo.y <= hy[j]) &
-                       (ly[j] <= my_hi.y) & (my_lo.z <= hz[j]) & (lz[j] <= my_hi.z);
+            uint hit = BPX_SMALL_HIT(i, j);
             if (hit)
                 pairs[place] = (uint2)(i, j);
             place += hit;
         }
     }
+#undef BPX_SMALL_HIT
 }

@@ -4,30 +4,13 @@
 // Two levels: bpx_scan_reduce sums each group's chunk (BPX_SCAN_WG items x BPX_SCAN_ITEMS
 // consecutive values each), bpx_scan_sums scans those sums in one work-group and stores the
 // total (the paper's collision-count register when the values are collision counts), and
-// bpx_scan_apply writes each value's offset.
+// bpx_scan_apply writes each value's offset. The scan inside a group is bpx_local_scan
+// (brute.cl, earlier in the program).
 #ifndef BPX_SCAN_WG
 #define BPX_SCAN_WG 128
 #endif
 #define BPX_SCAN_ITEMS 8
 #define BPX_SCAN_CHUNK (BPX_SCAN_WG * BPX_SCAN_ITEMS)
-
-// Exclusive scan of one ulong per work-item over a BPX_SCAN_WG group.
-inline ulong scan_group(ulong value, __local ulong *scratch, ulong *total)
-{
-    uint l = get_local_id(0);
-    scratch[l] = value;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (uint step = 1; step < BPX_SCAN_WG; step <<= 1) {
-        ulong add = l >= step ? scratch[l - step] : 0ul;
-        barrier(CLK_LOCAL_MEM_FENCE);
-        scratch[l] += add;
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
-    *total = scratch[BPX_SCAN_WG - 1];
-    ulong inclusive = scratch[l];
-    barrier(CLK_LOCAL_MEM_FENCE);
-    return inclusive - value;
-}
 
 __kernel __attribute__((reqd_work_group_size(BPX_SCAN_WG, 1, 1)))
 void bpx_scan_reduce(__global const uint *in, uint n, __global ulong *sums)
@@ -39,7 +22,7 @@ void bpx_scan_reduce(__global const uint *in, uint n, __global ulong *sums)
         if (first + e < n)
             sum += in[first + e];
     ulong total;
-    scan_group(sum, scratch, &total);
+    bpx_local_scan(sum, scratch, BPX_SCAN_WG, &total);
     if (get_local_id(0) == 0)
         sums[get_group_id(0)] = total;
 }
@@ -54,7 +37,7 @@ void bpx_scan_sums(__global ulong *sums, uint count, __global ulong *registers, 
         uint k = base + get_local_id(0);
         ulong value = k < count ? sums[k] : 0ul;
         ulong total;
-        ulong prefix = scan_group(value, scratch, &total);
+        ulong prefix = bpx_local_scan(value, scratch, BPX_SCAN_WG, &total);
         if (k < count)
             sums[k] = carry + prefix;
         carry += total;
@@ -74,7 +57,7 @@ void bpx_scan_apply(__global const uint *in, uint n, __global const ulong *sums,
         if (first + e < n)
             sum += in[first + e];
     ulong total;
-    ulong place = sums[get_group_id(0)] + scan_group(sum, scratch, &total);
+    ulong place = sums[get_group_id(0)] + bpx_local_scan(sum, scratch, BPX_SCAN_WG, &total);
     for (uint e = 0; e < BPX_SCAN_ITEMS; e++)
         if (first + e < n) {
             out[first + e] = place;
