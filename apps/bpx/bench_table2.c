@@ -192,11 +192,17 @@ int bench_table2(const bench_table2_options *o)
                 bench_variant_name(&variants[best], best_name, sizeof best_name);
             if (peer >= 0)
                 bench_variant_name(&variants[peer], peer_name, sizeof peer_name);
-            bench_printf("| %u | %.1f / %.1f | %s | %.2f | %.2f | %.2f | %.2f | %.2f (%.1f), %d | "
-                         "%s | %.2f |",
-                         paper[r].n, sim_pairs[r], paper[r].collisions, best_name, b->mean_us,
-                         b->median_us, b->p99_us, b->cold_us, s->mean_us, s->cold_us, s->rebuilt,
-                         peer_name, p->mean_us);
+            bench_printf("| %u | %.1f / %.1f | %s | %.2f | %.2f | %.2f | %.2f |", paper[r].n,
+                         sim_pairs[r], paper[r].collisions, best_name, b->mean_us, b->median_us,
+                         b->p99_us, b->cold_us);
+            if (sap >= 0) // a run without sap (--backend) has no sap column to fill
+                bench_printf(" %.2f (%.1f), %d |", s->mean_us, s->cold_us, s->rebuilt);
+            else
+                bench_printf(" - |");
+            if (peer >= 0)
+                bench_printf(" %s | %.2f |", peer_name, p->mean_us);
+            else
+                bench_printf(" - | - |");
             print_ms_ratio(s->mean_us, b->mean_us);
             print_ms_ratio(p->mean_us, b->mean_us);
             bench_printf(" %.3f / %.3f | %.3f / %.3f |", paper[r].fpga_m4, paper[r].fpga_m8,
