@@ -21,10 +21,11 @@
 //  1. One pass (ranges on the workers) copies the boxes (AoS, for the exact filter) and lists
 //     the boxes that left their fat boxes.
 //  2. None: nothing to mend. A few (at most n / 64 + 16): each in turn gets a new fat box, and
-//     its six endpoints are found by binary search and moved to their places, the lists sorted
-//     at every step. More (or boxes were added): each list is mended by one pass of insertion
-//     sort (the three at once on the workers), the moved boxes' endpoints taking their new
-//     words as the pass reaches them. Insertion swaps exactly
+//     its six endpoints are found by where (each word's index in its list, kept by every move:
+//     a binary search per endpoint was 60% of this mend at 1k boxes) and moved to their places,
+//     the lists sorted at every step. More (or boxes were added): the moved boxes' endpoints
+//     take their new words in place and each list is mended by one pass of insertion sort (the
+//     three at once on the workers). Insertion swaps exactly
 //     the endpoints whose relative order changed, and the order of min_a and max_b is the truth
 //     of lo_a <= hi_b, so a pair whose fat overlap changed has at least one of its six
 //     conditions flipped: it is met at least once as a swap of a min with a max, and noted when
@@ -67,8 +68,8 @@
 // split into ranges on the world's workers (each range's output packed after, in order), and
 // the one-pass mend runs the three lists at once; the few-boxes mend is serial; the cold sweep
 // (or grid) runs on the workers. The output is
-// the same bytes either way. Memory: about 200 bytes per box (three endpoint lists, three box
-// copies, the cold sweep's arrays) plus a few pair lists, and the grid's own state once a
+// the same bytes either way. Memory: about 230 bytes per box (three endpoint lists and their
+// indexes, three box copies, the cold sweep's arrays) plus a few pair lists, and the grid's own state once a
 // rebuild has used it (kept for the next); grown with slack, so steady cycles allocate nothing.
 #include <float.h>
 #include <stdatomic.h>
@@ -117,18 +118,18 @@ enum {
 // The per-box arrays, allocated together (capacity boxes each, or as noted).
 typedef struct sap_arrays {
     uint64_t *ends[3];                                 // 2 * capacity: sorted endpoint words
+    uint32_t *where[3]; // 2 * capacity: where[axis][end_slot(w)] is word w's index in ends[axis]
     bpx_box *fat;                                      // each box's fat box, as in the lists
     bpx_box *fat_prev;                                 // the same at the last cycle's end
     bpx_box *cur;                                      // this cycle's boxes
     uint32_t *changed;                                 // boxes that left their fat box
-    uint8_t *moved;                                    // 1 for those while mending, else 0
     uint32_t *keys, *ids, *scratch_keys, *scratch_ids; // 2 * capacity: cold radix sorts
     float *lo[3], *hi[3];                              // capacity + PAD: cold sweep SoA
     uint32_t *sorted_ids;                              // capacity + PAD
     uint32_t *counts;                                  // capacity + 1: pair counting sorts
 } sap_arrays;
 
-enum { ARRAY_COUNT = 3 + 5 + 4 + 6 + 2 };
+enum { ARRAY_COUNT = 3 + 3 + 4 + 4 + 6 + 2 };
 
 typedef struct sap_state {
     uint32_t capacity; // boxes the arrays hold
@@ -159,6 +160,8 @@ static int array_table(sap_arrays *a, size_t capacity, void ***ptrs, size_t *siz
     for (int axis = 0; axis < 3; axis++) {
         ptrs[k] = (void **)&a->ends[axis];
         sizes[k++] = 2 * capacity * sizeof(uint64_t);
+        ptrs[k] = (void **)&a->where[axis];
+        sizes[k++] = 2 * capacity * sizeof(uint32_t);
     }
     bpx_box **boxes[] = {&a->fat, &a->fat_prev, &a->cur};
     for (int b = 0; b < 3; b++) {
@@ -167,8 +170,6 @@ static int array_table(sap_arrays *a, size_t capacity, void ***ptrs, size_t *siz
     }
     ptrs[k] = (void **)&a->changed;
     sizes[k++] = capacity * sizeof(uint32_t);
-    ptrs[k] = (void **)&a->moved;
-    sizes[k++] = capacity;
     uint32_t **radix[] = {&a->keys, &a->ids, &a->scratch_keys, &a->scratch_ids};
     for (int r = 0; r < 4; r++) {
         ptrs[k] = (void **)radix[r];
@@ -243,10 +244,11 @@ static bool reserve_arrays(sap_state *st, uint32_t n, bool keep)
             free_arrays(&grown, (uint32_t)capacity);
             return false;
         }
-    memset(grown.moved, 0, capacity);
     if (keep && st->a.ends[0]) {
-        for (int axis = 0; axis < 3; axis++)
+        for (int axis = 0; axis < 3; axis++) {
             memcpy(grown.ends[axis], st->a.ends[axis], 2 * (size_t)st->n * sizeof(uint64_t));
+            memcpy(grown.where[axis], st->a.where[axis], 2 * (size_t)st->n * sizeof(uint32_t));
+        }
         memcpy(grown.fat, st->a.fat, (size_t)st->n * sizeof(bpx_box));
         memcpy(grown.fat_prev, st->a.fat_prev, (size_t)st->n * sizeof(bpx_box));
     }
@@ -278,6 +280,21 @@ static inline uint64_t end_word(uint32_t key, uint64_t low)
 static inline uint64_t fat_word(const bpx_box *f, int axis, bool max, uint32_t b)
 {
     return end_word(coord_key(max ? f->max[axis] : f->min[axis]), (max ? MAX_BIT : 0) | b);
+}
+
+// An endpoint word's slot in where[axis]: 2 * box + is_max.
+static inline uint32_t end_slot(uint64_t x)
+{
+    return 2 * ((uint32_t)x & BOX_MASK) + (((uint32_t)x & MAX_BIT) != 0);
+}
+
+// where[axis] for a whole list (after a sort or a shift of every word).
+static void index_list(sap_arrays *a, int axis, uint32_t count)
+{
+    const uint64_t *ends = a->ends[axis];
+    uint32_t *where = a->where[axis];
+    for (uint32_t k = 0; k < count; k++)
+        where[end_slot(ends[k])] = k;
 }
 
 // Whether two boxes overlap, without branches (inert boxes never do: +inf <= x fails).
@@ -371,9 +388,11 @@ typedef enum mend_result { MEND_DONE, MEND_GAVE_UP, MEND_NO_MEMORY } mend_result
 // noting in st->changes every box whose fat overlap with b changes when b's fat box goes from
 // `before` to st->a.fat[b] (the other boxes as they are now). Returns the moves, or
 // UINT64_MAX when memory ran out.
-static uint64_t move_end(sap_state *st, uint64_t *ends, uint32_t count, uint32_t at, uint64_t x,
+static uint64_t move_end(sap_state *st, int axis, uint32_t count, uint32_t at, uint64_t x,
                          const bpx_box *before)
 {
+    uint64_t *ends = st->a.ends[axis];
+    uint32_t *where = st->a.where[axis];
     const bpx_box *fat = st->a.fat;
     uint32_t b = (uint32_t)x & BOX_MASK, from = at;
     if (x > ends[at]) {
@@ -385,6 +404,7 @@ static uint64_t move_end(sap_state *st, uint64_t *ends, uint32_t count, uint32_t
                 !push(&st->changes, ordered(b, other)))
                 return UINT64_MAX;
             ends[at] = next;
+            where[end_slot(next)] = at;
             at++;
         }
     } else {
@@ -396,29 +416,17 @@ static uint64_t move_end(sap_state *st, uint64_t *ends, uint32_t count, uint32_t
                 !push(&st->changes, ordered(b, other)))
                 return UINT64_MAX;
             ends[at] = past;
+            where[end_slot(past)] = at;
             at--;
         }
     }
     ends[at] = x;
+    where[end_slot(x)] = at;
     return at > from ? at - from : from - at;
 }
 
-// Where word x is in a sorted list, or UINT32_MAX.
-static uint32_t find_end(const uint64_t *ends, uint32_t count, uint64_t x)
-{
-    uint32_t lo = 0, hi = count;
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo) / 2;
-        if (ends[mid] < x)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    return lo < count && ends[lo] == x ? lo : UINT32_MAX;
-}
-
 // Few boxes left their fat boxes: each in turn gets its new fat box, and its six endpoints
-// are found (binary search) and moved to their places, the lists sorted at every step.
+// are found (where) and moved to their places, the lists sorted at every step.
 static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_t budget)
 {
     uint64_t moves = 0;
@@ -432,10 +440,10 @@ static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_
                 uint64_t x = fat_word(&st->a.fat[b], axis, max, b);
                 if (old == x)
                     continue;
-                uint32_t at = find_end(st->a.ends[axis], 2 * n, old);
-                if (at == UINT32_MAX)
+                uint32_t at = st->a.where[axis][end_slot(old)];
+                if (at >= 2 * n || st->a.ends[axis][at] != old)
                     return MEND_GAVE_UP; // never, unless this file has a bug: rebuild
-                uint64_t m = move_end(st, st->a.ends[axis], 2 * n, at, x, &before);
+                uint64_t m = move_end(st, axis, 2 * n, at, x, &before);
                 if (m == UINT64_MAX)
                     return MEND_NO_MEMORY;
                 moves += m;
@@ -447,35 +455,35 @@ static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_
 }
 
 // Many boxes left their fat boxes (or boxes were added): every changed box gets its new fat
-// box at once, and each list is mended by one pass of insertion sort, the changed boxes'
-// endpoints taking their new words as the pass reaches them (the others keep theirs: a flag
-// per box, not a read of its fat box). A min and a max that swap may change their boxes' fat
-// overlap: the pair is noted when overlap(new, new) differs from overlap(old, old).
+// box at once, its endpoints take their new words where they are (found by where), and each
+// list is mended by one pass of insertion sort. The pass skips the words already in order
+// (one compare each for the words in order); a min and a max that swap may change their
+// boxes' fat overlap: the pair is noted when overlap(new, new) differs from overlap(old, old).
 //
 // mend_list mends one axis's list: its budget is a third of the cycle's, and it gives up early
 // when its first part projects far past that. The lists are independent: the three run on the
 // workers at once (mend_all).
-static mend_result mend_list(sap_state *st, uint32_t n, uint64_t budget, int axis,
-                             atomic_bool *stop)
+static mend_result mend_list(sap_state *st, uint32_t n, uint32_t changed, uint64_t budget,
+                             int axis, atomic_bool *stop)
 {
     const bpx_box *fat = st->a.fat, *prev = st->a.fat_prev;
-    const uint8_t *moved = st->a.moved;
     bpx_pair_list *changes = &st->axis_changes[axis];
+    uint64_t *ends = st->a.ends[axis];
+    uint32_t *where = st->a.where[axis];
     uint64_t moves = 0;
     budget /= 3;
     changes->count = 0;
-    uint64_t *ends = st->a.ends[axis];
+    for (uint32_t c = 0; c < changed; c++) {
+        uint32_t b = st->a.changed[c];
+        ends[where[2 * b]] = fat_word(&fat[b], axis, false, b);
+        ends[where[2 * b + 1]] = fat_word(&fat[b], axis, true, b);
+    }
     uint32_t check = CHECK_EVERY;
-    for (uint32_t k = 0; k < 2 * n; k++) {
-        uint64_t x = ends[k];
-        uint32_t b = (uint32_t)x & BOX_MASK;
-        if (moved[b])
-            x = fat_word(&fat[b], axis, (uint32_t)x & MAX_BIT, b);
-        if (k == 0 || ends[k - 1] < x) {
-            ends[k] = x;
+    for (uint32_t k = 1; k < 2 * n; k++) {
+        if (ends[k - 1] < ends[k])
             continue;
-        }
-        uint32_t at = k;
+        uint64_t x = ends[k];
+        uint32_t b = (uint32_t)x & BOX_MASK, at = k;
         do {
             uint64_t past = ends[at - 1];
             uint32_t other = (uint32_t)past & BOX_MASK;
@@ -484,9 +492,11 @@ static mend_result mend_list(sap_state *st, uint32_t n, uint64_t budget, int axi
                 !push(changes, ordered(b, other)))
                 return MEND_NO_MEMORY;
             ends[at] = past;
+            where[end_slot(past)] = at;
             at--;
         } while (at > 0 && ends[at - 1] > x);
         ends[at] = x;
+        where[end_slot(x)] = at;
         moves += k - at;
         if (moves > budget)
             return MEND_GAVE_UP;
@@ -503,7 +513,7 @@ static mend_result mend_list(sap_state *st, uint32_t n, uint64_t budget, int axi
 typedef struct sap_job {
     sap_state *st;
     const bpx_world *w;
-    uint32_t n, chunks;
+    uint32_t n, chunks, changed;
     uint64_t budget;
     atomic_bool stop; // a list gave up (or ran out of memory): the others stop too
     mend_result result[3];
@@ -517,7 +527,7 @@ static void mend_task(int begin, int end, int worker, void *context)
     for (int axis = begin; axis < end; axis++) {
         mend_result r = MEND_GAVE_UP;
         if (!atomic_load_explicit(&job->stop, memory_order_relaxed))
-            r = mend_list(job->st, job->n, job->budget, axis, &job->stop);
+            r = mend_list(job->st, job->n, job->changed, job->budget, axis, &job->stop);
         if (r != MEND_DONE)
             atomic_store_explicit(&job->stop, true, memory_order_relaxed);
         job->result[axis] = r;
@@ -530,16 +540,13 @@ static mend_result mend_all(bpx_world *w, sap_state *st, uint32_t n, uint32_t ch
     for (uint32_t c = 0; c < changed; c++) {
         uint32_t b = st->a.changed[c];
         st->a.fat[b] = fatten(&st->a.cur[b], st->margin);
-        st->a.moved[b] = 1;
     }
-    sap_job job = {.st = st, .n = n, .budget = budget};
+    sap_job job = {.st = st, .n = n, .changed = changed, .budget = budget};
     atomic_init(&job.stop, false);
     if (n >= PARALLEL_MIN && w->executor.worker_count > 1)
         bpx__parallel_for(&w->executor, mend_task, 3, &job);
     else
         mend_task(0, 3, 0, &job);
-    for (uint32_t c = 0; c < changed; c++)
-        st->a.moved[st->a.changed[c]] = 0;
     mend_result r = MEND_DONE; // running out of memory outranks giving up
     size_t noted = 0;
     for (int axis = 0; axis < 3; axis++) {
@@ -599,6 +606,7 @@ static void append_boxes(sap_state *st, uint32_t n_old, uint32_t n)
             ends[k] = fat_word(&inert, axis, true, n_old + k);
             ends[added + 2 * (size_t)n_old + k] = fat_word(&inert, axis, false, n_old + k);
         }
+        index_list(&st->a, axis, 2 * n);
     }
     for (uint32_t i = n_old; i < n; i++)
         st->a.fat[i] = st->a.fat_prev[i] = inert;
@@ -887,6 +895,7 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
         for (size_t k = 0; k < 2 * (size_t)n; k++) {
             uint32_t key = a->keys[k];
             ends[k] = end_word(key, a->ids[k]);
+            a->where[axis][end_slot(ends[k])] = (uint32_t)k;
             if (key == inf_key || key == minus_inf_key)
                 continue;
             if (a->ids[k] & MAX_BIT) {
