@@ -125,7 +125,7 @@ static uint32_t add_boxes_sse2(auto_sums *a, const float *lo, const float *hi, c
     for (; i + 4 <= count; i += 4) {
         __m128 l = _mm_loadu_ps(lo + i), h = _mm_loadu_ps(hi + i);
         __m128 in = _mm_cmple_ps(l, h);
-        live = _mm_sub_epi32(live, _mm_castps_si128(in)); // a true lane is -1
+        live = _mm_sub_epi32(live, _mm_castps_si128(in));                // a true lane is -1
         extent = _mm_add_ps(extent, _mm_max_ps(_mm_sub_ps(h, l), zero)); // inert: -inf
         low = _mm_min_ps(low, l);
         high = _mm_max_ps(high, h);

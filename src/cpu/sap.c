@@ -69,8 +69,9 @@
 // the one-pass mend runs the three lists at once; the few-boxes mend is serial; the cold sweep
 // (or grid) runs on the workers. The output is
 // the same bytes either way. Memory: about 230 bytes per box (three endpoint lists and their
-// indexes, three box copies, the cold sweep's arrays) plus a few pair lists, and the grid's own state once a
-// rebuild has used it (kept for the next); grown with slack, so steady cycles allocate nothing.
+// indexes, three box copies, the cold sweep's arrays) plus a few pair lists, and the grid's own
+// state once a rebuild has used it (kept for the next); grown with slack, so steady cycles
+// allocate nothing.
 #include <float.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -118,7 +119,8 @@ enum {
 // The per-box arrays, allocated together (capacity boxes each, or as noted).
 typedef struct sap_arrays {
     uint64_t *ends[3];                                 // 2 * capacity: sorted endpoint words
-    uint32_t *where[3]; // 2 * capacity: where[axis][end_slot(w)] is word w's index in ends[axis]
+    uint32_t *where[3];                                // 2 * capacity: where[axis][end_slot(w)]
+                                                       // is word w's index in ends[axis]
     bpx_box *fat;                                      // each box's fat box, as in the lists
     bpx_box *fat_prev;                                 // the same at the last cycle's end
     bpx_box *cur;                                      // this cycle's boxes
