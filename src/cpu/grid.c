@@ -13,7 +13,8 @@
 //  2. Keys: each box's cells (q = floor((v - origin) / s), clamped: monotone in v, which is all
 //     the tests' reasoning needs, so any float input is safe), its level (the first at which it
 //     spans at most 2 cells per axis; level l has cells 4^l s), the 1 to 4 columns ((y, z)
-//     cells at that level) it covers; per-chunk histograms of columns.
+//     cells at that level) it covers, 16 boxes at a time in vectors (grid_kernel.h); per-chunk
+//     histograms of columns.
 //  3. Levels: the top levels holding few boxes become "big" boxes, tested against all (the
 //     rest never look for them); the others get columns: a prefix of the histograms.
 //  4. Scatter: each box (coordinates, id, x cell, flags) to its columns, 32 bytes an entry;
@@ -51,6 +52,7 @@ enum {
     CHUNKS_MAX = 64,          // box ranges of the key and scatter passes
     ITEM_ENTRIES = 4096,      // positions per test item (at least)
     ITEMS_MAX = 512,
+    KEY_BLOCK = 1024,         // boxes keyed in vectors, then counted, while in cache
     BIG_SPAN = 1 << 14,       // ids per big-box work item (all big boxes against them)
     BIG_STEP = 2048,          // ids in cache at a time while every big box passes over them
     EMIT_SHIFT = 11,          // at most 2^11 ids per bucket of pairs, 11-bit sort digits
@@ -241,9 +243,10 @@ static void grid_destroy(bpx_world *w)
 // ---------------------------------------------------------------------------------------------
 // Kernels per instruction set (grid_<isa>.c), chosen at run time like brute's.
 
-#define GRID_DECLARE(isa)                                                                         \
-    bpx_grid_column_fn bpx__grid_column_##isa;                                                   \
-    bpx_grid_big_fn bpx__grid_big_##isa;
+#define GRID_DECLARE(isa)                                                                          \
+    bpx_grid_column_fn bpx__grid_column_##isa;                                                     \
+    bpx_grid_big_fn bpx__grid_big_##isa;                                                           \
+    bpx_grid_keys_fn bpx__grid_keys_##isa;
 GRID_DECLARE(scalar)
 #if BPX_HAVE_SSE2
 GRID_DECLARE(sse2)
@@ -261,6 +264,7 @@ GRID_DECLARE(neon)
 typedef struct grid_kernels {
     bpx_grid_column_fn *column;
     bpx_grid_big_fn *big;
+    bpx_grid_keys_fn *keys;
 } grid_kernels;
 
 static grid_kernels kernels_for(bpx_simd simd)
@@ -272,22 +276,22 @@ static grid_kernels kernels_for(bpx_simd simd)
     switch (simd) {
 #if BPX_HAVE_SSE2
     case BPX_SIMD_SSE2:
-        return (grid_kernels){bpx__grid_column_sse2, bpx__grid_big_sse2};
+        return (grid_kernels){bpx__grid_column_sse2, bpx__grid_big_sse2, bpx__grid_keys_sse2};
 #endif
 #if BPX_HAVE_AVX2
     case BPX_SIMD_AVX2:
-        return (grid_kernels){bpx__grid_column_avx2, bpx__grid_big_avx2};
+        return (grid_kernels){bpx__grid_column_avx2, bpx__grid_big_avx2, bpx__grid_keys_avx2};
 #endif
 #if BPX_HAVE_AVX512
     case BPX_SIMD_AVX512:
-        return (grid_kernels){bpx__grid_column_avx512, bpx__grid_big_avx512};
+        return (grid_kernels){bpx__grid_column_avx512, bpx__grid_big_avx512, bpx__grid_keys_avx512};
 #endif
 #if BPX_HAVE_NEON
     case BPX_SIMD_NEON:
-        return (grid_kernels){bpx__grid_column_neon, bpx__grid_big_neon};
+        return (grid_kernels){bpx__grid_column_neon, bpx__grid_big_neon, bpx__grid_keys_neon};
 #endif
     default:
-        return (grid_kernels){bpx__grid_column_scalar, bpx__grid_big_scalar};
+        return (grid_kernels){bpx__grid_column_scalar, bpx__grid_big_scalar, bpx__grid_keys_scalar};
     }
 }
 
@@ -433,6 +437,7 @@ typedef struct grid_job {
     bpx_soa soa;
     bpx_grid_column_fn *column;
     bpx_grid_big_fn *big;
+    bpx_grid_keys_fn *keys;
 } grid_job;
 
 static void key_task(int begin, int end, int worker, void *context)
@@ -440,60 +445,48 @@ static void key_task(int begin, int end, int worker, void *context)
     (void)worker;
     grid_job *job = context;
     grid_state *st = job->st;
-    const bpx_soa *s = &job->soa;
     const grid_params *p = &st->params;
     const bpx_grid_level *levels = st->layout.level;
     uint32_t columns = p->columns;
-    int fine = p->fine_bits;
+    bpx_grid_cells cells = {.fine_bits = p->fine_bits};
+    for (int a = 0; a < 3; a++) {
+        cells.origin[a] = p->origin[a];
+        cells.inv[a] = p->inv[a];
+        cells.top[a] = (float)p->top[a];
+    }
+    for (int l = 0; l < LEVELS; l++) {
+        cells.first_column[l] = levels[l].first_column;
+        cells.nz[l] = levels[l].nz;
+    }
     for (int c = begin; c < end; c++) {
         grid_chunk *ch = &st->chunks[c];
         uint32_t *hist = st->hist + (size_t)c * columns;
         memset(hist, 0, sizeof(uint32_t) * columns);
         memset(ch->level_count, 0, sizeof ch->level_count);
-        float lo_min[3] = {INFINITY, INFINITY, INFINITY};
-        float lo_max[3] = {-INFINITY, -INFINITY, -INFINITY};
-        float largest = 0.0f;
-        for (uint32_t i = ch->begin; i < ch->end; i++) {
-            float lo[3] = {s->lo[0][i], s->lo[1][i], s->lo[2][i]};
-            float hi[3] = {s->hi[0][i], s->hi[1][i], s->hi[2][i]};
-            if (!(lo[0] <= hi[0])) {
-                st->key[i] = BPX_GRID_INERT;
-                continue;
+        bpx_grid_seen seen = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}, 0};
+        // A block's keys in vectors, then its counts while the keys are in cache.
+        for (uint32_t i0 = ch->begin; i0 < ch->end; i0 += KEY_BLOCK) {
+            uint32_t i1 = i0 + KEY_BLOCK < ch->end ? i0 + KEY_BLOCK : ch->end;
+            job->keys(&cells, &job->soa, i0, i1, st->key, &seen);
+            for (uint32_t i = i0; i < i1; i++) {
+                uint32_t key = st->key[i];
+                if (key == BPX_GRID_INERT)
+                    continue;
+                uint32_t l = bpx__grid_key_level(key), column = bpx__grid_key_column(key);
+                uint32_t dy = (key & BPX_GRID_SPAN_Y) != 0, dz = (key & BPX_GRID_SPAN_Z) != 0;
+                uint32_t nz = levels[l].nz;
+                hist[column]++;
+                hist[column + dz] += dz;
+                hist[column + dy * nz] += dy;
+                hist[column + dy * nz + dz] += dy & dz;
+                ch->level_count[l]++;
             }
-            uint32_t ql[3], qh[3];
-            for (int a = 0; a < 3; a++) {
-                ql[a] = cell_of(lo[a], p->origin[a], p->inv[a], p->top[a]);
-                qh[a] = cell_of(hi[a], p->origin[a], p->inv[a], p->top[a]);
-            }
-            ql[0] >>= fine;
-            qh[0] >>= fine;
-            for (int a = 0; a < 3; a++) {
-                lo_min[a] = lo[a] < lo_min[a] ? lo[a] : lo_min[a];
-                lo_max[a] = lo[a] > lo_max[a] ? lo[a] : lo_max[a];
-                float e = hi[a] - lo[a];
-                largest = e > largest ? e : largest;
-            }
-            int l = 0;
-            while (l + 1 < LEVELS && ((qh[0] >> 2 * l) - (ql[0] >> 2 * l) > 1 ||
-                                      (qh[1] >> 2 * l) - (ql[1] >> 2 * l) > 1 ||
-                                      (qh[2] >> 2 * l) - (ql[2] >> 2 * l) > 1))
-                l++;
-            const bpx_grid_level *lv = &levels[l];
-            uint32_t y = ql[1] >> 2 * l, z = ql[2] >> 2 * l;
-            uint32_t dy = (qh[1] >> 2 * l) - y, dz = (qh[2] >> 2 * l) - z;
-            uint32_t column = lv->first_column + y * lv->nz + z;
-            st->key[i] = (uint32_t)l << 28 | dz << 27 | dy << 26 | column;
-            hist[column]++;
-            hist[column + dz] += dz;
-            hist[column + dy * lv->nz] += dy;
-            hist[column + dy * lv->nz + dz] += dy & dz;
-            ch->level_count[l]++;
         }
         for (int a = 0; a < 3; a++) {
-            ch->lo_min[a] = lo_min[a];
-            ch->lo_max[a] = lo_max[a];
+            ch->lo_min[a] = seen.lo_min[a];
+            ch->lo_max[a] = seen.lo_max[a];
         }
-        ch->max_extent = largest;
+        ch->max_extent = seen.largest;
     }
 }
 
@@ -719,8 +712,8 @@ typedef struct emit_job {
     bpx_world *world;
     grid_state *st;
     int groups, buckets, items, j_passes, shift;
-    bpx_pair *to;     // the bucketed pairs
-    bpx_pair *other;  // scratch of the same length
+    bpx_pair *to;    // the bucketed pairs
+    bpx_pair *other; // scratch of the same length
 } emit_job;
 
 static void emit_range(const emit_job *job, int g, int *b0, int *b1)
@@ -838,7 +831,8 @@ static bpx_status emit_sorted(bpx_world *w, grid_state *st, uint32_t n)
     int buckets = n ? (int)(((n - 1) >> shift) + 1) : 1;
     int groups = w->block_count < EMIT_GROUPS ? w->block_count : EMIT_GROUPS;
     int j_passes = 1; // 11-bit digits of the largest j
-    for (uint32_t top = n ? n - 1 : 0; EMIT_SHIFT * j_passes < 32 && top >> (EMIT_SHIFT * j_passes);)
+    for (uint32_t top = n ? n - 1 : 0;
+         EMIT_SHIFT * j_passes < 32 && top >> (EMIT_SHIFT * j_passes);)
         j_passes++;
     if (!bpx__list_reserve(&st->a, total + total / 4) ||
         !bpx__list_reserve(&st->b, total + total / 4) ||
@@ -847,15 +841,9 @@ static bpx_status emit_sorted(bpx_world *w, grid_state *st, uint32_t n)
         !reserve_array((void **)&st->bucket_start, &st->bucket_capacity, (size_t)buckets + 1,
                        sizeof(uint32_t)))
         return BPX_ERR_OUT_OF_MEMORY;
-    emit_job job = {w,
-                    st,
-                    groups,
-                    buckets,
-                    buckets < EMIT_ITEMS ? buckets : EMIT_ITEMS,
-                    j_passes,
-                    shift,
-                    st->a.pairs,
-                    st->b.pairs};
+    emit_job job = {
+        w,        st,    groups,      buckets,    buckets < EMIT_ITEMS ? buckets : EMIT_ITEMS,
+        j_passes, shift, st->a.pairs, st->b.pairs};
     if (total) {
         bpx__parallel_for(&w->executor, emit_count_task, groups, &job);
         uint32_t at = 0;
@@ -923,7 +911,7 @@ bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes)
     }
     uint32_t n = boxes.n;
     grid_kernels kernels = kernels_for(w->simd);
-    grid_job job = {w, st, boxes, kernels.column, kernels.big};
+    grid_job job = {w, st, boxes, kernels.column, kernels.big, kernels.keys};
 
     // 1. Parameters, levels, chunks.
     choose_params(&job.soa, st, &st->params);
@@ -1001,8 +989,7 @@ bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes)
     // Coarser runs in shared positions (indexed like the entries; level 0's part untouched),
     // level 0's in each worker's scratch, one column at a time.
     bool coarse = positions > st->column_start[level1];
-    if (!reserve_array((void **)&st->entries, &st->entry_capacity, positions,
-                       sizeof(grid_entry)) ||
+    if (!reserve_array((void **)&st->entries, &st->entry_capacity, positions, sizeof(grid_entry)) ||
         (coarse && !reserve_soa(&st->positions, (size_t)positions + PAD)))
         return BPX_ERR_OUT_OF_MEMORY;
     for (int k = 0; k < workers && k < WORKERS_MAX; k++)
@@ -1011,8 +998,8 @@ bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes)
     st->wcolumns = wcolumns;
     if (!reserve_array((void **)&st->stash, &st->stash_capacity, (size_t)workers * wcolumns,
                        sizeof(grid_entry)) ||
-        !reserve_array((void **)&st->stash_at, &st->stash_at_capacity,
-                       (size_t)workers * wcolumns, sizeof(uint32_t)))
+        !reserve_array((void **)&st->stash_at, &st->stash_at_capacity, (size_t)workers * wcolumns,
+                       sizeof(uint32_t)))
         return BPX_ERR_OUT_OF_MEMORY;
     if (big) {
         uint32_t k = 0;
@@ -1089,8 +1076,10 @@ static bool grid_query(const bpx_world_def *def, const char **reason, char *deta
         *reason = "SIMD width not supported here";
         return false;
     }
-    snprintf(detail, size, "hierarchical columns in y, z swept along x, big boxes apart, %s, "
-             "threads", bpx_simd_name(simd));
+    snprintf(detail, size,
+             "hierarchical columns in y, z swept along x, big boxes apart, %s, "
+             "threads",
+             bpx_simd_name(simd));
     return true;
 }
 

@@ -68,6 +68,25 @@ typedef void bpx_grid_column_fn(const bpx_grid_layout *g, int l, uint32_t c,
 typedef void bpx_grid_big_fn(const bpx_grid_layout *g, uint32_t b, uint32_t j0, uint32_t j1,
                              bpx_block *out);
 
+/// What the key pass needs of the cycle's grid: cells q = floor((v - origin) * inv) clamped to
+/// [0, top] per axis (x cut 2^fine_bits times finer), and each level's columns.
+typedef struct bpx_grid_cells {
+    float origin[3], inv[3], top[3]; // top: exact (below 2^24)
+    int fine_bits;
+    uint32_t first_column[BPX_GRID_LEVELS], nz[BPX_GRID_LEVELS];
+} bpx_grid_cells;
+
+/// What a key pass saw of the live boxes: the range of their min corners and their largest
+/// extent (grid.c's parameters next cycle).
+typedef struct bpx_grid_seen {
+    float lo_min[3], lo_max[3], largest;
+} bpx_grid_seen;
+
+/// Keys of boxes [begin, end) into key[] (BPX_GRID_INERT for inert boxes); folds what it saw
+/// into *seen. Written as plain loops over lanes, which each ISA's file compiles to vectors.
+typedef void bpx_grid_keys_fn(const bpx_grid_cells *cells, const bpx_soa *s, uint32_t begin,
+                              uint32_t end, uint32_t *key, bpx_grid_seen *seen);
+
 /// Level of a box key, and its global column.
 static inline uint32_t bpx__grid_key_level(uint32_t key)
 {

@@ -11,10 +11,12 @@
 // there minus one (a coarser box spans at most 2 cells, so none before it can reach) to the last
 // whose min x is <= its max x; the same rule keeps one column. Every test is the exact
 // comparison of overlap.h.
+#include <math.h>
+
 #include "grid.h"
 
-#if !defined(BPX_GRID_COLUMN) || !defined(BPX_GRID_BIG)
-#error "define BPX_GRID_COLUMN and BPX_GRID_BIG before including grid_kernel.h"
+#if !defined(BPX_GRID_COLUMN) || !defined(BPX_GRID_BIG) || !defined(BPX_GRID_KEYS)
+#error "define BPX_GRID_COLUMN, BPX_GRID_BIG and BPX_GRID_KEYS before including grid_kernel.h"
 #endif
 
 typedef struct grid_probe {
@@ -194,4 +196,113 @@ void BPX_GRID_BIG(const bpx_grid_layout *g, uint32_t b, uint32_t j0, uint32_t j1
         }
     }
     out->tests += j1 > j0 ? (uint64_t)(j1 - j0) : 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Keys (grid.c's key pass): GRID_KEY_LANES boxes at a time, every step a select, so that the
+// compiler makes each line one vector instruction of this file's ISA.
+
+enum { GRID_KEY_LANES = 16 };
+
+static inline uint32_t grid_cell(float v, float origin, float inv, float top)
+{
+    float x = (v - origin) * inv;
+    x = x > 0.0f ? x : 0.0f;
+    x = x < top ? x : top;
+    return (uint32_t)(int32_t)x; // 0 .. top < 2^24
+}
+
+// Loops over lanes inside loops over axes and levels: each inner loop is one vector step.
+static inline void grid_keys_lanes(const bpx_grid_cells *c, const bpx_soa *s, uint32_t i,
+                                   uint32_t m, uint32_t *key, float seen[7][GRID_KEY_LANES])
+{
+    enum { L = GRID_KEY_LANES };
+    uint32_t ql[3][L], qh[3][L], l[L], live[L];
+    for (uint32_t k = 0; k < m; k++)
+        live[k] = s->lo[0][i + k] <= s->hi[0][i + k];
+    for (int a = 0; a < 3; a++) {
+        const float *lo = s->lo[a] + i, *hi = s->hi[a] + i;
+        for (uint32_t k = 0; k < m; k++) {
+            ql[a][k] = grid_cell(lo[k], c->origin[a], c->inv[a], c->top[a]);
+            qh[a][k] = grid_cell(hi[k], c->origin[a], c->inv[a], c->top[a]);
+            float low = live[k] ? lo[k] : INFINITY, high = live[k] ? lo[k] : -INFINITY;
+            float e = live[k] ? hi[k] - lo[k] : 0.0f;
+            seen[a][k] = low < seen[a][k] ? low : seen[a][k];
+            seen[3 + a][k] = high > seen[3 + a][k] ? high : seen[3 + a][k];
+            seen[6][k] = e > seen[6][k] ? e : seen[6][k];
+        }
+    }
+    for (uint32_t k = 0; k < m; k++) {
+        ql[0][k] >>= c->fine_bits;
+        qh[0][k] >>= c->fine_bits;
+        l[k] = 0;
+    }
+    // The first level at which the box spans at most 2 cells per axis: spanning more at one
+    // level implies spanning more at every finer one, so count the levels where it does (up to
+    // the first level where no lane does: most boxes sit at level 0).
+    int top = 0;
+    for (; top + 1 < BPX_GRID_LEVELS; top++) {
+        int sh = 2 * top;
+        uint32_t any = 0;
+        for (uint32_t k = 0; k < m; k++) {
+            uint32_t wide = (qh[0][k] >> sh) - (ql[0][k] >> sh) > 1;
+            wide |= (qh[1][k] >> sh) - (ql[1][k] >> sh) > 1;
+            wide |= (qh[2][k] >> sh) - (ql[2][k] >> sh) > 1;
+            l[k] += wide;
+            any |= wide;
+        }
+        if (!any)
+            break;
+    }
+    uint32_t y[L], z[L], dy[L], dz[L], first[L], nz[L];
+    for (uint32_t k = 0; k < m; k++) {
+        y[k] = ql[1][k];
+        z[k] = ql[2][k];
+        dy[k] = qh[1][k] - ql[1][k];
+        dz[k] = qh[2][k] - ql[2][k];
+        first[k] = c->first_column[0];
+        nz[k] = c->nz[0];
+    }
+    for (int lev = 1; lev <= top; lev++) {
+        int sh = 2 * lev;
+        uint32_t f = c->first_column[lev], n = c->nz[lev];
+        for (uint32_t k = 0; k < m; k++) {
+            bool here = l[k] == (uint32_t)lev;
+            y[k] = here ? ql[1][k] >> sh : y[k];
+            z[k] = here ? ql[2][k] >> sh : z[k];
+            dy[k] = here ? (qh[1][k] >> sh) - (ql[1][k] >> sh) : dy[k];
+            dz[k] = here ? (qh[2][k] >> sh) - (ql[2][k] >> sh) : dz[k];
+            first[k] = here ? f : first[k];
+            nz[k] = here ? n : nz[k];
+        }
+    }
+    uint32_t *out = key + i;
+    for (uint32_t k = 0; k < m; k++) {
+        uint32_t k_live = l[k] << 28 | dz[k] << 27 | dy[k] << 26 | (first[k] + y[k] * nz[k] + z[k]);
+        out[k] = live[k] ? k_live : BPX_GRID_INERT;
+    }
+}
+
+void BPX_GRID_KEYS(const bpx_grid_cells *c, const bpx_soa *s, uint32_t begin, uint32_t end,
+                   uint32_t *key, bpx_grid_seen *out)
+{
+    float seen[7][GRID_KEY_LANES];
+    for (int k = 0; k < GRID_KEY_LANES; k++) {
+        for (int a = 0; a < 3; a++) {
+            seen[a][k] = out->lo_min[a];
+            seen[3 + a][k] = out->lo_max[a];
+        }
+        seen[6][k] = out->largest;
+    }
+    uint32_t i = begin;
+    for (; i + GRID_KEY_LANES <= end; i += GRID_KEY_LANES)
+        grid_keys_lanes(c, s, i, GRID_KEY_LANES, key, seen);
+    grid_keys_lanes(c, s, i, end - i, key, seen);
+    for (int k = 0; k < GRID_KEY_LANES; k++) {
+        for (int a = 0; a < 3; a++) {
+            out->lo_min[a] = seen[a][k] < out->lo_min[a] ? seen[a][k] : out->lo_min[a];
+            out->lo_max[a] = seen[3 + a][k] > out->lo_max[a] ? seen[3 + a][k] : out->lo_max[a];
+        }
+        out->largest = seen[6][k] > out->largest ? seen[6][k] : out->largest;
+    }
 }

@@ -2,4 +2,5 @@
 #include "simd/wide_neon.h"
 #define BPX_GRID_COLUMN bpx__grid_column_neon
 #define BPX_GRID_BIG bpx__grid_big_neon
+#define BPX_GRID_KEYS bpx__grid_keys_neon
 #include "grid_kernel.h"
