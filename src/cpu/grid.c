@@ -25,10 +25,10 @@
 //  6. Tests (grid_kernel.h): each box against the rest of its run, and from its home column
 //     against windows of the columns it covers at each coarser level; big boxes against all.
 //     A pair met in several columns is kept in one (a rule on the flags), so no dedupe pass.
-//  7. Hits to (i, j) order: a scatter by i / 2048 into buckets, then each bucket sorted by
-//     LSD counting passes in cache; the result goes to block 0. Every test is the exact float
-//     comparison of overlap.h; the grid only decides which pairs are tested, and the order is
-//     a full sort, so the bytes are the same for any worker count or schedule.
+//  7. Hits to (i, j) order: a scatter by i / 2048 into buckets, then in cache each bucket by
+//     i (a counting pass) and each i's few pairs by j; the result goes to block 0. Every test
+//     is the exact float comparison of overlap.h; the grid only decides which pairs are tested,
+//     and the order is a full sort, so the bytes are the same for any worker count or schedule.
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -756,47 +756,59 @@ static void emit_scatter_task(int begin, int end, int worker, void *context)
     }
 }
 
-static inline bool pair_less(bpx_pair x, bpx_pair y)
+// Pairs of one i sorted by j, in place: insertion for the usual few, LSD counting passes
+// (through scratch) for a box that meets many.
+static void sort_run(bpx_pair *run, bpx_pair *scratch, uint32_t count, int j_passes)
 {
-    return x.i < y.i || (x.i == y.i && x.j < y.j);
-}
-
-// Sorts one bucket of src by (i, j): LSD counting passes on j's digits, then on i's low `shift`
-// bits (the bucket shares the rest). The result is in dst when the pass count is odd, else in
-// src: the same for every bucket, as the caller expects.
-static void sort_bucket(bpx_pair *src, bpx_pair *dst, uint32_t count, int j_passes, int shift)
-{
-    int passes = j_passes + (shift > 0);
-    bool in_dst = passes % 2 == 1;
-    if (count <= 32 || passes == 0) {
+    if (count <= 32) {
         for (uint32_t k = 1; k < count; k++) {
-            bpx_pair x = src[k];
+            bpx_pair x = run[k];
             uint32_t at = k;
-            for (; at > 0 && pair_less(x, src[at - 1]); at--)
-                src[at] = src[at - 1];
-            src[at] = x;
+            for (; at > 0 && x.j < run[at - 1].j; at--)
+                run[at] = run[at - 1];
+            run[at] = x;
         }
-        if (in_dst)
-            memcpy(dst, src, sizeof(bpx_pair) * count);
         return;
     }
     enum { DIGITS = 1 << EMIT_SHIFT };
     uint32_t counts[DIGITS + 1];
-    for (int pass = 0; pass < passes; pass++) {
-        bool on_i = pass == j_passes;
-        int at = on_i ? 0 : pass * EMIT_SHIFT;
-        uint32_t mask = on_i ? (1u << shift) - 1 : DIGITS - 1;
-        memset(counts, 0, sizeof(uint32_t) * (mask + 2));
+    bpx_pair *src = run, *dst = scratch;
+    for (int pass = 0; pass < j_passes; pass++) {
+        int at = pass * EMIT_SHIFT;
+        memset(counts, 0, sizeof counts);
         for (uint32_t k = 0; k < count; k++)
-            counts[(((on_i ? src[k].i : src[k].j) >> at) & mask) + 1]++;
-        for (uint32_t d = 0; d <= mask; d++)
+            counts[((src[k].j >> at) & (DIGITS - 1)) + 1]++;
+        for (uint32_t d = 0; d < DIGITS; d++)
             counts[d + 1] += counts[d];
         for (uint32_t k = 0; k < count; k++)
-            dst[counts[((on_i ? src[k].i : src[k].j) >> at) & mask]++] = src[k];
+            dst[counts[(src[k].j >> at) & (DIGITS - 1)]++] = src[k];
         bpx_pair *t = src;
         src = dst;
         dst = t;
     }
+    if (src != run)
+        memcpy(run, src, sizeof(bpx_pair) * count);
+}
+
+// Sorts one bucket of src (2^shift ids) by (i, j) into dst: a counting pass on i's low bits,
+// then each i's pairs by j (src is the scratch).
+static void sort_bucket(bpx_pair *src, bpx_pair *dst, uint32_t count, int j_passes, int shift)
+{
+    enum { IDS = 1 << EMIT_SHIFT };
+    uint32_t counts[IDS + 1];
+    uint32_t mask = (1u << shift) - 1;
+    memset(counts, 0, sizeof(uint32_t) * (mask + 2));
+    for (uint32_t k = 0; k < count; k++)
+        counts[(src[k].i & mask) + 1]++;
+    for (uint32_t d = 0; d <= mask; d++)
+        counts[d + 1] += counts[d];
+    uint32_t start[IDS + 1];
+    memcpy(start, counts, sizeof(uint32_t) * (mask + 2));
+    for (uint32_t k = 0; k < count; k++)
+        dst[counts[src[k].i & mask]++] = src[k];
+    for (uint32_t d = 0; d <= mask; d++)
+        if (start[d + 1] - start[d] > 1)
+            sort_run(dst + start[d], src + start[d], start[d + 1] - start[d], j_passes);
 }
 
 static void emit_sort_task(int begin, int end, int worker, void *context)
@@ -861,7 +873,7 @@ static bpx_status emit_sorted(bpx_world *w, grid_state *st, uint32_t n)
         bpx__parallel_for(&w->executor, emit_sort_task, job.items, &job);
     }
     // Block 0 takes the ordered list (a swap, not a copy); its old list becomes scratch.
-    bpx_pair_list *result = (j_passes + (shift > 0)) % 2 == 1 ? &st->b : &st->a;
+    bpx_pair_list *result = &st->b;
     result->count = total;
     for (int k = 0; k < w->block_count; k++) {
         w->blocks[k].hits.count = 0;
