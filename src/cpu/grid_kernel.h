@@ -248,6 +248,7 @@ static inline void grid_keys_lanes(const bpx_grid_cells *c, const bpx_soa *s, ui
             uint32_t wide = (qh[0][k] >> sh) - (ql[0][k] >> sh) > 1;
             wide |= (qh[1][k] >> sh) - (ql[1][k] >> sh) > 1;
             wide |= (qh[2][k] >> sh) - (ql[2][k] >> sh) > 1;
+            wide &= live[k]; // an inert box (min +inf, max -inf) looks wide at every level
             l[k] += wide;
             any |= wide;
         }
