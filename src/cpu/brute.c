@@ -10,7 +10,8 @@
 
 #define BPX_DECLARE_KERNELS(isa)                                                                  \
     bpx_brute_rows_fn bpx__brute_rows_##isa;                                                       \
-    bpx_prune_rows_fn bpx__prune_rows_##isa;
+    bpx_prune_rows_fn bpx__prune_rows_##isa;                                                       \
+    bpx_scan_differs_fn bpx__scan_differs_##isa;
 BPX_DECLARE_KERNELS(scalar)
 #if BPX_HAVE_SSE2
 BPX_DECLARE_KERNELS(sse2)
@@ -30,31 +31,32 @@ typedef struct simd_variant {
     int lanes;
     bpx_brute_rows_fn *brute; // NULL: not compiled into this build
     bpx_prune_rows_fn *prune;
+    bpx_scan_differs_fn *scan;
 } simd_variant;
 
-#define BPX_KERNELS(isa) bpx__brute_rows_##isa, bpx__prune_rows_##isa
+#define BPX_KERNELS(isa) bpx__brute_rows_##isa, bpx__prune_rows_##isa, bpx__scan_differs_##isa
 static const simd_variant variants[BPX_SIMD_COUNT] = {
-    [BPX_SIMD_AUTO] = {"auto", 0, NULL, NULL},
+    [BPX_SIMD_AUTO] = {"auto", 0, NULL, NULL, NULL},
     [BPX_SIMD_SCALAR] = {"scalar", 1, BPX_KERNELS(scalar)},
 #if BPX_HAVE_SSE2
     [BPX_SIMD_SSE2] = {"sse2", 4, BPX_KERNELS(sse2)},
 #else
-    [BPX_SIMD_SSE2] = {"sse2", 4, NULL, NULL},
+    [BPX_SIMD_SSE2] = {"sse2", 4, NULL, NULL, NULL},
 #endif
 #if BPX_HAVE_AVX2
     [BPX_SIMD_AVX2] = {"avx2", 8, BPX_KERNELS(avx2)},
 #else
-    [BPX_SIMD_AVX2] = {"avx2", 8, NULL, NULL},
+    [BPX_SIMD_AVX2] = {"avx2", 8, NULL, NULL, NULL},
 #endif
 #if BPX_HAVE_AVX512
     [BPX_SIMD_AVX512] = {"avx512", 16, BPX_KERNELS(avx512)},
 #else
-    [BPX_SIMD_AVX512] = {"avx512", 16, NULL, NULL},
+    [BPX_SIMD_AVX512] = {"avx512", 16, NULL, NULL, NULL},
 #endif
 #if BPX_HAVE_NEON
     [BPX_SIMD_NEON] = {"neon", 4, BPX_KERNELS(neon)},
 #else
-    [BPX_SIMD_NEON] = {"neon", 4, NULL, NULL},
+    [BPX_SIMD_NEON] = {"neon", 4, NULL, NULL, NULL},
 #endif
 };
 
@@ -73,6 +75,11 @@ bpx_brute_rows_fn *bpx__brute_rows_for(bpx_simd simd)
 bpx_prune_rows_fn *bpx__prune_rows_for(bpx_simd simd)
 {
     return variants[usable(simd)].prune;
+}
+
+bpx_scan_differs_fn *bpx__scan_differs_for(bpx_simd simd)
+{
+    return variants[usable(simd)].scan;
 }
 
 const char *bpx_simd_name(bpx_simd simd)

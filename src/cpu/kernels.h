@@ -11,9 +11,15 @@ typedef void bpx_brute_rows_fn(const bpx_soa *s, uint32_t row_begin, uint32_t ro
 typedef void bpx_prune_rows_fn(const bpx_sorted *s, uint32_t row_begin, uint32_t row_end,
                                bpx_block *out);
 
+/// Positions [k0, k1) of s whose box overlaps exactly one of boxes a and b (min then max per
+/// slot, in s's slot order), ascending into out; returns the count (scan_kernel.h, sap's mend).
+typedef uint32_t bpx_scan_differs_fn(const bpx_sorted *s, uint32_t k0, uint32_t k1,
+                                     const float a[6], const float b[6], uint32_t *out);
+
 /// The kernels for a supported width (AUTO: the widest); the scalar ones otherwise.
 bpx_brute_rows_fn *bpx__brute_rows_for(bpx_simd simd);
 bpx_prune_rows_fn *bpx__prune_rows_for(bpx_simd simd);
+bpx_scan_differs_fn *bpx__scan_differs_for(bpx_simd simd);
 
 /// Sweeps the world's first `blocks` blocks (their row ranges of `sorted`) on its workers with the
 /// prune kernel of its SIMD width; hits land in each block (prune.c; sap's rebuild uses it too).

@@ -4,3 +4,5 @@
 #include "brute_kernel.h"
 #define BPX_PRUNE_ROWS bpx__prune_rows_avx512
 #include "prune_kernel.h"
+#define BPX_SCAN_DIFFERS bpx__scan_differs_avx512
+#include "scan_kernel.h"

@@ -4,3 +4,5 @@
 #include "brute_kernel.h"
 #define BPX_PRUNE_ROWS bpx__prune_rows_neon
 #include "prune_kernel.h"
+#define BPX_SCAN_DIFFERS bpx__scan_differs_neon
+#include "scan_kernel.h"

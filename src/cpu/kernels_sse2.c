@@ -4,3 +4,5 @@
 #include "brute_kernel.h"
 #define BPX_PRUNE_ROWS bpx__prune_rows_sse2
 #include "prune_kernel.h"
+#define BPX_SCAN_DIFFERS bpx__scan_differs_sse2
+#include "scan_kernel.h"
