@@ -407,11 +407,7 @@ static void choose_params(const bpx_soa *s, grid_state *st, grid_params *p)
 // The cell of coordinate v on one axis: monotone in v (rounding is), clamped to [0, top].
 static inline uint32_t cell_of(float v, float origin, float inv, uint32_t top)
 {
-    float x = (v - origin) * inv;
-    float t = (float)top; // exact: top < 2^24
-    x = x > 0.0f ? x : 0.0f;
-    x = x < t ? x : t;
-    return (uint32_t)x;
+    return bpx__grid_cell(v, origin, inv, (float)top); // exact: top < 2^24
 }
 
 static void set_levels(grid_state *st)

@@ -87,6 +87,16 @@ typedef struct bpx_grid_seen {
 typedef void bpx_grid_keys_fn(const bpx_grid_cells *cells, const bpx_soa *s, uint32_t begin,
                               uint32_t end, uint32_t *key, bpx_grid_seen *seen);
 
+/// The cell of coordinate v on one axis: monotone in v (rounding is), clamped to [0, top] (top
+/// exact, below 2^24). The key pass and the scatter both use it.
+static inline uint32_t bpx__grid_cell(float v, float origin, float inv, float top)
+{
+    float x = (v - origin) * inv;
+    x = x > 0.0f ? x : 0.0f;
+    x = x < top ? x : top;
+    return (uint32_t)(int32_t)x;
+}
+
 /// Level of a box key, and its global column.
 static inline uint32_t bpx__grid_key_level(uint32_t key)
 {

@@ -204,14 +204,6 @@ void BPX_GRID_BIG(const bpx_grid_layout *g, uint32_t b, uint32_t j0, uint32_t j1
 
 enum { GRID_KEY_LANES = 16 };
 
-static inline uint32_t grid_cell(float v, float origin, float inv, float top)
-{
-    float x = (v - origin) * inv;
-    x = x > 0.0f ? x : 0.0f;
-    x = x < top ? x : top;
-    return (uint32_t)(int32_t)x; // 0 .. top < 2^24
-}
-
 // Loops over lanes inside loops over axes and levels: each inner loop is one vector step.
 static inline void grid_keys_lanes(const bpx_grid_cells *c, const bpx_soa *s, uint32_t i,
                                    uint32_t m, uint32_t *key, float seen[7][GRID_KEY_LANES])
@@ -223,8 +215,8 @@ static inline void grid_keys_lanes(const bpx_grid_cells *c, const bpx_soa *s, ui
     for (int a = 0; a < 3; a++) {
         const float *lo = s->lo[a] + i, *hi = s->hi[a] + i;
         for (uint32_t k = 0; k < m; k++) {
-            ql[a][k] = grid_cell(lo[k], c->origin[a], c->inv[a], c->top[a]);
-            qh[a][k] = grid_cell(hi[k], c->origin[a], c->inv[a], c->top[a]);
+            ql[a][k] = bpx__grid_cell(lo[k], c->origin[a], c->inv[a], c->top[a]);
+            qh[a][k] = bpx__grid_cell(hi[k], c->origin[a], c->inv[a], c->top[a]);
             float low = live[k] ? lo[k] : INFINITY, high = live[k] ? lo[k] : -INFINITY;
             float e = live[k] ? hi[k] - lo[k] : 0.0f;
             seen[a][k] = low < seen[a][k] ? low : seen[a][k];

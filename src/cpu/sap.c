@@ -642,8 +642,17 @@ static inline void scan_shift(sap_arrays *a, uint32_t from, uint32_t to, int by)
     memmove(a->sorted_ids + from + by, a->sorted_ids + from, count * sizeof(uint32_t));
 }
 
+// Inert boxes after the n entries of the scan list: a scan reads up to a vector past its end.
+static void scan_pad(sap_arrays *a, uint32_t n, const int order[3])
+{
+    const float inf = 1.0f / 0.0f;
+    const bpx_box inert = {{inf, inf, inf}, {-inf, -inf, -inf}};
+    for (uint32_t k = n; k < n + PAD; k++)
+        scan_put(a, k, &inert, order, 0);
+}
+
 // The scan list after a full rebuild's sweep (its first `live` entries): the inert boxes after
-// them, the padding, and the reach.
+// them, and the padding.
 static void scan_list(sap_state *st, uint32_t n, uint32_t live)
 {
     sap_arrays *a = &st->a;
@@ -653,10 +662,7 @@ static void scan_list(sap_state *st, uint32_t n, uint32_t live)
     for (uint32_t i = 0; i < n && k < n; i++)
         if (!(a->fat[i].min[order[0]] <= a->fat[i].max[order[0]]))
             scan_put(a, k++, &a->fat[i], order, i);
-    const float inf = 1.0f / 0.0f;
-    const bpx_box inert = {{inf, inf, inf}, {-inf, -inf, -inf}};
-    for (k = n; k < n + PAD; k++)
-        scan_put(a, k, &inert, order, 0);
+    scan_pad(a, n, order);
 }
 
 // Floats just past a double, down and up: a reach rounded the safe way (more boxes scanned).
@@ -923,8 +929,7 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
         scan_order(st->sweep_axis, order);
         for (uint32_t i = st->n; i < n; i++)
             scan_put(&st->a, i, &st->a.fat[i], order, i);
-        for (uint32_t k = n; k < n + PAD; k++)
-            scan_put(&st->a, k, &st->a.fat[n - 1], order, 0); // inert: the last one added
+        scan_pad(&st->a, n, order);
     }
     uint64_t budget = (uint64_t)MOVES_PER_BOX * n / (n > CACHED_BOXES ? UNCACHED_DIVISOR : 1) +
                       MOVES_BASE;
@@ -1104,11 +1109,12 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
     // Few boxes of even extents on the swept axis: warm cycles scan (see mend_scan).
     double sum = 0.0;
     float widest = 0.0f;
-    for (uint32_t k = 0; k < live && !st->use_grid; k++) {
-        double e = (double)a->hi[0][k] - (double)a->lo[0][k];
-        sum += e;
-        widest = float_above(e) > widest ? float_above(e) : widest;
-    }
+    if (!st->use_grid) // else a->lo and a->hi hold the grid's input, not the sweep order
+        for (uint32_t k = 0; k < live; k++) {
+            double e = (double)a->hi[0][k] - (double)a->lo[0][k];
+            sum += e;
+            widest = float_above(e) > widest ? float_above(e) : widest;
+        }
     st->scan_width = widest;
     st->scan = !st->use_grid && n <= SCAN_MAX_BOXES &&
                (double)widest <= SCAN_WIDTH_RATIO * (live ? sum / live : 0.0);
