@@ -112,7 +112,7 @@ enum {
     FEW_BASE = 16,       // move their endpoints one by one; more: mend every list in one pass
     MARGIN_DIVISOR = 16, // fat margin on an axis: the boxes' mean extent there / this
     CHECK_EVERY = 4096,  // endpoints between the early give-up checks of the first list
-    PREFETCH = 16,       // pairs ahead whose second box the exact filter prefetches
+    PREFETCH = 32,       // pairs ahead whose second box the exact filter prefetches
     PARALLEL_MIN = 16384, // boxes (or fat pairs) from which a warm pass splits over the workers
     // The scan mend (see the top): up to SCAN_MAX_BOXES boxes whose fat extents on the swept
     // axis are at most SCAN_WIDTH_RATIO times their mean; a cycle gives up past SCAN_WORK_PER_BOX
@@ -877,8 +877,12 @@ static size_t filter_range(const sap_state *st, bpx_pair *out, size_t k0, size_t
     size_t count = 0;
     out += k0;
     for (size_t k = k0; k < k1; k++) {
-        if (k + PREFETCH < k1) // j is anywhere: fetch it early (i comes in order)
-            PREFETCH_READ(&cur[fat[k + PREFETCH].j]);
+        if (k + PREFETCH < k1) { // j is anywhere: fetch it early (i comes in order), both
+                                 // lines when its 24 bytes straddle two
+            const bpx_box *next = &cur[fat[k + PREFETCH].j];
+            PREFETCH_READ(next);
+            PREFETCH_READ((const char *)next + sizeof *next - 1);
+        }
         out[count] = fat[k];
         count += overlap(&cur[fat[k].i], &cur[fat[k].j]);
     }
