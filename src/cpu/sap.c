@@ -52,35 +52,34 @@
 // AxisSweep3's insert and remove, and fall under the budget below.
 //
 // A cold cycle rebuilds: on the first cycle; when n shrank, or grew by more than an eighth;
-// after a failed cycle; when a warm cycle passes MOVES_PER_BOX * n + MOVES_BASE element moves
-// (a quarter of that past CACHED_BOXES; in the one-pass mend, a third of it per list, each
-// abandoned part way, or early when its first part projects far past it, and the other lists
-// stop too);
-// and, after two such give-ups in a row, on every cycle but one in RETRY_EVERY, so that
-// incoherent motion does not pay a wasted attempt each cycle. A full rebuild makes new fat
-// boxes and margins, sorts each axis's 2n fat endpoints with the radix sort of sort.c (minima
-// listed before maxima; the sort is stable, so ties come out in word order), then sweeps the
-// fat boxes once: the prune kernel, on the world's workers, in min order of the axis whose
-// intervals overlap least (counted in O(n) from the sorted lists, so boxes that all share one
-// x interval make the sweep quadratic only if y and z overlap as much); the emitter's counting
-// sorts put the fat pairs in (i, j) order, and the exact filter gives the cycle's pairs. When
-// even that axis meets more than BPX_SWEEP_MAX_CANDIDATES boxes per box (hundreds of thousands
-// of boxes at constant density: the sweep's cost grows like n^(5/3)), the grid finds the fat
-// pairs instead, so a rebuild at a million boxes costs a grid cycle, not seconds. While
-// the motion is incoherent (two give-ups in a row), a cycle not followed by an attempt only
-// sorts the n minima of that axis and sweeps the boxes themselves (prune's work, no lists).
-// bpx_cycle_stats.rebuilt tells warm and cold apart. There is no "boxes replaced wholesale"
-// trigger: set_boxes is the general mode's per-cycle call, so a replaced scene is told from a
-// moved one by the move budget alone, as prune does.
+// after a failed cycle; when a warm cycle passes MOVES_PER_BOX * n + MOVES_BASE element moves (a
+// quarter of that past CACHED_BOXES; in the one-pass mend, a third of it per list, each abandoned
+// part way, or early when its first part projects far past it, and the other lists stop too); and,
+// after two such give-ups in a row, on every cycle but one in RETRY_EVERY, so that incoherent
+// motion does not pay a wasted attempt each cycle. A full rebuild makes new fat boxes and margins,
+// sorts each axis's 2n fat endpoint words with the radix sort of sort.c (minima listed before
+// maxima; the sort is stable, so ties come out in word order), then sweeps the fat boxes once: the
+// prune kernel, on the world's workers, in min order of the axis whose intervals overlap least
+// (counted in O(n) from the sorted lists, so boxes that all share one x interval make the sweep
+// quadratic only if y and z overlap as much); the emitter's counting sorts put the fat pairs in
+// (i, j) order, and the exact filter gives the cycle's pairs. When even that axis meets more than
+// BPX_SWEEP_MAX_CANDIDATES boxes per box (hundreds of thousands of boxes at constant density: the
+// sweep's cost grows like n^(5/3)), the grid finds the fat pairs instead, so a rebuild at a
+// million boxes costs a grid cycle, not seconds. While the motion is incoherent (two give-ups in a
+// row), a cycle not followed by an attempt only sorts the n minima of that axis and sweeps the
+// boxes themselves (prune's work, no lists). bpx_cycle_stats.rebuilt tells warm and cold apart.
+// There is no "boxes replaced wholesale" trigger: set_boxes is the general mode's per-cycle call,
+// so a replaced scene is told from a moved one by the move budget alone, as prune does.
 //
-// Threads: from PARALLEL_MIN boxes, the warm cycle's check of the boxes and its exact filter
-// split into ranges on the world's workers (each range's output packed after, in order), and
-// the one-pass mend runs the three lists at once; the few-boxes mend is serial; the cold sweep
-// (or grid) runs on the workers. The output is
-// the same bytes either way. Memory: about 230 bytes per box (three endpoint lists and their
-// indexes, three box copies, the cold sweep's arrays) plus a few pair lists, and the grid's own
-// state once a rebuild has used it (kept for the next); grown with slack, so steady cycles
-// allocate nothing.
+// Threads: from PARALLEL_MIN boxes, the warm cycle's check of the boxes and its exact filter split
+// into ranges on the world's workers (each range's output packed after, in order), and the
+// one-pass mend and a full rebuild's sorts run the three lists at once (each list has its own sort
+// memory: at a million boxes the three sorts in a row were half of a rebuild, and a rebuild is
+// what sets p99 there); the few-boxes mend is serial; the cold sweep (or grid) runs on the
+// workers. The output is the same bytes either way. Memory: about 250 bytes per box (three
+// endpoint lists, their indexes and their unsorted copies, three box copies, the cold sweep's
+// arrays) plus a few pair lists, 456 KiB of sort memory, and the grid's own state once a rebuild
+// has used it (kept for the next); grown with slack, so steady cycles allocate nothing.
 #include <float.h>
 #include <math.h>
 #include <stdatomic.h>
@@ -141,13 +140,14 @@ typedef struct sap_arrays {
     bpx_box *fat_prev;                                 // the same at the last cycle's end
     bpx_box *cur;                                      // this cycle's boxes
     uint32_t *changed;                                 // boxes that left their fat box
-    uint32_t *keys, *ids, *scratch_keys, *scratch_ids; // 2 * capacity: cold radix sorts
+    uint64_t *words[3];                                // 2 * capacity: a full rebuild's
+                                                       // unsorted endpoints, one per axis
     float *lo[3], *hi[3];                              // capacity + PAD: cold sweep SoA
     uint32_t *sorted_ids;                              // capacity + PAD
     uint32_t *counts;                                  // capacity + 1: pair counting sorts
 } sap_arrays;
 
-enum { ARRAY_COUNT = 3 + 3 + 4 + 4 + 6 + 2 };
+enum { ARRAY_COUNT = 3 + 3 + 3 + 4 + 6 + 2 };
 
 typedef struct sap_state {
     uint32_t capacity; // boxes the arrays hold
@@ -159,7 +159,9 @@ typedef struct sap_state {
     bool scan;         // warm cycles mend the scan list, not the endpoint lists
     float scan_width;  // at least every listed fat box's extent on the swept axis
     bool use_grid;     // the last full rebuild found the fat pairs with the grid
+    bool indexed;      // where describes the lists (a rebuild leaves that to the first mend)
     void *grid;        // the grid's state, when it did
+    bpx_radix_work *radix[3]; // the cold sorts' work memory, one per axis (from the first)
     float margin[3];   // fat margin per axis, set by each full rebuild
     sap_arrays a;
     bpx_pair_list fat_pairs; // pairs of overlapping fat boxes, (i, j) order
@@ -190,10 +192,9 @@ static int array_table(sap_arrays *a, size_t capacity, void ***ptrs, size_t *siz
     }
     ptrs[k] = (void **)&a->changed;
     sizes[k++] = capacity * sizeof(uint32_t);
-    uint32_t **radix[] = {&a->keys, &a->ids, &a->scratch_keys, &a->scratch_ids};
-    for (int r = 0; r < 4; r++) {
-        ptrs[k] = (void **)radix[r];
-        sizes[k++] = 2 * capacity * sizeof(uint32_t);
+    for (int axis = 0; axis < 3; axis++) {
+        ptrs[k] = (void **)&a->words[axis];
+        sizes[k++] = 2 * capacity * sizeof(uint64_t);
     }
     for (int axis = 0; axis < 3; axis++) {
         ptrs[k] = (void **)&a->lo[axis];
@@ -231,6 +232,8 @@ static void sap_destroy(bpx_world *w)
     if (!st)
         return;
     free_arrays(&st->a, st->capacity);
+    for (int axis = 0; axis < 3; axis++)
+        bpx__free(st->radix[axis], sizeof(bpx_radix_work));
     bpx__grid_free(&st->grid);
     bpx_pair_list *lists[] = {&st->fat_pairs,      &st->merged,         &st->changes,
                               &st->spare,          &st->axis_changes[0], &st->axis_changes[1],
@@ -542,6 +545,7 @@ typedef struct sap_job {
     uint64_t budget;
     atomic_bool stop; // a list gave up (or ran out of memory): the others stop too
     mend_result result[3];
+    uint64_t overlaps[3]; // a full rebuild's pairs overlapping on each axis
     bpx_pair *out;
 } sap_job;
 
@@ -557,6 +561,24 @@ static void mend_task(int begin, int end, int worker, void *context)
             atomic_store_explicit(&job->stop, true, memory_order_relaxed);
         job->result[axis] = r;
     }
+}
+
+static void index_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    sap_job *job = context;
+    for (int axis = begin; axis < end; axis++)
+        index_list(&job->st->a, axis, 2 * job->n);
+}
+
+// where for the three lists at once (on the workers from PARALLEL_MIN boxes).
+static void index_lists(const bpx_world *w, sap_state *st, uint32_t n)
+{
+    sap_job job = {.st = st, .n = n};
+    if (n >= PARALLEL_MIN && w->executor.worker_count > 1)
+        bpx__parallel_for(&w->executor, index_task, 3, &job);
+    else
+        index_task(0, 3, 0, &job);
 }
 
 static mend_result mend_all(bpx_world *w, sap_state *st, uint32_t n, uint32_t changed,
@@ -684,7 +706,7 @@ static mend_result mend_scan(const bpx_world *w, sap_state *st, uint32_t n, uint
     const bpx_sorted list = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]},
                              a->sorted_ids, n};
     bpx_scan_differs_fn *differs = bpx__scan_differs_for(w->simd);
-    uint32_t *found = a->scratch_keys; // 2n words, free in a warm cycle
+    uint32_t *found = (uint32_t *)a->words[0]; // free in a warm cycle
     uint64_t work = 0, budget = (uint64_t)SCAN_WORK_PER_BOX * n + MOVES_BASE;
     for (uint32_t c = 0; c < changed; c++) {
         uint32_t b = a->changed[c];
@@ -925,9 +947,15 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     bool grown = n > st->n;
-    if (grown)
+    if (grown) {
         append_boxes(st, st->n, n);
+        st->indexed = true;
+    }
     uint32_t changed = check_boxes(w, st);
+    if (!st->scan && changed > 0 && !st->indexed) {
+        index_lists(w, st, n);
+        st->indexed = true;
+    }
     if (st->scan && grown) { // the new boxes enter the scan list as inert, at its end
         int order[3];
         scan_order(st->sweep_axis, order);
@@ -1033,21 +1061,93 @@ static bpx_status grid_pairs(bpx_world *w, sap_state *st, const bpx_box *boxes)
     return bpx__grid_find(w, &st->grid, soa);
 }
 
-// The fat margins: on each axis, the (non-inert) boxes' mean extent / MARGIN_DIVISOR.
+// The fat margins: on each axis, the (non-inert) boxes' mean extent / MARGIN_DIVISOR. One pass
+// for the three axes (three passes, one per axis, took 12 ms at a million boxes).
 static void set_margins(const bpx_world *w, sap_state *st)
 {
     const bpx_box *cur = st->a.cur;
+    double sum[3] = {0.0, 0.0, 0.0};
+    uint32_t live[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < w->n; i++)
+        for (int axis = 0; axis < 3; axis++) {
+            bool in = cur[i].min[axis] <= cur[i].max[axis]; // inert boxes are min > max
+            sum[axis] += in ? (double)cur[i].max[axis] - (double)cur[i].min[axis] : 0.0;
+            live[axis] += in;
+        }
     for (int axis = 0; axis < 3; axis++) {
-        double sum = 0.0;
-        uint32_t live = 0;
-        for (uint32_t i = 0; i < w->n; i++)
-            if (cur[i].min[axis] <= cur[i].max[axis]) {
-                sum += (double)cur[i].max[axis] - (double)cur[i].min[axis];
-                live++;
-            }
-        double margin = live ? sum / live / MARGIN_DIVISOR : 0.0;
+        double margin = live[axis] ? sum[axis] / live[axis] / MARGIN_DIVISOR : 0.0;
         st->margin[axis] = margin < 1e30 ? (float)margin : 0.0f;
     }
+}
+
+// One axis's list for a full rebuild: the 2n fat endpoint words sorted into ends[axis] (minima
+// listed before maxima, and the sort is stable, so ties come out in word order); and the count
+// of pairs whose intervals overlap on the axis (inert boxes, the only ones with infinite keys,
+// left out). where[axis] waits for the first mend: a million boxes at rest may need none
+// before their next rebuild, and its 2n scattered stores took a third of the list's time.
+static void rebuild_list(sap_state *st, uint32_t n, int axis, uint64_t *overlaps)
+{
+    sap_arrays *a = &st->a;
+    uint64_t *words = a->words[axis], *ends = a->ends[axis];
+    for (uint32_t i = 0; i < n; i++) {
+        words[i] = end_word(coord_key(a->fat[i].min[axis]), i);
+        words[n + i] = end_word(coord_key(a->fat[i].max[axis]), MAX_BIT | i);
+    }
+    bpx__radix_sort_words(words, ends, 2 * n, st->radix[axis]);
+    const uint32_t inf_key = coord_key(1.0f / 0.0f), minus_inf_key = coord_key(-1.0f / 0.0f);
+    uint64_t sum = 0, open = 0;
+    for (uint32_t k = 0; k < 2 * n; k++) {
+        uint64_t e = ends[k];
+        uint32_t key = (uint32_t)(e >> 32);
+        if (key == inf_key || key == minus_inf_key)
+            continue;
+        if (e & MAX_BIT) {
+            open--;
+        } else {
+            sum += open;
+            open++;
+        }
+    }
+    *overlaps = sum;
+}
+
+static void list_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    sap_job *job = context;
+    for (int axis = begin; axis < end; axis++)
+        rebuild_list(job->st, job->n, axis, &job->overlaps[axis]);
+}
+
+// The cold sorts' work memory, on the first rebuild that needs it.
+static bool reserve_radix(sap_state *st)
+{
+    for (int axis = 0; axis < 3; axis++)
+        if (!st->radix[axis] && !(st->radix[axis] = bpx__alloc(sizeof(bpx_radix_work))))
+            return false;
+    return true;
+}
+
+static void fatten_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    sap_job *job = context;
+    sap_arrays *a = &job->st->a;
+    for (int c = begin; c < end; c++)
+        for (uint32_t i = chunk_begin(job->n, job->chunks, (uint32_t)c),
+                      i1 = chunk_begin(job->n, job->chunks, (uint32_t)c + 1);
+             i < i1; i++)
+            a->fat[i] = a->fat_prev[i] = fatten(&a->cur[i], job->st->margin);
+}
+
+// Every box's new fat box (ranges on the workers).
+static void fatten_all(const bpx_world *w, sap_state *st)
+{
+    sap_job job = {.st = st, .n = w->n, .chunks = chunks_for(w, w->n)};
+    if (job.chunks == 1)
+        fatten_task(0, 1, 0, &job);
+    else
+        bpx__parallel_for(&w->executor, fatten_task, (int)job.chunks, &job);
 }
 
 // Rebuilds the fat boxes, the lists by radix sort and the fat pairs by one sweep (into
@@ -1056,40 +1156,18 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     sap_arrays *a = &st->a;
+    if (!reserve_radix(st))
+        return BPX_ERR_OUT_OF_MEMORY;
     check_boxes(w, st); // for cur
     set_margins(w, st);
-    for (uint32_t i = 0; i < n; i++)
-        a->fat[i] = a->fat_prev[i] = fatten(&a->cur[i], st->margin);
-    const uint32_t inf_key = coord_key(1.0f / 0.0f), minus_inf_key = coord_key(-1.0f / 0.0f);
-
-    // Sorted endpoint lists; on each, the pairs whose intervals overlap on that axis (inert
-    // boxes, the only ones with infinite keys, left out).
-    uint64_t overlaps[3];
-    for (int axis = 0; axis < 3; axis++) {
-        for (uint32_t i = 0; i < n; i++) {
-            a->keys[i] = coord_key(a->fat[i].min[axis]);
-            a->ids[i] = i;
-            a->keys[n + i] = coord_key(a->fat[i].max[axis]);
-            a->ids[n + i] = (uint32_t)MAX_BIT | i;
-        }
-        bpx__radix_sort(a->keys, a->ids, a->scratch_keys, a->scratch_ids, 2 * n);
-        uint64_t *ends = a->ends[axis];
-        uint64_t sum = 0, open = 0;
-        for (size_t k = 0; k < 2 * (size_t)n; k++) {
-            uint32_t key = a->keys[k];
-            ends[k] = end_word(key, a->ids[k]);
-            a->where[axis][end_slot(ends[k])] = (uint32_t)k;
-            if (key == inf_key || key == minus_inf_key)
-                continue;
-            if (a->ids[k] & MAX_BIT) {
-                open--;
-            } else {
-                sum += open;
-                open++;
-            }
-        }
-        overlaps[axis] = sum;
-    }
+    fatten_all(w, st);
+    sap_job job = {.st = st, .n = n};
+    if (n >= PARALLEL_MIN && w->executor.worker_count > 1)
+        bpx__parallel_for(&w->executor, list_task, 3, &job);
+    else
+        list_task(0, 3, 0, &job);
+    const uint64_t *overlaps = job.overlaps;
+    st->indexed = false;
 
     // Sweep the fat boxes along the axis with the fewest overlaps, unless even that one meets
     // too many boxes per box: then the grid.
@@ -1100,6 +1178,7 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
     st->sweep_axis = axis;
     uint32_t live = 0;
     const uint64_t *ends = a->ends[axis];
+    const uint32_t inf_key = coord_key(1.0f / 0.0f);
     for (size_t k = 0; k < 2 * (size_t)n; k++) {
         uint64_t e = ends[k];
         if ((e & MAX_BIT) || (uint32_t)(e >> 32) == inf_key)
@@ -1151,19 +1230,21 @@ static bpx_status lite_rebuild(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     sap_arrays *a = &st->a;
+    if (!reserve_radix(st))
+        return BPX_ERR_OUT_OF_MEMORY;
     check_boxes(w, st); // for cur
     if (st->use_grid)
         return grid_pairs(w, st, a->cur);
     const uint32_t inf_key = coord_key(1.0f / 0.0f);
-    for (uint32_t i = 0; i < n; i++) {
-        a->keys[i] = coord_key(a->cur[i].min[st->sweep_axis]);
-        a->ids[i] = i;
-    }
-    bpx__radix_sort(a->keys, a->ids, a->scratch_keys, a->scratch_ids, n);
+    uint64_t *words = a->words[0], *sorted = a->words[1];
+    for (uint32_t i = 0; i < n; i++)
+        words[i] = end_word(coord_key(a->cur[i].min[st->sweep_axis]), i);
+    bpx__radix_sort_words(words, sorted, n, st->radix[0]);
     uint32_t live = n;
-    while (live > 0 && a->keys[live - 1] == inf_key) // inert boxes (min +inf) sort last
+    while (live > 0 && (uint32_t)(sorted[live - 1] >> 32) == inf_key) // inert: min +inf, last
         live--;
-    memcpy(a->sorted_ids, a->ids, (size_t)live * sizeof(uint32_t));
+    for (uint32_t k = 0; k < live; k++)
+        a->sorted_ids[k] = (uint32_t)sorted[k];
     return sweep(w, st, a->cur, st->sweep_axis, live);
 }
 

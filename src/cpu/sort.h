@@ -17,6 +17,25 @@ static inline uint32_t bpx__float_key(float x)
 void bpx__radix_sort(uint32_t *keys, uint32_t *ids, uint32_t *scratch_keys,
                      uint32_t *scratch_ids, uint32_t n);
 
+enum {
+    BPX_RADIX_BITS = 11,
+    BPX_RADIX_BUCKETS = 1 << BPX_RADIX_BITS,
+    BPX_RADIX_PASSES = (32 + BPX_RADIX_BITS - 1) / BPX_RADIX_BITS,
+    BPX_RADIX_LINE = 8, // words in a 64-byte cache line
+};
+
+/// Work memory of bpx__radix_sort_words (152 KiB; allocate it 64-byte aligned): each pass's
+/// bucket counts, and a cache line per bucket where words gather before they are written.
+typedef struct bpx_radix_work {
+    uint64_t lines[BPX_RADIX_BUCKETS][BPX_RADIX_LINE];
+    uint32_t counts[BPX_RADIX_PASSES][BPX_RADIX_BUCKETS];
+} bpx_radix_work;
+
+/// Stable LSD radix sort of n 64-bit words by their high 32 bits, from src into dst (both
+/// 64-byte aligned; src is left in any order). Passes whose digit is the same in every word
+/// are skipped.
+void bpx__radix_sort_words(uint64_t *src, uint64_t *dst, uint32_t n, bpx_radix_work *work);
+
 /// Insertion sort of (keys, ids) by key that gives up after max_moves element moves, for
 /// nearly sorted input. Returns true when sorted; false leaves a permutation of the input.
 bool bpx__insertion_sort(uint32_t *keys, uint32_t *ids, uint32_t n, uint64_t max_moves);
