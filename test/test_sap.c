@@ -538,6 +538,44 @@ static void test_many_boxes(int workers)
     duo_free(&d);
 }
 
+// Past 65536 boxes a rebuild's endpoint lists (2n words each, over 1 MiB) take the streamed
+// radix sort, the three at once on two workers, and the grid's input is copied on them; the
+// lists' index waits for the first mend. A few boxes moving past their fat boxes (the few-boxes
+// mend, through that index), a jump (a rebuild), then a few again.
+static void test_large_rebuilds(void)
+{
+    enum { n = 70000, cycles = 9, jump = 5 };
+    const uint64_t seed = 131;
+    check_set_seed(seed);
+    duo d = {0};
+    d.sap = make_world(BPX_BACKEND_SAP, 2, true);
+    d.ref = make_world(BPX_BACKEND_PRUNE, 1, false);
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, seed, boxes);
+    scene_rng r;
+    scene_rng_seed(&r, seed);
+    int warm = 0;
+    for (int cycle = 0; cycle < cycles; cycle++) {
+        check_set_context("large rebuilds cycle=%d", cycle);
+        if (cycle == jump) {
+            shuffle(boxes, n, &r);
+        } else if (cycle > 0) {
+            for (uint32_t k = 0; k < 40; k++) { // 40 boxes, each a third of its size along x
+                bpx_box *b = &boxes[scene_rng_below(&r, n)];
+                b->min[0] += 0.3f;
+                b->max[0] += 0.3f;
+            }
+        }
+        bool cold = duo_step(&d, boxes, n);
+        warm += !cold;
+        if (cycle == 0 || cycle == jump)
+            CHECK_MSG(cold, "cycle %d: not rebuilt", cycle);
+    }
+    CHECK_MSG(warm >= cycles - 3, "only %d warm cycles", warm);
+    free(boxes);
+    duo_free(&d);
+}
+
 static bool pair_less(bpx_pair a, bpx_pair b)
 {
     return a.i < b.i || (a.i == b.i && a.j < b.j);
@@ -818,6 +856,9 @@ int main(void)
         test_many_boxes(workers);
         printf("  many boxes, %d worker(s): %.2f s\n", workers, now_s() - t);
     }
+    double t_large = now_s();
+    test_large_rebuilds();
+    printf("  large rebuilds, 2 workers: %.2f s\n", now_s() - t_large);
     // The rebuild sweeps with the prune kernel of the world's SIMD width: the narrowest too.
     forced_simd = BPX_SIMD_SCALAR;
     double t_scalar = now_s();

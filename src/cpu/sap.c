@@ -546,6 +546,8 @@ typedef struct sap_job {
     atomic_bool stop; // a list gave up (or ran out of memory): the others stop too
     mend_result result[3];
     uint64_t overlaps[3]; // a full rebuild's pairs overlapping on each axis
+    uint32_t live[3];     // and its boxes that are not inert (the same count on each)
+    const bpx_box *boxes; // the grid's input, into SoA
     bpx_pair *out;
 } sap_job;
 
@@ -1041,21 +1043,35 @@ static bpx_status sweep(bpx_world *w, sap_state *st, const bpx_box *boxes, int a
 
 // The pairs of `boxes` (all n, by id) by the grid, into block 0 in (i, j) order: for rebuilds
 // where one axis's sweep would meet too many boxes per box (millions at constant density).
+static void soa_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    sap_job *job = context;
+    sap_arrays *a = &job->st->a;
+    for (int c = begin; c < end; c++)
+        for (uint32_t i = chunk_begin(job->n, job->chunks, (uint32_t)c),
+                      i1 = chunk_begin(job->n, job->chunks, (uint32_t)c + 1);
+             i < i1; i++)
+            for (int axis = 0; axis < 3; axis++) {
+                a->lo[axis][i] = job->boxes[i].min[axis];
+                a->hi[axis][i] = job->boxes[i].max[axis];
+            }
+}
+
 static bpx_status grid_pairs(bpx_world *w, sap_state *st, const bpx_box *boxes)
 {
     sap_arrays *a = &st->a;
     uint32_t n = w->n, padded = (n + PAD - 1) / PAD * PAD;
-    for (int axis = 0; axis < 3; axis++) {
-        float *lo = a->lo[axis], *hi = a->hi[axis];
-        for (uint32_t i = 0; i < n; i++) {
-            lo[i] = boxes[i].min[axis];
-            hi[i] = boxes[i].max[axis];
-        }
+    sap_job job = {.st = st, .n = n, .chunks = chunks_for(w, n), .boxes = boxes};
+    if (job.chunks == 1)
+        soa_task(0, 1, 0, &job);
+    else
+        bpx__parallel_for(&w->executor, soa_task, (int)job.chunks, &job);
+    for (int axis = 0; axis < 3; axis++)
         for (uint32_t i = n; i < padded; i++) {
-            lo[i] = 1.0f / 0.0f;
-            hi[i] = -1.0f / 0.0f;
+            a->lo[axis][i] = 1.0f / 0.0f;
+            a->hi[axis][i] = -1.0f / 0.0f;
         }
-    }
     bpx_soa soa = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]}, n};
     bpx__grid_forget(st->grid); // its last call may be long ago, on other boxes
     return bpx__grid_find(w, &st->grid, soa);
@@ -1085,7 +1101,8 @@ static void set_margins(const bpx_world *w, sap_state *st)
 // of pairs whose intervals overlap on the axis (inert boxes, the only ones with infinite keys,
 // left out). where[axis] waits for the first mend: a million boxes at rest may need none
 // before their next rebuild, and its 2n scattered stores took a third of the list's time.
-static void rebuild_list(sap_state *st, uint32_t n, int axis, uint64_t *overlaps)
+static void rebuild_list(sap_state *st, uint32_t n, int axis, uint64_t *overlaps,
+                         uint32_t *live)
 {
     sap_arrays *a = &st->a;
     uint64_t *words = a->words[axis], *ends = a->ends[axis];
@@ -1095,7 +1112,7 @@ static void rebuild_list(sap_state *st, uint32_t n, int axis, uint64_t *overlaps
     }
     bpx__radix_sort_words(words, ends, 2 * n, st->radix[axis]);
     const uint32_t inf_key = coord_key(1.0f / 0.0f), minus_inf_key = coord_key(-1.0f / 0.0f);
-    uint64_t sum = 0, open = 0;
+    uint64_t sum = 0, open = 0, minima = 0;
     for (uint32_t k = 0; k < 2 * n; k++) {
         uint64_t e = ends[k];
         uint32_t key = (uint32_t)(e >> 32);
@@ -1106,9 +1123,11 @@ static void rebuild_list(sap_state *st, uint32_t n, int axis, uint64_t *overlaps
         } else {
             sum += open;
             open++;
+            minima++;
         }
     }
     *overlaps = sum;
+    *live = (uint32_t)minima;
 }
 
 static void list_task(int begin, int end, int worker, void *context)
@@ -1116,7 +1135,7 @@ static void list_task(int begin, int end, int worker, void *context)
     (void)worker;
     sap_job *job = context;
     for (int axis = begin; axis < end; axis++)
-        rebuild_list(job->st, job->n, axis, &job->overlaps[axis]);
+        rebuild_list(job->st, job->n, axis, &job->overlaps[axis], &job->live[axis]);
 }
 
 // The cold sorts' work memory, on the first rebuild that needs it.
@@ -1176,16 +1195,16 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
         if (overlaps[k] < overlaps[axis])
             axis = k;
     st->sweep_axis = axis;
-    uint32_t live = 0;
-    const uint64_t *ends = a->ends[axis];
-    const uint32_t inf_key = coord_key(1.0f / 0.0f);
-    for (size_t k = 0; k < 2 * (size_t)n; k++) {
-        uint64_t e = ends[k];
-        if ((e & MAX_BIT) || (uint32_t)(e >> 32) == inf_key)
-            continue; // maxima, and the minima of inert boxes (min +inf)
-        a->sorted_ids[live++] = (uint32_t)e & BOX_MASK;
-    }
+    uint32_t live = job.live[axis]; // inert boxes are +inf..-inf on every axis
     st->use_grid = (double)overlaps[axis] > BPX_SWEEP_MAX_CANDIDATES * live;
+    if (!st->use_grid) {
+        const uint64_t *ends = a->ends[axis];
+        const uint32_t inf_key = coord_key(1.0f / 0.0f);
+        uint32_t k = 0;
+        for (size_t e = 0; e < 2 * (size_t)n; e++) // the minima of the live boxes, in order
+            if (!(ends[e] & MAX_BIT) && (uint32_t)(ends[e] >> 32) != inf_key)
+                a->sorted_ids[k++] = (uint32_t)ends[e] & BOX_MASK;
+    }
     bpx_status status = st->use_grid ? grid_pairs(w, st, a->fat) : sweep(w, st, a->fat, axis, live);
     if (status != BPX_OK)
         return status;
