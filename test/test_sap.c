@@ -576,6 +576,49 @@ static void test_large_rebuilds(void)
     duo_free(&d);
 }
 
+// Moves `count` boxes (from `first` on, every third) along x by `dx`.
+static void nudge(bpx_box *boxes, uint32_t first, uint32_t count, float dx)
+{
+    for (uint32_t k = 0; k < count; k++) {
+        boxes[first + 3 * k].min[0] += dx;
+        boxes[first + 3 * k].max[0] += dx;
+    }
+}
+
+// The one-pass mend right after a rebuild, before any mend has made where (the changed boxes'
+// words found by a pass over each list), then the few-boxes mend (which makes where), then the
+// one-pass mend again (through where). Endpoint lists (one wide box), two workers.
+static void test_one_pass_after_rebuild(void)
+{
+    enum { n = 20000 };
+    const uint64_t seed = 141;
+    check_set_seed(seed);
+    duo d = {0};
+    d.sap = make_world(BPX_BACKEND_SAP, 2, true);
+    d.ref = make_world(BPX_BACKEND_PRUNE, 1, false);
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, seed, boxes);
+    widen_one(boxes);
+    // A box leaves its fat box past a margin of 1/16 of the mean extent (about 1 here); 0.3 is
+    // past what the fat boxes' margins cover, so pairs begin and end.
+    const struct {
+        uint32_t first, count;
+        float dx;
+        const char *what;
+    } steps[] = {{0, 0, 0.0f, "rebuild"},
+                 {1, 400, 0.3f, "one pass, before where"},
+                 {2, 10, 0.3f, "few boxes, making where"},
+                 {1, 400, -0.3f, "one pass, through where"},
+                 {2, 10, -0.3f, "few boxes again"}};
+    for (size_t k = 0; k < sizeof steps / sizeof steps[0]; k++) {
+        check_set_context("one pass after rebuild: %s", steps[k].what);
+        nudge(boxes, steps[k].first, steps[k].count, steps[k].dx);
+        STEP_EXPECT(&d, boxes, n, k == 0, steps[k].what);
+    }
+    free(boxes);
+    duo_free(&d);
+}
+
 static bool pair_less(bpx_pair a, bpx_pair b)
 {
     return a.i < b.i || (a.i == b.i && a.j < b.j);
@@ -856,6 +899,7 @@ int main(void)
         test_many_boxes(workers);
         printf("  many boxes, %d worker(s): %.2f s\n", workers, now_s() - t);
     }
+    test_one_pass_after_rebuild();
     double t_large = now_s();
     test_large_rebuilds();
     printf("  large rebuilds, 2 workers: %.2f s\n", now_s() - t_large);

@@ -22,8 +22,8 @@
 //     the boxes that left their fat boxes.
 //  2. None: nothing to mend. A few (at most n / 64 + 16): each in turn gets a new fat box, and
 //     its six endpoints are found by where (each word's index in its list, kept by every move:
-//     a binary search per endpoint was 60% of this mend at 1k boxes) and moved to their places,
-//     the lists sorted at every step. More (or boxes were added): the moved boxes' endpoints
+//     a binary search per endpoint was 60% of this mend at 1k boxes; made after a rebuild by
+//     the first such mend) and moved to their places, the lists sorted at every step. More (or boxes were added): the moved boxes' endpoints
 //     take their new words in place and each list is mended by one pass of insertion sort (the
 //     three at once on the workers). Insertion swaps exactly
 //     the endpoints whose relative order changed, and the order of min_a and max_b is the truth
@@ -490,9 +490,20 @@ static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_
 //
 // mend_list mends one axis's list: its budget is a third of the cycle's, and it gives up early
 // when its first part projects far past that. The lists are independent: the three run on the
-// workers at once (mend_all).
-static mend_result mend_list(sap_state *st, uint32_t n, uint32_t changed, uint64_t budget,
-                             int axis, atomic_bool *stop)
+// workers at once (mend_all). While where is not made yet (since the last rebuild), the changed
+// boxes' words are renewed as the pass reaches them (`moved` flags them), and where stays
+// unmade: a million boxes at rest after a rebuild leave their fat boxes together ~60 cycles
+// later, too many to mend, and indexing the lists first cost that give-up 45 ms on 2 threads.
+// Word w as its box's fat box has it now, if `moved` flags the box.
+static inline uint64_t fresh_word(uint64_t w, const bpx_box *fat, int axis, const uint64_t *moved)
+{
+    uint32_t b = (uint32_t)w & BOX_MASK;
+    return moved[b / 64] >> (b % 64) & 1 ? fat_word(&fat[b], axis, (w & MAX_BIT) != 0, b) : w;
+}
+
+static inline mend_result mend_list_as(sap_state *st, uint32_t n, uint32_t changed,
+                                       uint64_t budget, int axis, atomic_bool *stop,
+                                       const uint64_t *moved, bool keep_where)
 {
     const bpx_box *fat = st->a.fat, *prev = st->a.fat_prev;
     bpx_pair_list *changes = &st->axis_changes[axis];
@@ -501,13 +512,19 @@ static mend_result mend_list(sap_state *st, uint32_t n, uint32_t changed, uint64
     uint64_t moves = 0;
     budget /= 3;
     changes->count = 0;
-    for (uint32_t c = 0; c < changed; c++) {
-        uint32_t b = st->a.changed[c];
-        ends[where[2 * b]] = fat_word(&fat[b], axis, false, b);
-        ends[where[2 * b + 1]] = fat_word(&fat[b], axis, true, b);
+    if (keep_where) {
+        for (uint32_t c = 0; c < changed; c++) {
+            uint32_t b = st->a.changed[c];
+            ends[where[2 * b]] = fat_word(&fat[b], axis, false, b);
+            ends[where[2 * b + 1]] = fat_word(&fat[b], axis, true, b);
+        }
+    } else if (n > 0) {
+        ends[0] = fresh_word(ends[0], fat, axis, moved);
     }
     uint32_t check = CHECK_EVERY;
     for (uint32_t k = 1; k < 2 * n; k++) {
+        if (!keep_where) // each word as the pass reaches it, so that a give-up comes early
+            ends[k] = fresh_word(ends[k], fat, axis, moved);
         if (ends[k - 1] < ends[k])
             continue;
         uint64_t x = ends[k];
@@ -520,11 +537,13 @@ static mend_result mend_list(sap_state *st, uint32_t n, uint32_t changed, uint64
                 !push(changes, ordered(b, other)))
                 return MEND_NO_MEMORY;
             ends[at] = past;
-            where[end_slot(past)] = at;
+            if (keep_where)
+                where[end_slot(past)] = at;
             at--;
         } while (at > 0 && ends[at - 1] > x);
         ends[at] = x;
-        where[end_slot(x)] = at;
+        if (keep_where)
+            where[end_slot(x)] = at;
         moves += k - at;
         if (moves > budget)
             return MEND_GAVE_UP;
@@ -538,6 +557,13 @@ static mend_result mend_list(sap_state *st, uint32_t n, uint32_t changed, uint64
     return MEND_DONE;
 }
 
+static mend_result mend_list(sap_state *st, uint32_t n, uint32_t changed, uint64_t budget,
+                             int axis, atomic_bool *stop, const uint64_t *moved)
+{
+    return st->indexed ? mend_list_as(st, n, changed, budget, axis, stop, moved, true)
+                       : mend_list_as(st, n, changed, budget, axis, stop, moved, false);
+}
+
 typedef struct sap_job {
     sap_state *st;
     const bpx_world *w;
@@ -548,6 +574,7 @@ typedef struct sap_job {
     uint64_t overlaps[3]; // a full rebuild's pairs overlapping on each axis
     uint32_t live[3];     // and its boxes that are not inert (the same count on each)
     const bpx_box *boxes; // the grid's input, into SoA
+    const uint64_t *moved; // the one-pass mend's changed boxes, a bit each (without where)
     bpx_pair *out;
 } sap_job;
 
@@ -558,7 +585,8 @@ static void mend_task(int begin, int end, int worker, void *context)
     for (int axis = begin; axis < end; axis++) {
         mend_result r = MEND_GAVE_UP;
         if (!atomic_load_explicit(&job->stop, memory_order_relaxed))
-            r = mend_list(job->st, job->n, job->changed, job->budget, axis, &job->stop);
+            r = mend_list(job->st, job->n, job->changed, job->budget, axis, &job->stop,
+                          job->moved);
         if (r != MEND_DONE)
             atomic_store_explicit(&job->stop, true, memory_order_relaxed);
         job->result[axis] = r;
@@ -590,7 +618,14 @@ static mend_result mend_all(bpx_world *w, sap_state *st, uint32_t n, uint32_t ch
         uint32_t b = st->a.changed[c];
         st->a.fat[b] = fatten(&st->a.cur[b], st->margin);
     }
-    sap_job job = {.st = st, .n = n, .changed = changed, .budget = budget};
+    uint64_t *moved = NULL; // without where: the changed boxes as bits (in a rebuild's array)
+    if (!st->indexed) {
+        moved = st->a.words[1];
+        memset(moved, 0, ((size_t)n + 63) / 64 * sizeof *moved);
+        for (uint32_t c = 0; c < changed; c++)
+            moved[st->a.changed[c] / 64] |= UINT64_C(1) << (st->a.changed[c] % 64);
+    }
+    sap_job job = {.st = st, .n = n, .changed = changed, .budget = budget, .moved = moved};
     atomic_init(&job.stop, false);
     if (n >= PARALLEL_MIN && w->executor.worker_count > 1)
         bpx__parallel_for(&w->executor, mend_task, 3, &job);
@@ -954,10 +989,6 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
         st->indexed = true;
     }
     uint32_t changed = check_boxes(w, st);
-    if (!st->scan && changed > 0 && !st->indexed) {
-        index_lists(w, st, n);
-        st->indexed = true;
-    }
     if (st->scan && grown) { // the new boxes enter the scan list as inert, at its end
         int order[3];
         scan_order(st->sweep_axis, order);
@@ -975,6 +1006,10 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
     } else if (grown || changed > n / FEW_DIVISOR + FEW_BASE) {
         r = mend_all(w, st, n, changed, budget);
     } else if (changed > 0) {
+        if (!st->indexed) {
+            index_lists(w, st, n);
+            st->indexed = true;
+        }
         r = mend_few(st, n, changed, budget);
     }
     if (r != MEND_DONE)
@@ -1099,8 +1134,9 @@ static void set_margins(const bpx_world *w, sap_state *st)
 // One axis's list for a full rebuild: the 2n fat endpoint words sorted into ends[axis] (minima
 // listed before maxima, and the sort is stable, so ties come out in word order); and the count
 // of pairs whose intervals overlap on the axis (inert boxes, the only ones with infinite keys,
-// left out). where[axis] waits for the first mend: a million boxes at rest may need none
-// before their next rebuild, and its 2n scattered stores took a third of the list's time.
+// left out). where[axis] waits for the first few-boxes mend (the one-pass mend does without):
+// a million boxes at rest may need none before their next rebuild, and its 2n scattered stores
+// took a third of the list's time.
 static void rebuild_list(sap_state *st, uint32_t n, int axis, uint64_t *overlaps,
                          uint32_t *live)
 {
