@@ -62,9 +62,9 @@ static void merge_sort(uint64_t *a, uint64_t *tmp, size_t n)
     memcpy(a, tmp, n * sizeof *a);
 }
 
-static void test_size(uint32_t n, key_kind kind, bpx_radix_work *work)
+static void test_size(uint32_t n, key_kind kind, bpx_radix_work *work, int streamed)
 {
-    check_set_context("n=%u keys=%s", n, kind_names[kind]);
+    check_set_context("n=%u keys=%s lines=%d", n, kind_names[kind], streamed);
     size_t bytes = (n ? n : 1) * sizeof(uint64_t);
     uint64_t *src = bpx__alloc(bytes), *dst = bpx__alloc(bytes);
     uint64_t *want = check_alloc(bytes), *tmp = check_alloc(bytes);
@@ -92,15 +92,20 @@ static void test_size(uint32_t n, key_kind kind, bpx_radix_work *work)
 int main(void)
 {
     bpx_radix_work *work = bpx__alloc(sizeof *work);
-    CHECK(work != NULL);
-    if (!work)
+    bpx_radix_lines *lines = bpx__alloc(sizeof *lines);
+    CHECK(work != NULL && lines != NULL);
+    if (!work || !lines)
         return check_finish("test_sort", 1);
-    // 131072 words are the first size the streamed path takes (1 MiB); odd sizes leave partial
-    // lines at every bucket's ends.
+    // BPX_RADIX_STREAM_WORDS (131072) is the first size the streamed path takes; odd sizes leave
+    // partial lines at every bucket's ends. Without lines, every size takes the plain path.
     const uint32_t sizes[] = {0, 1, 2, 7, 8, 9, 1000, 4097, 131071, 131072, 131073, 300007};
-    for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++)
-        for (int kind = 0; kind < KEY_KINDS; kind++)
-            test_size(sizes[s], (key_kind)kind, work);
+    for (int streamed = 0; streamed < 2; streamed++) {
+        work->lines = streamed ? lines : NULL;
+        for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++)
+            for (int kind = 0; kind < KEY_KINDS; kind++)
+                test_size(sizes[s], (key_kind)kind, work, streamed);
+    }
+    bpx__free(lines, sizeof *lines);
     bpx__free(work, sizeof *work);
     return check_finish("test_sort", 1);
 }

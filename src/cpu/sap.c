@@ -20,17 +20,17 @@
 // A warm cycle (O(n + p_fat) plus the mending, k the fat pairs that may have changed):
 //  1. One pass (ranges on the workers) copies the boxes (AoS, for the exact filter) and lists
 //     the boxes that left their fat boxes.
-//  2. None: nothing to mend. A few (at most n / 64 + 16): each in turn gets a new fat box, and
-//     its six endpoints are found by where (each word's index in its list, kept by every move:
-//     a binary search per endpoint was 60% of this mend at 1k boxes; made after a rebuild by
-//     the first such mend) and moved to their places, the lists sorted at every step. More (or boxes were added): the moved boxes' endpoints
-//     take their new words in place and each list is mended by one pass of insertion sort (the
-//     three at once on the workers). Insertion swaps exactly
-//     the endpoints whose relative order changed, and the order of min_a and max_b is the truth
-//     of lo_a <= hi_b, so a pair whose fat overlap changed has at least one of its six
+//  2. None: nothing to mend. A few (at most n / 64 + 16): each in turn gets a new fat box, and its
+//     six endpoints are found by where (each word's index in its list, kept by every move: a
+//     binary search per endpoint was 60% of this mend at 1k boxes; made after a rebuild by the
+//     first such mend) and moved to their places, the lists sorted at every step. More (or boxes
+//     were added): the moved boxes' endpoints take their new words in place and each list is
+//     mended by one pass of insertion sort (the three at once on the workers). Insertion swaps
+//     exactly the endpoints whose relative order changed, and the order of min_a and max_b is the
+//     truth of lo_a <= hi_b, so a pair whose fat overlap changed has at least one of its six
 //     conditions flipped: it is met at least once as a swap of a min with a max, and noted when
-//     the fat boxes' overlap before and after the step differ (box by box: b's old and new fat
-//     box against the other's current one; all at once: old against old, new against new).
+//     the fat boxes' overlap before and after the step differ (box by box: b's old and new fat box
+//     against the other's current one; all at once: old against old, new against new).
 //  3. The noted pairs (few when the scene is coherent) are sorted and merged into the fat
 //     pairs: each is kept iff the fat boxes overlap now, whether or not it was there before. So
 //     a pair noted twice, or noted and then turned back, costs nothing but a test.
@@ -76,10 +76,11 @@
 // one-pass mend and a full rebuild's sorts run the three lists at once (each list has its own sort
 // memory: at a million boxes the three sorts in a row were half of a rebuild, and a rebuild is
 // what sets p99 there); the few-boxes mend is serial; the cold sweep (or grid) runs on the
-// workers. The output is the same bytes either way. Memory: about 250 bytes per box (three
+// workers. The output is the same bytes either way. Memory: about 230 bytes per box (three
 // endpoint lists, their indexes and their unsorted copies, three box copies, the cold sweep's
-// arrays) plus a few pair lists, 456 KiB of sort memory, and the grid's own state once a rebuild
-// has used it (kept for the next); grown with slack, so steady cycles allocate nothing.
+// arrays) plus a few pair lists, 24 KiB of sort memory (72 KiB when the lists sort at once, and
+// 128 KiB more per list past 65,536 boxes), and the grid's own state once a rebuild has used it
+// (kept for the next); grown with slack, so steady cycles allocate nothing.
 #include <float.h>
 #include <math.h>
 #include <stdatomic.h>
@@ -140,8 +141,8 @@ typedef struct sap_arrays {
     bpx_box *fat_prev;                                 // the same at the last cycle's end
     bpx_box *cur;                                      // this cycle's boxes
     uint32_t *changed;                                 // boxes that left their fat box
-    uint64_t *words[3];                                // 2 * capacity: a full rebuild's
-                                                       // unsorted endpoints, one per axis
+    uint64_t *words[3]; // 2 * capacity: a full rebuild's unsorted endpoints, one per axis; free
+                        // in warm cycles (the scan mend's found boxes, the one-pass mend's bits)
     float *lo[3], *hi[3];                              // capacity + PAD: cold sweep SoA
     uint32_t *sorted_ids;                              // capacity + PAD
     uint32_t *counts;                                  // capacity + 1: pair counting sorts
@@ -161,7 +162,7 @@ typedef struct sap_state {
     bool use_grid;     // the last full rebuild found the fat pairs with the grid
     bool indexed;      // where describes the lists (a rebuild leaves that to the first mend)
     void *grid;        // the grid's state, when it did
-    bpx_radix_work *radix[3]; // the cold sorts' work memory, one per axis (from the first)
+    bpx_radix_work *radix[3]; // the cold sorts' work memory: one per list sorted at once
     float margin[3];   // fat margin per axis, set by each full rebuild
     sap_arrays a;
     bpx_pair_list fat_pairs; // pairs of overlapping fat boxes, (i, j) order
@@ -232,8 +233,11 @@ static void sap_destroy(bpx_world *w)
     if (!st)
         return;
     free_arrays(&st->a, st->capacity);
-    for (int axis = 0; axis < 3; axis++)
-        bpx__free(st->radix[axis], sizeof(bpx_radix_work));
+    for (int k = 0; k < 3; k++)
+        if (st->radix[k]) {
+            bpx__free(st->radix[k]->lines, sizeof(bpx_radix_lines));
+            bpx__free(st->radix[k], sizeof(bpx_radix_work));
+        }
     bpx__grid_free(&st->grid);
     bpx_pair_list *lists[] = {&st->fat_pairs,      &st->merged,         &st->changes,
                               &st->spare,          &st->axis_changes[0], &st->axis_changes[1],
@@ -1137,8 +1141,8 @@ static void set_margins(const bpx_world *w, sap_state *st)
 // left out). where[axis] waits for the first few-boxes mend (the one-pass mend does without):
 // a million boxes at rest may need none before their next rebuild, and its 2n scattered stores
 // took a third of the list's time.
-static void rebuild_list(sap_state *st, uint32_t n, int axis, uint64_t *overlaps,
-                         uint32_t *live)
+static void rebuild_list(sap_state *st, uint32_t n, int axis, bpx_radix_work *work,
+                         uint64_t *overlaps, uint32_t *live)
 {
     sap_arrays *a = &st->a;
     uint64_t *words = a->words[axis], *ends = a->ends[axis];
@@ -1146,7 +1150,7 @@ static void rebuild_list(sap_state *st, uint32_t n, int axis, uint64_t *overlaps
         words[i] = end_word(coord_key(a->fat[i].min[axis]), i);
         words[n + i] = end_word(coord_key(a->fat[i].max[axis]), MAX_BIT | i);
     }
-    bpx__radix_sort_words(words, ends, 2 * n, st->radix[axis]);
+    bpx__radix_sort_words(words, ends, 2 * n, work);
     const uint32_t inf_key = coord_key(1.0f / 0.0f), minus_inf_key = coord_key(-1.0f / 0.0f);
     uint64_t sum = 0, open = 0, minima = 0;
     for (uint32_t k = 0; k < 2 * n; k++) {
@@ -1171,15 +1175,24 @@ static void list_task(int begin, int end, int worker, void *context)
     (void)worker;
     sap_job *job = context;
     for (int axis = begin; axis < end; axis++)
-        rebuild_list(job->st, job->n, axis, &job->overlaps[axis], &job->live[axis]);
+        rebuild_list(job->st, job->n, axis, job->st->radix[job->chunks > 1 ? axis : 0],
+                     &job->overlaps[axis], &job->live[axis]);
 }
 
-// The cold sorts' work memory, on the first rebuild that needs it.
-static bool reserve_radix(sap_state *st)
+// The cold sorts' work memory for `sorts` lists at once, of `words` words each: made by the
+// first rebuild that needs it (the lines only for lists long enough to stream), then kept.
+static bool reserve_radix(sap_state *st, int sorts, size_t words)
 {
-    for (int axis = 0; axis < 3; axis++)
-        if (!st->radix[axis] && !(st->radix[axis] = bpx__alloc(sizeof(bpx_radix_work))))
+    for (int k = 0; k < sorts; k++) {
+        if (!st->radix[k]) {
+            if (!(st->radix[k] = bpx__alloc(sizeof(bpx_radix_work))))
+                return false;
+            st->radix[k]->lines = NULL;
+        }
+        if (words >= BPX_RADIX_STREAM_WORDS && !st->radix[k]->lines &&
+            !(st->radix[k]->lines = bpx__alloc(sizeof(bpx_radix_lines))))
             return false;
+    }
     return true;
 }
 
@@ -1211,13 +1224,14 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     sap_arrays *a = &st->a;
-    if (!reserve_radix(st))
+    bool parallel = n >= PARALLEL_MIN && w->executor.worker_count > 1;
+    if (!reserve_radix(st, parallel ? 3 : 1, 2 * (size_t)n))
         return BPX_ERR_OUT_OF_MEMORY;
     check_boxes(w, st); // for cur
     set_margins(w, st);
     fatten_all(w, st);
-    sap_job job = {.st = st, .n = n};
-    if (n >= PARALLEL_MIN && w->executor.worker_count > 1)
+    sap_job job = {.st = st, .n = n, .chunks = parallel ? 3 : 1}; // chunks: the sorts' memory
+    if (parallel)
         bpx__parallel_for(&w->executor, list_task, 3, &job);
     else
         list_task(0, 3, 0, &job);
@@ -1285,7 +1299,7 @@ static bpx_status lite_rebuild(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     sap_arrays *a = &st->a;
-    if (!reserve_radix(st))
+    if (!reserve_radix(st, 1, n))
         return BPX_ERR_OUT_OF_MEMORY;
     check_boxes(w, st); // for cur
     if (st->use_grid)

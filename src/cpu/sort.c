@@ -34,10 +34,6 @@ void bpx__radix_sort(uint32_t *keys, uint32_t *ids, uint32_t *scratch_keys,
     }
 }
 
-// Past this many bytes the words leave the caches between passes (L2 is 1.25 MiB a core on
-// the 2-vCPU Xeon VM): a pass then writes whole lines, bypassing the cache.
-enum { STREAM_MIN_BYTES = 1 << 20 };
-
 // One gathered line out to memory, bypassing the cache: no read for ownership of a line that
 // is about to be overwritten.
 static inline void put_line(uint64_t *to, const uint64_t *line)
@@ -52,17 +48,19 @@ static inline void put_line(uint64_t *to, const uint64_t *line)
 #endif
 }
 
-// One pass by the digit at `shift`: counts[b] is where bucket b starts in dst. Large inputs
-// gather a line per bucket and write it whole (words scattered one by one to 2048 places each
-// cost a read of their line first: 2M words took 66-72 ms plain, 37-45 gathered, on the VM).
-// A line shared by two buckets (where one ends and the next begins) is written whole by the
-// later one, garbage in the earlier one's part included; the tails written at the end restore
-// them, so every word lands where the plain pass would put it.
+// One pass by the digit at `shift`: counts[b] is where bucket b starts in dst. Past
+// BPX_RADIX_STREAM_WORDS the words leave the caches between passes (L2 is 1.25 MiB a core on the
+// 2-vCPU Xeon VM), so a pass gathers a line per bucket and writes it whole, bypassing the cache
+// (words scattered one by one to 2048 places each cost a read of their line first: 2M words
+// took 66-72 ms plain, 37-45 gathered, on the VM; 200k words 3.3 against 2.4 ms). A line shared
+// by several buckets (a bucket can be shorter than a line) is written whole by the last of them,
+// garbage in the others' parts included; those parts are the others' tails, written at the end,
+// so every word lands where the plain pass would put it.
 static void radix_pass(const uint64_t *src, uint64_t *dst, uint32_t n, int shift, uint32_t *counts,
                        bpx_radix_work *work)
 {
     const uint32_t mask = BPX_RADIX_BUCKETS - 1;
-    if ((size_t)n * sizeof *src < STREAM_MIN_BYTES) {
+    if (n < BPX_RADIX_STREAM_WORDS || !work->lines) {
         for (uint32_t k = 0; k < n; k++) {
             uint64_t x = src[k];
             dst[counts[(x >> shift) & mask]++] = x;
@@ -73,9 +71,9 @@ static void radix_pass(const uint64_t *src, uint64_t *dst, uint32_t n, int shift
         uint64_t x = src[k];
         uint32_t b = (uint32_t)(x >> shift) & mask;
         uint32_t at = counts[b]++;
-        work->lines[b][at % BPX_RADIX_LINE] = x;
+        (*work->lines)[b][at % BPX_RADIX_LINE] = x;
         if (at % BPX_RADIX_LINE == BPX_RADIX_LINE - 1)
-            put_line(dst + (at - (BPX_RADIX_LINE - 1)), work->lines[b]);
+            put_line(dst + (at - (BPX_RADIX_LINE - 1)), (*work->lines)[b]);
     }
 #if defined(__SSE2__)
     _mm_sfence(); // the streamed lines before the plain stores below, and before any reader
@@ -84,7 +82,7 @@ static void radix_pass(const uint64_t *src, uint64_t *dst, uint32_t n, int shift
     for (uint32_t b = 0; b < BPX_RADIX_BUCKETS; b++) {
         uint32_t end = counts[b], line = end - end % BPX_RADIX_LINE;
         for (uint32_t at = line > begin ? line : begin; at < end; at++)
-            dst[at] = work->lines[b][at % BPX_RADIX_LINE];
+            dst[at] = (*work->lines)[b][at % BPX_RADIX_LINE];
         begin = end;
     }
 }

@@ -21,19 +21,23 @@ enum {
     BPX_RADIX_BITS = 11,
     BPX_RADIX_BUCKETS = 1 << BPX_RADIX_BITS,
     BPX_RADIX_PASSES = (32 + BPX_RADIX_BITS - 1) / BPX_RADIX_BITS,
-    BPX_RADIX_LINE = 8, // words in a 64-byte cache line
+    BPX_RADIX_LINE = 8,               // words in a 64-byte cache line
+    BPX_RADIX_STREAM_WORDS = 1 << 17, // 1 MiB of words: from here on, passes stream (lines)
 };
 
-/// Work memory of bpx__radix_sort_words (152 KiB; allocate it 64-byte aligned): each pass's
-/// bucket counts, and a cache line per bucket where words gather before they are written.
+/// A cache line per bucket, where words gather before they are written (128 KiB).
+typedef uint64_t bpx_radix_lines[BPX_RADIX_BUCKETS][BPX_RADIX_LINE];
+
+/// Work memory of bpx__radix_sort_words: each pass's bucket counts (24 KiB), and the lines
+/// (64-byte aligned), wanted only from BPX_RADIX_STREAM_WORDS words on (NULL: plain stores).
 typedef struct bpx_radix_work {
-    uint64_t lines[BPX_RADIX_BUCKETS][BPX_RADIX_LINE];
     uint32_t counts[BPX_RADIX_PASSES][BPX_RADIX_BUCKETS];
+    bpx_radix_lines *lines;
 } bpx_radix_work;
 
-/// Stable LSD radix sort of n 64-bit words by their high 32 bits, from src into dst (both
-/// 64-byte aligned; src is left in any order). Passes whose digit is the same in every word
-/// are skipped.
+/// Stable LSD radix sort of n 64-bit words by their high 32 bits, from src into dst (src is
+/// left in any order; both 64-byte aligned when work->lines is set). Passes whose digit is the
+/// same in every word are skipped.
 void bpx__radix_sort_words(uint64_t *src, uint64_t *dst, uint32_t n, bpx_radix_work *work);
 
 /// Insertion sort of (keys, ids) by key that gives up after max_moves element moves, for
