@@ -1080,8 +1080,6 @@ static bpx_status sweep(bpx_world *w, sap_state *st, const bpx_box *boxes, int a
     return bpx__emitter_sort_blocks(w, &st->merged, &st->spare, a->counts);
 }
 
-// The pairs of `boxes` (all n, by id) by the grid, into block 0 in (i, j) order: for rebuilds
-// where one axis's sweep would meet too many boxes per box (millions at constant density).
 static void soa_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
@@ -1097,6 +1095,8 @@ static void soa_task(int begin, int end, int worker, void *context)
             }
 }
 
+// The pairs of `boxes` (all n, by id) by the grid, into block 0 in (i, j) order: for rebuilds
+// where one axis's sweep would meet too many boxes per box (millions at constant density).
 static bpx_status grid_pairs(bpx_world *w, sap_state *st, const bpx_box *boxes)
 {
     sap_arrays *a = &st->a;
