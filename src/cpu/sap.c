@@ -486,6 +486,13 @@ static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_
     return MEND_DONE;
 }
 
+// Word w as its box's fat box has it now, if `moved` flags the box.
+static inline uint64_t fresh_word(uint64_t w, const bpx_box *fat, int axis, const uint64_t *moved)
+{
+    uint32_t b = (uint32_t)w & BOX_MASK;
+    return moved[b / 64] >> (b % 64) & 1 ? fat_word(&fat[b], axis, (w & MAX_BIT) != 0, b) : w;
+}
+
 // Many boxes left their fat boxes (or boxes were added): every changed box gets its new fat
 // box at once, its endpoints take their new words where they are (found by where), and each
 // list is mended by one pass of insertion sort. The pass skips the words already in order
@@ -498,13 +505,6 @@ static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_
 // boxes' words are renewed as the pass reaches them (`moved` flags them), and where stays
 // unmade: a million boxes at rest after a rebuild leave their fat boxes together ~60 cycles
 // later, too many to mend, and indexing the lists first cost that give-up 45 ms on 2 threads.
-// Word w as its box's fat box has it now, if `moved` flags the box.
-static inline uint64_t fresh_word(uint64_t w, const bpx_box *fat, int axis, const uint64_t *moved)
-{
-    uint32_t b = (uint32_t)w & BOX_MASK;
-    return moved[b / 64] >> (b % 64) & 1 ? fat_word(&fat[b], axis, (w & MAX_BIT) != 0, b) : w;
-}
-
 static inline mend_result mend_list_as(sap_state *st, uint32_t n, uint32_t changed,
                                        uint64_t budget, int axis, atomic_bool *stop,
                                        const uint64_t *moved, bool keep_where)
