@@ -582,6 +582,56 @@ static void nudge(bpx_box *boxes, uint32_t first, uint32_t count, float dx)
     }
 }
 
+// Dense boxes, past 65536: the grid finds the fat pairs, and a rebuild after the first keeps
+// that choice and leaves the endpoint lists unmade until a warm cycle must mend. Cycles with
+// nothing to mend stay warm without them; a few boxes leaving their fat boxes make them first;
+// many (more than even the fewest moves expected allow) and added boxes rebuild without trying.
+// Quiet cycles between give-ups, so that none counts as incoherent motion.
+static void test_lists_on_demand(void)
+{
+    enum { n = 70000, grow = 10 };
+    const uint64_t seed = 151;
+    check_set_seed(seed);
+    duo d = {0};
+    d.sap = make_world(BPX_BACKEND_SAP, 2, true);
+    d.ref = make_world(BPX_BACKEND_PRUNE, 1, false);
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * (n + grow));
+    scene_uniform_density(n + grow, 1.0f, seed, boxes);
+    scene_rng r;
+    scene_rng_seed(&r, seed);
+    enum { STILL, SHUFFLE, FEW, MANY, GROW };
+    const struct {
+        int what;
+        bool cold;
+        const char *name;
+    } steps[] = {{STILL, true, "first"},
+                 {SHUFFLE, true, "jump: lists kept unmade"},
+                 {STILL, false, "still, no lists"},
+                 {FEW, false, "few leave: lists made"},
+                 {SHUFFLE, true, "jump again"},
+                 {STILL, false, "still"},
+                 {MANY, true, "many leave: rebuilt untried"},
+                 {STILL, false, "still"},
+                 {GROW, true, "grown without lists"},
+                 {FEW, false, "few leave after growth"},
+                 {STILL, false, "still, lists made"}};
+    uint32_t count = n;
+    for (size_t k = 0; k < sizeof steps / sizeof steps[0]; k++) {
+        check_set_context("lists on demand, step %zu: %s", k, steps[k].name);
+        if (steps[k].what == SHUFFLE)
+            shuffle(boxes, count, &r);
+        else if (steps[k].what == FEW)
+            nudge(boxes, (uint32_t)k, 40, 0.3f);
+        else if (steps[k].what == MANY)
+            nudge(boxes, 0, 5000, 0.3f);
+        else if (steps[k].what == GROW)
+            count = n + grow;
+        STEP_EXPECT(&d, boxes, count, steps[k].cold, steps[k].name);
+    }
+    free(boxes);
+    duo_free(&d);
+}
+
 // The one-pass mend right after a rebuild, before any mend has made where (the changed boxes'
 // words found by a pass over each list), then the few-boxes mend (which makes where), then the
 // one-pass mend again (through where). Endpoint lists (one wide box), two workers.
@@ -910,6 +960,7 @@ int main(void)
     double t_large = now_s();
     test_large_rebuilds(1.0f);  // dense: the grid finds the fat pairs
     test_large_rebuilds(0.02f); // sparse: one sweep does
+    test_lists_on_demand();
     printf("  large rebuilds, 2 workers: %.2f s\n", now_s() - t_large);
     // The rebuild sweeps with the prune kernel of the world's SIMD width: the narrowest too.
     forced_simd = BPX_SIMD_SCALAR;

@@ -65,8 +65,11 @@
 // (i, j) order, and the exact filter gives the cycle's pairs. When even that axis meets more than
 // BPX_SWEEP_MAX_CANDIDATES boxes per box (hundreds of thousands of boxes at constant density: the
 // sweep's cost grows like n^(5/3)), the grid finds the fat pairs instead, so a rebuild at a
-// million boxes costs a grid cycle, not seconds. While the motion is incoherent (two give-ups in a
-// row), a cycle not followed by an attempt only sorts the n minima of that axis and sweeps the
+// million boxes costs a grid cycle, not seconds. The rebuilds after one that chose the grid keep
+// the choice (while n stays within an eighth) and make no lists: the first warm cycle that must
+// mend makes them, unless even the fewest moves expected put its mend past the budget (then it
+// rebuilds untried, as does growth without lists). While the motion is incoherent (two give-ups in
+// a row), a cycle not followed by an attempt only sorts the n minima of that axis and sweeps the
 // boxes themselves (prune's work, no lists). bpx_cycle_stats.rebuilt tells warm and cold apart.
 // There is no "boxes replaced wholesale" trigger: set_boxes is the general mode's per-cycle call,
 // so a replaced scene is told from a moved one by the move budget alone, as prune does.
@@ -156,14 +159,17 @@ typedef struct sap_state {
     bool valid;        // ends, fat and fat_pairs describe the last completed cycle
     uint32_t give_ups; // warm attempts in a row that ran out of moves
     uint32_t waited;   // cycles rebuilt since the last warm attempt
-    int sweep_axis;    // the axis the last full rebuild swept
+    int sweep_axis;    // the axis the lists' last count chose for a sweep
     bool scan;         // warm cycles mend the scan list, not the endpoint lists
     float scan_width;  // at least every listed fat box's extent on the swept axis
-    bool use_grid;     // the last full rebuild found the fat pairs with the grid
+    bool use_grid;     // the lists' last count chose the grid for the fat pairs
+    uint32_t counted_n; // n at that count
+    bool listed;        // the endpoint lists describe the fat boxes (see make_lists)
     bool indexed;      // where describes the lists (a rebuild leaves that to the first mend)
     void *grid;        // the grid's state, when it did
     bpx_radix_work *radix[3]; // the cold sorts' work memory: one per list sorted at once
     float margin[3];   // fat margin per axis, set by each full rebuild
+    float least_moves; // fewest endpoint moves a box leaving its fat box is expected to cost
     sap_arrays a;
     bpx_pair_list fat_pairs; // pairs of overlapping fat boxes, (i, j) order
     bpx_pair_list merged;    // the merge's output, then swapped with fat_pairs
@@ -982,12 +988,16 @@ static size_t filter_pairs(const bpx_world *w, sap_state *st, bpx_pair *out)
     return count;
 }
 
+static bool make_lists(bpx_world *w, sap_state *st, uint32_t n, uint32_t *live); // cold cycle
+
 // The warm cycle into st->fat_pairs. MEND_GAVE_UP: too many moves (or an inconsistency); the
 // caller rebuilds. On MEND_NO_MEMORY the state is invalid (the caller marks it so).
 static mend_result warm_cycle(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     bool grown = n > st->n;
+    if (grown && !st->listed) // a new box costs O(n) moves: a rebuild anyway at that size
+        return MEND_GAVE_UP;
     if (grown) {
         append_boxes(st, st->n, n);
         st->indexed = true;
@@ -1002,6 +1012,15 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
     }
     uint64_t budget = (uint64_t)MOVES_PER_BOX * n / (n > CACHED_BOXES ? UNCACHED_DIVISOR : 1) +
                       MOVES_BASE;
+    if (changed > 0 && !st->listed) {
+        // The lists for this mend (see make_lists), unless even the fewest moves expected
+        // put it past its budget: then a rebuild, as the mend would have ended in.
+        uint32_t live;
+        if ((double)changed * st->least_moves > (double)budget)
+            return MEND_GAVE_UP;
+        if (!make_lists(w, st, n, &live))
+            return MEND_NO_MEMORY;
+    }
     st->changes.count = 0;
     mend_result r = MEND_DONE;
     if (st->scan) {
@@ -1117,22 +1136,33 @@ static bpx_status grid_pairs(bpx_world *w, sap_state *st, const bpx_box *boxes)
 }
 
 // The fat margins: on each axis, the (non-inert) boxes' mean extent / MARGIN_DIVISOR. One pass
-// for the three axes (three passes, one per axis, took 12 ms at a million boxes).
+// for the three axes (three passes, one per axis, took 12 ms at a million boxes). With them,
+// the fewest endpoint moves a box that leaves its fat box is expected to cost: its two
+// endpoints on the axis it left by, each past a margin's worth of the list at the list's mean
+// density (denser clusters cost more, so this errs low), on the axis where that is least.
 static void set_margins(const bpx_world *w, sap_state *st)
 {
     const bpx_box *cur = st->a.cur;
     double sum[3] = {0.0, 0.0, 0.0};
+    float low[3] = {INFINITY, INFINITY, INFINITY}, high[3] = {-INFINITY, -INFINITY, -INFINITY};
     uint32_t live[3] = {0, 0, 0};
     for (uint32_t i = 0; i < w->n; i++)
         for (int axis = 0; axis < 3; axis++) {
             bool in = cur[i].min[axis] <= cur[i].max[axis]; // inert boxes are min > max
             sum[axis] += in ? (double)cur[i].max[axis] - (double)cur[i].min[axis] : 0.0;
             live[axis] += in;
+            low[axis] = in && cur[i].min[axis] < low[axis] ? cur[i].min[axis] : low[axis];
+            high[axis] = in && cur[i].max[axis] > high[axis] ? cur[i].max[axis] : high[axis];
         }
+    double least = INFINITY;
     for (int axis = 0; axis < 3; axis++) {
         double margin = live[axis] ? sum[axis] / live[axis] / MARGIN_DIVISOR : 0.0;
         st->margin[axis] = margin < 1e30 ? (float)margin : 0.0f;
+        double ends = 2.0 * live[axis], span = (double)high[axis] - (double)low[axis];
+        double passed = span > 0.0 ? fmin(ends, (double)st->margin[axis] * ends / span) : ends;
+        least = fmin(least, 2.0 * passed);
     }
+    st->least_moves = least < 1e30 ? (float)least : 0.0f;
 }
 
 // One axis's list for a full rebuild: the 2n fat endpoint words sorted into ends[axis] (minima
@@ -1218,35 +1248,54 @@ static void fatten_all(const bpx_world *w, sap_state *st)
         bpx__parallel_for(&w->executor, fatten_task, (int)job.chunks, &job);
 }
 
-// Rebuilds the fat boxes, the lists by radix sort and the fat pairs by one sweep (into
-// st->fat_pairs), and the exact pairs into block 0.
-static bpx_status full_rebuild(bpx_world *w, sap_state *st)
+// The endpoint lists of the fat boxes by radix sort, and from the count of pairs overlapping on
+// each axis the rebuild's choice: sweep along the axis with the fewest, unless even that one
+// meets too many boxes per box: then the grid. Returns the live boxes.
+//
+// Where the grid is chosen (hundreds of thousands of boxes, dense), the next rebuilds keep the
+// choice and leave the lists unmade (while n stays within an eighth), and the first warm cycle
+// that must mend makes them: they cost more than the grid there (1M boxes, 2 threads: 80-100 ms
+// against 66-82), and a million boxes at rest may need no mend before the next rebuild (all fat
+// boxes are made together, so the fastest boxes leave together: too many to mend).
+static bool make_lists(bpx_world *w, sap_state *st, uint32_t n, uint32_t *live)
 {
-    uint32_t n = w->n;
-    sap_arrays *a = &st->a;
     bool parallel = n >= PARALLEL_MIN && w->executor.worker_count > 1;
     if (!reserve_radix(st, parallel ? 3 : 1, 2 * (size_t)n))
-        return BPX_ERR_OUT_OF_MEMORY;
-    check_boxes(w, st); // for cur
-    set_margins(w, st);
-    fatten_all(w, st);
+        return false;
     sap_job job = {.st = st, .n = n, .chunks = parallel ? 3 : 1}; // chunks: the sorts' memory
     if (parallel)
         bpx__parallel_for(&w->executor, list_task, 3, &job);
     else
         list_task(0, 3, 0, &job);
     const uint64_t *overlaps = job.overlaps;
-    st->indexed = false;
-
-    // Sweep the fat boxes along the axis with the fewest overlaps, unless even that one meets
-    // too many boxes per box: then the grid.
     int axis = 0;
     for (int k = 1; k < 3; k++)
         if (overlaps[k] < overlaps[axis])
             axis = k;
     st->sweep_axis = axis;
-    uint32_t live = job.live[axis]; // inert boxes are +inf..-inf on every axis
-    st->use_grid = (double)overlaps[axis] > BPX_SWEEP_MAX_CANDIDATES * live;
+    *live = job.live[axis]; // inert boxes are +inf..-inf on every axis
+    st->use_grid = (double)overlaps[axis] > BPX_SWEEP_MAX_CANDIDATES * *live;
+    st->counted_n = n;
+    st->listed = true;
+    st->indexed = false;
+    return true;
+}
+
+// Rebuilds the fat boxes, the lists (see make_lists) and the fat pairs by one sweep or the grid
+// (into st->fat_pairs), and the exact pairs into block 0.
+static bpx_status full_rebuild(bpx_world *w, sap_state *st)
+{
+    uint32_t n = w->n;
+    sap_arrays *a = &st->a;
+    check_boxes(w, st); // for cur
+    set_margins(w, st);
+    fatten_all(w, st);
+    uint32_t live = 0;
+    st->listed = false;
+    bool counted = st->use_grid && n - n / 8 <= st->counted_n && st->counted_n <= n + n / 8;
+    if (!counted && !make_lists(w, st, n, &live))
+        return BPX_ERR_OUT_OF_MEMORY;
+    int axis = st->sweep_axis;
     if (!st->use_grid) {
         const uint64_t *ends = a->ends[axis];
         const uint32_t inf_key = coord_key(1.0f / 0.0f);
@@ -1293,8 +1342,8 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
     return BPX_OK;
 }
 
-// The pairs by one sweep over the minima of the last full rebuild's sweep axis, radix sorted
-// (or by the grid, if that rebuild used it); no endpoint lists (the next cycle will not mend).
+// The pairs by one sweep over the minima of the sweep axis the lists last chose, radix sorted
+// (or by the grid, if they chose it); no endpoint lists (the next cycle will not mend).
 static bpx_status lite_rebuild(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
