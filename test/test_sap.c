@@ -11,6 +11,7 @@
 #include <stdatomic.h>
 #include <time.h>
 
+#include "cpu/kernels.h"
 #include "pairs_util.h"
 #include "scenes.h"
 
@@ -583,13 +584,14 @@ static void nudge(bpx_box *boxes, uint32_t first, uint32_t count, float dx)
 }
 
 // Dense boxes, past 65536: the grid finds the fat pairs, and a rebuild after the first keeps
-// that choice and leaves the endpoint lists unmade until a warm cycle must mend. Cycles with
-// nothing to mend stay warm without them; a few boxes leaving their fat boxes make them first;
-// many (more than even the fewest moves expected allow) and added boxes rebuild without trying.
-// Quiet cycles between give-ups, so that none counts as incoherent motion.
+// that choice and leaves the endpoint lists unmade until a warm cycle must mend or grow. Cycles
+// with nothing to mend stay warm without them; a few boxes leaving their fat boxes (or one box
+// added) make them first; more than the fewest moves expected allow, or many boxes added,
+// rebuild untried. sap's counters tell the lists made and the untried give-ups apart from the
+// rest. Quiet cycles between give-ups, so that none counts as incoherent motion.
 static void test_lists_on_demand(void)
 {
-    enum { n = 70000, grow = 10 };
+    enum { n = 70000, grow = 11 };
     const uint64_t seed = 151;
     check_set_seed(seed);
     duo d = {0};
@@ -599,34 +601,51 @@ static void test_lists_on_demand(void)
     scene_uniform_density(n + grow, 1.0f, seed, boxes);
     scene_rng r;
     scene_rng_seed(&r, seed);
-    enum { STILL, SHUFFLE, FEW, MANY, GROW };
+    // FEW: 40 boxes leave (the few-boxes mend); PAST_FEW: 1200, just more than n / 64 + 16 (the
+    // one-pass mend, whose list for x runs out of moves); MANY: 5000 (past even the fewest moves
+    // expected). Each a third of a box along x, past the fat margin (a sixteenth).
+    enum { STILL, SHUFFLE, FEW, PAST_FEW, MANY, GROW_10, GROW_1 };
     const struct {
         int what;
         bool cold;
+        uint32_t lists, untried; // made, and given up untried, this cycle
         const char *name;
-    } steps[] = {{STILL, true, "first"},
-                 {SHUFFLE, true, "jump: lists kept unmade"},
-                 {STILL, false, "still, no lists"},
-                 {FEW, false, "few leave: lists made"},
-                 {SHUFFLE, true, "jump again"},
-                 {STILL, false, "still"},
-                 {MANY, true, "many leave: rebuilt untried"},
-                 {STILL, false, "still"},
-                 {GROW, true, "grown without lists"},
-                 {FEW, false, "few leave after growth"},
-                 {STILL, false, "still, lists made"}};
+    } steps[] = {
+        {STILL, true, 1, 0, "first"},
+        {SHUFFLE, true, 0, 0, "jump: the grid kept, no lists"},
+        {STILL, false, 0, 0, "still, no lists"},
+        {FEW, false, 1, 0, "few leave: lists made"},
+        {SHUFFLE, true, 0, 0, "jump again"},
+        {STILL, false, 0, 0, "still"},
+        {MANY, true, 0, 1, "many leave: rebuilt untried"},
+        {STILL, false, 0, 0, "still"},
+        {PAST_FEW, true, 1, 0, "more than few leave: lists made, the mend gives up"},
+        {STILL, false, 0, 0, "still"},
+        {GROW_10, true, 0, 1, "ten added: rebuilt untried"},
+        {FEW, false, 1, 0, "few leave after growth"},
+        {SHUFFLE, true, 0, 0, "jump"},
+        {STILL, false, 0, 0, "still"},
+        {GROW_1, false, 1, 0, "one added: lists made, mended"},
+        {STILL, false, 0, 0, "still, lists made"},
+    };
     uint32_t count = n;
+    bpx_sap_counters before = bpx__sap_counters(d.sap);
     for (size_t k = 0; k < sizeof steps / sizeof steps[0]; k++) {
         check_set_context("lists on demand, step %zu: %s", k, steps[k].name);
-        if (steps[k].what == SHUFFLE)
+        int what = steps[k].what;
+        if (what == SHUFFLE)
             shuffle(boxes, count, &r);
-        else if (steps[k].what == FEW)
-            nudge(boxes, (uint32_t)k, 40, 0.3f);
-        else if (steps[k].what == MANY)
-            nudge(boxes, 0, 5000, 0.3f);
-        else if (steps[k].what == GROW)
-            count = n + grow;
+        else if (what == FEW || what == PAST_FEW || what == MANY)
+            nudge(boxes, (uint32_t)k, what == FEW ? 40 : what == PAST_FEW ? 1200 : 5000, 0.3f);
+        else if (what == GROW_10 || what == GROW_1)
+            count += what == GROW_10 ? 10 : 1;
         STEP_EXPECT(&d, boxes, count, steps[k].cold, steps[k].name);
+        bpx_sap_counters now = bpx__sap_counters(d.sap);
+        CHECK_MSG(now.lists_made - before.lists_made == steps[k].lists, "lists made: %u, want %u",
+                  now.lists_made - before.lists_made, steps[k].lists);
+        CHECK_MSG(now.untried - before.untried == steps[k].untried, "untried: %u, want %u",
+                  now.untried - before.untried, steps[k].untried);
+        before = now;
     }
     free(boxes);
     duo_free(&d);

@@ -39,3 +39,11 @@ void bpx__grid_free(void **state);
 /// Makes the grid's next call pick its cells from those boxes alone, not from its last call's
 /// bounds (state may be NULL).
 void bpx__grid_forget(void *state);
+
+/// What sap's cycles did that their pairs do not show, since its state was made (zeros for a
+/// world of another backend): endpoint lists sorted (see sap.c's make_lists), and warm cycles
+/// that gave up without trying to mend. For the tests.
+typedef struct bpx_sap_counters {
+    uint32_t lists_made, untried;
+} bpx_sap_counters;
+bpx_sap_counters bpx__sap_counters(const bpx_world *w);

@@ -49,7 +49,8 @@
 // cycle (max at the front, min at the back of each list) and the one-pass mend sorts it in. An
 // id freed by remove_boxes keeps its fat box (its inert box lies in any box) until it is reused;
 // its stale fat pairs never pass the exact filter. Both cost O(n) moves per box, like
-// AxisSweep3's insert and remove, and fall under the budget below.
+// AxisSweep3's insert and remove, and fall under the budget below (without lists, see below,
+// growth past what the budget allows rebuilds untried).
 //
 // A cold cycle rebuilds: on the first cycle; when n shrank, or grew by more than an eighth;
 // after a failed cycle; when a warm cycle passes MOVES_PER_BOX * n + MOVES_BASE element moves (a
@@ -156,7 +157,7 @@ enum { ARRAY_COUNT = 3 + 3 + 3 + 4 + 6 + 2 };
 typedef struct sap_state {
     uint32_t capacity; // boxes the arrays hold
     uint32_t n;        // boxes the lists describe (when valid)
-    bool valid;        // ends, fat and fat_pairs describe the last completed cycle
+    bool valid;        // fat and fat_pairs describe the last completed cycle (ends if listed)
     uint32_t give_ups; // warm attempts in a row that ran out of moves
     uint32_t waited;   // cycles rebuilt since the last warm attempt
     int sweep_axis;    // the axis the lists' last count chose for a sweep
@@ -164,7 +165,8 @@ typedef struct sap_state {
     float scan_width;  // at least every listed fat box's extent on the swept axis
     bool use_grid;     // the lists' last count chose the grid for the fat pairs
     uint32_t counted_n; // n at that count
-    bool listed;        // the endpoint lists describe the fat boxes (see make_lists)
+    bool listed;        // the endpoint lists are made (see make_lists; stale under scan)
+    bpx_sap_counters counters; // what the tests cannot see in the pairs
     bool indexed;      // where describes the lists (a rebuild leaves that to the first mend)
     void *grid;        // the grid's state, when it did
     bpx_radix_work *radix[3]; // the cold sorts' work memory: one per list sorted at once
@@ -996,8 +998,19 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     bool grown = n > st->n;
-    if (grown && !st->listed) // a new box costs O(n) moves: a rebuild anyway at that size
-        return MEND_GAVE_UP;
+    uint64_t budget =
+        (uint64_t)MOVES_PER_BOX * n / (n > CACHED_BOXES ? UNCACHED_DIVISOR : 1) + MOVES_BASE;
+    uint32_t live;
+    if (grown && !st->listed) {
+        // A new box enters a list at its two ends and its words travel about 2n places: past
+        // the one-pass mend's third of the budget, a rebuild untried. Else the lists first.
+        if ((double)(n - st->n) * 2.0 * st->n > (double)budget / 3) {
+            st->counters.untried++;
+            return MEND_GAVE_UP;
+        }
+        if (!make_lists(w, st, st->n, &live))
+            return MEND_NO_MEMORY;
+    }
     if (grown) {
         append_boxes(st, st->n, n);
         st->indexed = true;
@@ -1010,14 +1023,14 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
             scan_put(&st->a, i, &st->a.fat[i], order, i);
         scan_pad(&st->a, n, order);
     }
-    uint64_t budget = (uint64_t)MOVES_PER_BOX * n / (n > CACHED_BOXES ? UNCACHED_DIVISOR : 1) +
-                      MOVES_BASE;
     if (changed > 0 && !st->listed) {
-        // The lists for this mend (see make_lists), unless even the fewest moves expected
-        // put it past its budget: then a rebuild, as the mend would have ended in.
-        uint32_t live;
-        if ((double)changed * st->least_moves > (double)budget)
+        // The lists for this mend (see make_lists), unless even the fewest moves expected put
+        // it past the budget (the three lists' moves together are at least that, so one of
+        // them would pass its third in the one-pass mend): then a rebuild untried.
+        if ((double)changed * st->least_moves > (double)budget) {
+            st->counters.untried++;
             return MEND_GAVE_UP;
+        }
         if (!make_lists(w, st, n, &live))
             return MEND_NO_MEMORY;
     }
@@ -1162,7 +1175,7 @@ static void set_margins(const bpx_world *w, sap_state *st)
         double passed = span > 0.0 ? fmin(ends, (double)st->margin[axis] * ends / span) : ends;
         least = fmin(least, 2.0 * passed);
     }
-    st->least_moves = least < 1e30 ? (float)least : 0.0f;
+    st->least_moves = (float)least; // finite: boxes are, and at most 4n
 }
 
 // One axis's list for a full rebuild: the 2n fat endpoint words sorted into ends[axis] (minima
@@ -1250,13 +1263,16 @@ static void fatten_all(const bpx_world *w, sap_state *st)
 
 // The endpoint lists of the fat boxes by radix sort, and from the count of pairs overlapping on
 // each axis the rebuild's choice: sweep along the axis with the fewest, unless even that one
-// meets too many boxes per box: then the grid. Returns the live boxes.
+// meets too many boxes per box: then the grid. *live: the boxes that are not inert. False when
+// memory ran out.
 //
 // Where the grid is chosen (hundreds of thousands of boxes, dense), the next rebuilds keep the
-// choice and leave the lists unmade (while n stays within an eighth), and the first warm cycle
-// that must mend makes them: they cost more than the grid there (1M boxes, 2 threads: 80-100 ms
-// against 66-82), and a million boxes at rest may need no mend before the next rebuild (all fat
-// boxes are made together, so the fastest boxes leave together: too many to mend).
+// choice and leave the lists unmade while the n it was made at is within an eighth of theirs:
+// there the lists cost more than the grid (1M boxes, 2 threads: 80-100 ms against 66-82), and
+// a million boxes at rest may need no mend before the next rebuild (all fat boxes are made
+// together, so the fastest boxes leave together: too many to mend). The first warm cycle that
+// must mend (or grow) makes them, so such a cycle is warm but may cost a sort of three lists;
+// the choice is counted again each time they are made.
 static bool make_lists(bpx_world *w, sap_state *st, uint32_t n, uint32_t *live)
 {
     bool parallel = n >= PARALLEL_MIN && w->executor.worker_count > 1;
@@ -1278,6 +1294,7 @@ static bool make_lists(bpx_world *w, sap_state *st, uint32_t n, uint32_t *live)
     st->counted_n = n;
     st->listed = true;
     st->indexed = false;
+    st->counters.lists_made++;
     return true;
 }
 
@@ -1291,7 +1308,7 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
     set_margins(w, st);
     fatten_all(w, st);
     uint32_t live = 0;
-    st->listed = false;
+    st->listed = st->indexed = false;
     bool counted = st->use_grid && n - n / 8 <= st->counted_n && st->counted_n <= n + n / 8;
     if (!counted && !make_lists(w, st, n, &live))
         return BPX_ERR_OUT_OF_MEMORY;
@@ -1428,6 +1445,12 @@ static bpx_status sap_compare(bpx_world *w)
     st->n = n;
     st->valid = lists;
     return BPX_OK;
+}
+
+bpx_sap_counters bpx__sap_counters(const bpx_world *w)
+{
+    const sap_state *st = w->backend == &bpx__sap_backend ? w->backend_state : NULL;
+    return st ? st->counters : (bpx_sap_counters){0, 0};
 }
 
 static bool sap_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)
