@@ -166,6 +166,7 @@ typedef struct sap_state {
     bool use_grid;     // the lists' last count chose the grid for the fat pairs
     uint32_t counted_n; // n at that count
     bool listed;        // the endpoint lists are made (see make_lists; stale under scan)
+    bool checked;       // cur holds this cycle's boxes (a warm attempt came first)
     bpx_sap_counters counters; // what the tests cannot see in the pairs
     bool indexed;      // where describes the lists (a rebuild leaves that to the first mend)
     void *grid;        // the grid's state, when it did
@@ -1016,6 +1017,7 @@ static mend_result warm_cycle(bpx_world *w, sap_state *st)
         st->indexed = true;
     }
     uint32_t changed = check_boxes(w, st);
+    st->checked = true;
     if (st->scan && grown) { // the new boxes enter the scan list as inert, at its end
         int order[3];
         scan_order(st->sweep_axis, order);
@@ -1148,30 +1150,73 @@ static bpx_status grid_pairs(bpx_world *w, sap_state *st, const bpx_box *boxes)
     return bpx__grid_find(w, &st->grid, soa);
 }
 
+// What the margins need of a range of boxes: per axis, the live (non-inert) boxes, the sum of
+// their extents and the bounds of their coordinates.
+typedef struct margin_part {
+    double sum[3];
+    float low[3], high[3];
+    uint32_t live[3];
+} margin_part;
+
+typedef struct margin_job {
+    const bpx_box *cur;
+    uint32_t n, chunks;
+    margin_part part[CHUNKS_MAX];
+} margin_job;
+
+static void margin_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    margin_job *job = context;
+    for (int c = begin; c < end; c++) {
+        margin_part p = {{0.0, 0.0, 0.0},
+                         {INFINITY, INFINITY, INFINITY},
+                         {-INFINITY, -INFINITY, -INFINITY},
+                         {0, 0, 0}};
+        for (uint32_t i = chunk_begin(job->n, job->chunks, (uint32_t)c),
+                      i1 = chunk_begin(job->n, job->chunks, (uint32_t)c + 1);
+             i < i1; i++)
+            for (int axis = 0; axis < 3; axis++) {
+                const bpx_box *b = &job->cur[i];
+                bool in = b->min[axis] <= b->max[axis]; // inert boxes are min > max
+                p.sum[axis] += in ? (double)b->max[axis] - (double)b->min[axis] : 0.0;
+                p.live[axis] += in;
+                p.low[axis] = in && b->min[axis] < p.low[axis] ? b->min[axis] : p.low[axis];
+                p.high[axis] = in && b->max[axis] > p.high[axis] ? b->max[axis] : p.high[axis];
+            }
+        job->part[c] = p;
+    }
+}
+
 // The fat margins: on each axis, the (non-inert) boxes' mean extent / MARGIN_DIVISOR. One pass
-// for the three axes (three passes, one per axis, took 12 ms at a million boxes). With them,
-// the fewest endpoint moves a box that leaves its fat box is expected to cost: its two
-// endpoints on the axis it left by, each past a margin's worth of the list at the list's mean
-// density (denser clusters cost more, so this errs low), on the axis where that is least.
+// for the three axes (three passes, one per axis, took 12 ms at a million boxes), in ranges on
+// the workers that depend on n only, summed in order, so the margins are the same for any worker
+// count. With them, the fewest endpoint moves a box that leaves its fat box is expected to cost:
+// its two endpoints on the axis it left by, each past a margin's worth of the list at the list's
+// mean density (denser clusters cost more, so this errs low), on the axis where that is least.
 static void set_margins(const bpx_world *w, sap_state *st)
 {
-    const bpx_box *cur = st->a.cur;
-    double sum[3] = {0.0, 0.0, 0.0};
-    float low[3] = {INFINITY, INFINITY, INFINITY}, high[3] = {-INFINITY, -INFINITY, -INFINITY};
-    uint32_t live[3] = {0, 0, 0};
-    for (uint32_t i = 0; i < w->n; i++)
+    margin_job job = {.cur = st->a.cur, .n = w->n, .chunks = w->n / PARALLEL_MIN + 1};
+    job.chunks = job.chunks < CHUNKS_MAX ? job.chunks : CHUNKS_MAX;
+    if (job.chunks > 1 && w->executor.worker_count > 1)
+        bpx__parallel_for(&w->executor, margin_task, (int)job.chunks, &job);
+    else
+        margin_task(0, (int)job.chunks, 0, &job);
+    margin_part all = job.part[0];
+    for (uint32_t c = 1; c < job.chunks; c++)
         for (int axis = 0; axis < 3; axis++) {
-            bool in = cur[i].min[axis] <= cur[i].max[axis]; // inert boxes are min > max
-            sum[axis] += in ? (double)cur[i].max[axis] - (double)cur[i].min[axis] : 0.0;
-            live[axis] += in;
-            low[axis] = in && cur[i].min[axis] < low[axis] ? cur[i].min[axis] : low[axis];
-            high[axis] = in && cur[i].max[axis] > high[axis] ? cur[i].max[axis] : high[axis];
+            const margin_part *p = &job.part[c];
+            all.sum[axis] += p->sum[axis];
+            all.live[axis] += p->live[axis];
+            all.low[axis] = p->low[axis] < all.low[axis] ? p->low[axis] : all.low[axis];
+            all.high[axis] = p->high[axis] > all.high[axis] ? p->high[axis] : all.high[axis];
         }
     double least = INFINITY;
     for (int axis = 0; axis < 3; axis++) {
-        double margin = live[axis] ? sum[axis] / live[axis] / MARGIN_DIVISOR : 0.0;
+        uint32_t live = all.live[axis];
+        double margin = live ? all.sum[axis] / live / MARGIN_DIVISOR : 0.0;
         st->margin[axis] = margin < 1e30 ? (float)margin : 0.0f;
-        double ends = 2.0 * live[axis], span = (double)high[axis] - (double)low[axis];
+        double ends = 2.0 * live, span = (double)all.high[axis] - (double)all.low[axis];
         double passed = span > 0.0 ? fmin(ends, (double)st->margin[axis] * ends / span) : ends;
         least = fmin(least, 2.0 * passed);
     }
@@ -1304,7 +1349,8 @@ static bpx_status full_rebuild(bpx_world *w, sap_state *st)
 {
     uint32_t n = w->n;
     sap_arrays *a = &st->a;
-    check_boxes(w, st); // for cur
+    if (!st->checked) // for cur (a warm attempt this cycle has made it)
+        check_boxes(w, st);
     set_margins(w, st);
     fatten_all(w, st);
     uint32_t live = 0;
@@ -1367,7 +1413,8 @@ static bpx_status lite_rebuild(bpx_world *w, sap_state *st)
     sap_arrays *a = &st->a;
     if (!reserve_radix(st, 1, n))
         return BPX_ERR_OUT_OF_MEMORY;
-    check_boxes(w, st); // for cur
+    if (!st->checked) // for cur (a warm attempt this cycle has made it)
+        check_boxes(w, st);
     if (st->use_grid)
         return grid_pairs(w, st, a->cur);
     const uint32_t inf_key = coord_key(1.0f / 0.0f);
@@ -1406,6 +1453,7 @@ static bpx_status sap_compare(bpx_world *w)
         return BPX_ERR_OUT_OF_MEMORY;
     }
     st->valid = false; // until this cycle completes
+    st->checked = false;
     bpx_status status = BPX_OK;
     if (warm) {
         mend_result r = warm_cycle(w, st);
