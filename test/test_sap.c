@@ -51,6 +51,15 @@ static void duo_init(duo *d, int workers)
     d->ref = make_world(BPX_BACKEND_REFERENCE, 1, false);
 }
 
+// The same for tens of thousands of boxes, where the reference's n^2 / 2 tests would take
+// seconds a cycle: prune (itself checked against the reference by test_differential) checks.
+static void duo_init_large(duo *d, int workers)
+{
+    *d = (duo){0};
+    d->sap = make_world(BPX_BACKEND_SAP, workers, true);
+    d->ref = make_world(BPX_BACKEND_PRUNE, 1, false);
+}
+
 static void duo_free(duo *d)
 {
     bpx_world_destroy(d->sap);
@@ -549,9 +558,8 @@ static void test_large_rebuilds(float overlaps_per_box)
     enum { n = 70000, cycles = 9, jump = 5 };
     const uint64_t seed = 131;
     check_set_seed(seed);
-    duo d = {0};
-    d.sap = make_world(BPX_BACKEND_SAP, 2, true);
-    d.ref = make_world(BPX_BACKEND_PRUNE, 1, false);
+    duo d;
+    duo_init_large(&d, 2);
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
     scene_uniform_density(n, overlaps_per_box, seed, boxes);
     scene_rng r;
@@ -594,9 +602,8 @@ static void test_lists_on_demand(void)
     enum { n = 70000, grow = 11 };
     const uint64_t seed = 151;
     check_set_seed(seed);
-    duo d = {0};
-    d.sap = make_world(BPX_BACKEND_SAP, 2, true);
-    d.ref = make_world(BPX_BACKEND_PRUNE, 1, false);
+    duo d;
+    duo_init_large(&d, 2);
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * (n + grow));
     scene_uniform_density(n + grow, 1.0f, seed, boxes);
     scene_rng r;
@@ -659,9 +666,8 @@ static void test_one_pass_after_rebuild(void)
     enum { n = 20000 };
     const uint64_t seed = 141;
     check_set_seed(seed);
-    duo d = {0};
-    d.sap = make_world(BPX_BACKEND_SAP, 2, true);
-    d.ref = make_world(BPX_BACKEND_PRUNE, 1, false);
+    duo d;
+    duo_init_large(&d, 2);
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
     scene_uniform_density(n, 1.0f, seed, boxes);
     widen_one(boxes);
