@@ -90,6 +90,8 @@ static int list_variants(const bench_table2_options *o, bench_variant *out)
     }
     if (bpx_backend_query(BPX_BACKEND_OPENCL).available)
         all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true};
+    if (bpx_backend_query(BPX_BACKEND_CUDA).available)
+        all[count++] = (bench_variant){-1, BPX_BACKEND_CUDA, BPX_SIMD_AUTO, 1, true};
     for (int p = 0; p < bench_peer_count() && count < BENCH_MAX_VARIANTS; p++)
         all[count++] = (bench_variant){p, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, false};
     int kept = 0;
@@ -230,11 +232,16 @@ int bench_table2(const bench_table2_options *o)
         }
 
         for (int v = 0; v < count; v++)
-            if (variants[v].peer < 0 && variants[v].backend == BPX_BACKEND_OPENCL) {
-                bench_printf("\nopencl (centres over the link, the paper's updater): "
+            if (variants[v].peer < 0 && (variants[v].backend == BPX_BACKEND_OPENCL ||
+                                         variants[v].backend == BPX_BACKEND_CUDA)) {
+                bench_printf("\n%s (%s): "
                              "communication share of its device time, against the paper's "
                              "m = 8:\n\n| n | mean us | in us | out us | kernels us | share | "
-                             "paper share |\n|---:|---:|---:|---:|---:|---:|---:|\n");
+                             "paper share |\n|---:|---:|---:|---:|---:|---:|---:|\n",
+                             bpx_backend_name(variants[v].backend),
+                             variants[v].backend == BPX_BACKEND_CUDA
+                                 ? "boxes over the link, one launch"
+                                 : "centres over the link, the paper's updater");
                 for (int r = 0; r < ROWS; r++) {
                     const bench_result *x = &results[r][v];
                     double link = x->in_us + x->out_us, total = link + x->device_us;

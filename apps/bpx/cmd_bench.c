@@ -275,6 +275,8 @@ static int list_variants(const bench_options *o, uint32_t n, bench_variant *out)
         all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, false};
         all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true};
     }
+    if (bpx_backend_query(BPX_BACKEND_CUDA).available)
+        all[count++] = (bench_variant){-1, BPX_BACKEND_CUDA, BPX_SIMD_AUTO, 1, false};
     for (int p = 0; p < bench_peer_count() && count < BENCH_MAX_VARIANTS; p++)
         all[count++] = (bench_variant){p, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, false};
     int kept = 0;

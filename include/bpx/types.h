@@ -44,6 +44,8 @@ typedef enum bpx_backend {
     BPX_BACKEND_GRID,      ///< "grid": spatial split for millions of boxes
     BPX_BACKEND_MODEL,     ///< "model": cycle-accurate model of the paper's FPGA design
     BPX_BACKEND_OPENCL,    ///< "opencl": the comparator on an OpenCL device (PoCL, GPUs, FPGAs)
+    BPX_BACKEND_CUDA,      ///< "cuda": a tree built each cycle on a CUDA GPU (brute force in one
+                           ///< block up to 1024 boxes); device-resident cycles in bpx/cuda.h
     BPX_BACKEND_COUNT
 } bpx_backend;
 
@@ -158,16 +160,16 @@ typedef struct bpx_cycle_stats {
     /// after n shrank or the boxes moved too far to mend; the paper's "incl sort"), instead of
     /// mending last cycle's ("excl sort"). Always false for the other backends.
     bool rebuilt;
-    /// OpenCL backend (others leave these 0), last cycle, on the device's clock: time spent
-    /// moving data to the device (centres or boxes), from the device (the count register and
-    /// the pairs), and running kernels (updater, comparator, emitter, sort). The paper's
+    /// OpenCL and CUDA backends (others leave these 0), last cycle, on the device's clock: time
+    /// spent moving data to the device (centres or boxes), from the device (the count register
+    /// and the pairs), and running kernels (updater, comparator, emitter, sort). The paper's
     /// communication share is (in + out) / (in + out + device).
     uint64_t transfer_in_ns;
     uint64_t transfer_out_ns;
     uint64_t device_ns;
-    uint64_t bytes_in;  ///< OpenCL: bytes sent to the device last cycle (12 per object in the
+    uint64_t bytes_in;  ///< OpenCL, CUDA: bytes sent to the device last cycle (12 per object in the
                         ///< two-phase mode once the extents are there, 24 per box otherwise)
-    uint64_t bytes_out; ///< OpenCL: bytes read back last cycle (8 per pair + the register)
+    uint64_t bytes_out; ///< OpenCL, CUDA: bytes read back last cycle (8 per pair + the register)
 } bpx_cycle_stats;
 
 /// Detail of an error from a call that has no world (one-shot). index is the first offending

@@ -18,6 +18,7 @@ static const char *const backend_names[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_BRUTE] = "brute", [BPX_BACKEND_PRUNE] = "prune",
     [BPX_BACKEND_SAP] = "sap",     [BPX_BACKEND_GRID] = "grid",
     [BPX_BACKEND_MODEL] = "model", [BPX_BACKEND_OPENCL] = "opencl",
+    [BPX_BACKEND_CUDA] = "cuda",
 };
 
 static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
@@ -30,6 +31,9 @@ static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_MODEL] = &bpx__model_backend,
 #if BPX_HAVE_OPENCL
     [BPX_BACKEND_OPENCL] = &bpx__opencl_backend,
+#endif
+#if BPX_HAVE_CUDA
+    [BPX_BACKEND_CUDA] = &bpx__cuda_backend,
 #endif
 };
 

@@ -176,3 +176,4 @@ extern const bpx_backend_impl bpx__auto_backend;
 bpx_backend bpx__auto_choice(const bpx_world *w);
 extern const bpx_backend_impl bpx__model_backend;
 extern const bpx_backend_impl bpx__opencl_backend;
+extern const bpx_backend_impl bpx__cuda_backend;

@@ -1,0 +1,69 @@
+// bpx: broad-phase collision detection. SPDX-License-Identifier: MIT
+//
+// The cuda backend's own calls: cycles whose boxes and pairs stay in GPU memory. The backend is
+// chosen like any other (bpx_world_def.backend = BPX_BACKEND_CUDA) and runs on CUDA device 0;
+// bpx_world_collide* work as on every backend (boxes in from the host, pairs out to the host).
+// Every function here exists in every build; without CUDA they return BACKEND_UNAVAILABLE.
+// CUDA types cross this header as void pointers (a cudaStream_t), so it needs no CUDA headers.
+//
+// Ownership and synchronisation:
+// - The world owns a non-blocking stream (bpx_cuda_world_stream) and its device buffers; they
+//   live until bpx_world_destroy. Pointers it hands out stay valid until the next call that
+//   changes the world.
+// - bpx_cuda_collide_device enqueues the whole cycle on the stream you pass (or the world's) and
+//   returns without waiting: kernels you enqueue after it on that stream see the pairs and their
+//   count. Work on other streams must wait for it (an event) before reading them.
+// - Device boxes are read in place at each cycle: change them between cycles on the stream the
+//   cycle runs on, or finish that work before the call.
+// - A world is used by one host thread at a time, like every world.
+#pragma once
+
+#include "bpx.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/// General mode with the boxes already in device memory: `boxes` points to n bpx_box (24 bytes
+/// each, as on the host) in memory of CUDA device 0. They are checked now (one small read comes
+/// back) and an invalid box is reported as bpx_world_set_boxes reports it (NOT_FINITE or
+/// MIN_GREATER_THAN_MAX, naming the first bad box and its axis). The world then reads them in
+/// place at every collide until the next set_boxes / load_extents / update_centres /
+/// bpx_cuda_set_boxes_device; a box that turns invalid later is reported by the cycle that
+/// reads it (bpx_world_collide, or bpx_cuda_finish after bpx_cuda_collide_device).
+/// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, BACKEND_UNAVAILABLE (not a cuda world), BAD_STATE
+/// (boxes added and removed one by one), NOT_FINITE, MIN_GREATER_THAN_MAX, DEVICE,
+/// DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.
+BPX_API bpx_status bpx_cuda_set_boxes_device(bpx_world *world, const bpx_box *boxes, uint32_t n);
+
+/// One cycle that never leaves the device: enqueued on `stream` (a cudaStream_t; NULL for the
+/// world's own) and returned from at once. The pairs, sorted by (i, j), and their count stay in
+/// device memory (bpx_cuda_device_pairs). The boxes are the device boxes, else the world's
+/// current host boxes, sent first. No host round trip happens inside the cycle: the count
+/// follows the pairs into pinned host memory, and the next call reads it to size the buffer.
+/// Errors (of the enqueueing; the cycle's own outcome is bpx_cuda_finish's): NULL_ARGUMENT,
+/// BACKEND_UNAVAILABLE, DEVICE, DEVICE_MEMORY. Filters (bpx_world_set_filters) and events are
+/// not applied to device-resident pairs: BAD_STATE when either is in use.
+BPX_API bpx_status bpx_cuda_collide_device(bpx_world *world, void *stream);
+
+/// The last device cycle's pairs and count, in device memory: `pairs` holds `capacity` pairs,
+/// of which the first *count (an unsigned long long on the device) are the cycle's when
+/// *count <= capacity. When *count > capacity the buffer was too small, its content is not the
+/// pair set, bpx_cuda_finish says CAPACITY with the count, and the next cycle has room for it.
+/// Any pointer may be NULL. Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE.
+BPX_API bpx_status bpx_cuda_device_pairs(bpx_world *world, const bpx_pair **pairs,
+                                         const unsigned long long **count, size_t *capacity);
+
+/// Waits for the last bpx_cuda_collide_device and tells how it went: OK with *count (may be
+/// NULL) pairs; CAPACITY with *count the pairs found (the buffer was too small; run the cycle
+/// again); NOT_FINITE or MIN_GREATER_THAN_MAX when a device box was invalid (the world's error
+/// names it); DEVICE when the device failed. OK at once when no device cycle is pending.
+BPX_API bpx_status bpx_cuda_finish(bpx_world *world, size_t *count);
+
+/// The world's CUDA stream (a cudaStream_t), for the caller's kernels that feed or read it.
+/// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE, DEVICE.
+BPX_API bpx_status bpx_cuda_world_stream(bpx_world *world, void **stream);
+
+#ifdef __cplusplus
+}
+#endif

@@ -1,0 +1,242 @@
+// The cuda backend as the world sees it (compare, query, destroy) and the calls of
+// include/bpx/cuda.h. The device side is cycle.cu and kernels.cu, behind cuda_api.h.
+#include "bpx/cuda.h"
+
+#include <stdio.h>
+
+#include "core/clock.h"
+#include "core/validate.h"
+#include "core/world.h"
+#include "cuda_api.h"
+
+static bool cuda_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)
+{
+    (void)def;
+    return bpx__cuda_probe(reason, detail, size);
+}
+
+static bpx_status cuda_state(bpx_world *w, bpx_cuda **out)
+{
+    if (!w->backend_state) {
+        bpx_cuda *cu = NULL;
+        bpx_status s = bpx__cuda_open(&cu);
+        if (s != BPX_OK)
+            return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: the device could not be set up");
+        w->backend_state = cu;
+    }
+    *out = w->backend_state;
+    return BPX_OK;
+}
+
+// Names a bad device box the way bpx_world_set_boxes names a bad host box: that one box comes
+// back and goes through the host's own check.
+static bpx_status report_bad_box(bpx_world *w, const bpx_box *device_boxes, uint32_t index)
+{
+    bpx_box box;
+    if (bpx__cuda_copy_box(&box, device_boxes + index) != BPX_OK)
+        return bpx__error(&w->error, BPX_ERR_DEVICE, index, -1, "cuda: device box %u is invalid",
+                          index);
+    bpx_error detail;
+    bpx_status why = bpx__check_boxes(&box, 1, &detail);
+    if (why == BPX_OK) // changed since the check ran
+        why = BPX_ERR_NOT_FINITE;
+    return bpx__error(&w->error, why, index, detail.axis, "device box %u, axis %d: %s", index,
+                      detail.axis, bpx_status_string(why));
+}
+
+static bpx_status cuda_compare(bpx_world *w)
+{
+    bpx_cuda *cu = NULL;
+    bpx_status s = cuda_state(w, &cu);
+    if (s != BPX_OK)
+        return s;
+    if (w->planned_n != w->n && (s = bpx__emitter_plan(w, true)) != BPX_OK)
+        return s;
+    bpx_block *block = &w->blocks[0];
+    block->hits.count = 0;
+    block->tests = 0;
+    block->status = BPX_OK;
+    bpx_soa soa = bpx__world_soa(w);
+    uint64_t count = 0;
+    s = bpx__cuda_finish(cu, NULL); // a device cycle still in flight
+    if (s == BPX_OK || s == BPX_ERR_CAPACITY || s == BPX_ERR_NOT_FINITE)
+        s = bpx__cuda_find(cu, soa.lo, soa.hi, soa.n, &count);
+    if (s == BPX_ERR_NOT_FINITE) {
+        uint32_t index = 0;
+        bool min_greater = false;
+        if (bpx__cuda_bad_box(cu, &index, &min_greater))
+            return report_bad_box(w, bpx__cuda_device_boxes(cu), index);
+    }
+    if (s == BPX_OK && !bpx__list_reserve(&block->hits, count))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %llu pairs", (unsigned long long)count);
+    if (s == BPX_OK)
+        s = bpx__cuda_read_pairs(cu, block->hits.pairs, count);
+    if (s != BPX_OK)
+        return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: the cycle failed on the device");
+    block->hits.count = count;
+    bpx_cuda_timing t = bpx__cuda_timing(cu);
+    block->tests = t.tests;
+    w->stats.transfer_in_ns = t.in_ns;
+    w->stats.transfer_out_ns = t.out_ns;
+    w->stats.device_ns = t.device_ns;
+    w->stats.bytes_in = t.bytes_in;
+    w->stats.bytes_out = t.bytes_out;
+    return BPX_OK;
+}
+
+static void cuda_destroy(bpx_world *w)
+{
+    bpx__cuda_close(w->backend_state);
+    w->backend_state = NULL;
+}
+
+// New host boxes: the device boxes, if any, are no longer the world's.
+static void cuda_boxes_set(bpx_world *w, const float *centres)
+{
+    (void)centres;
+    if (w->backend_state)
+        bpx__cuda_use_device_boxes(w->backend_state, NULL, 0);
+}
+
+const bpx_backend_impl bpx__cuda_backend = {
+    .id = BPX_BACKEND_CUDA,
+    .name = "cuda",
+    .query = cuda_query,
+    .compare = cuda_compare,
+    .destroy = cuda_destroy,
+    .boxes_set = cuda_boxes_set,
+};
+
+// ---------------------------------------------------------------------------------------------
+// include/bpx/cuda.h
+
+static bpx_status cuda_world(bpx_world *w, bpx_cuda **cu)
+{
+    bpx__error_clear(&w->error);
+    if (w->backend->id != BPX_BACKEND_CUDA)
+        return bpx__error(&w->error, BPX_ERR_BACKEND_UNAVAILABLE, UINT32_MAX, -1,
+                          "the world's backend is %s, not cuda", w->backend->name);
+    return cuda_state(w, cu);
+}
+
+bpx_status bpx_cuda_set_boxes_device(bpx_world *w, const bpx_box *boxes, uint32_t n)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx_cuda *cu = NULL;
+    bpx_status s = cuda_world(w, &cu);
+    if (s != BPX_OK)
+        return s;
+    if (n > BPX_MAX_BOXES)
+        return bpx__error(&w->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
+                          "%u boxes exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
+    if (!boxes && n > 0)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "boxes is NULL");
+    if (w->dead)
+        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          "set_boxes_device: the world's boxes are managed by add/remove");
+    uint64_t start = bpx__now_ns();
+    if ((s = bpx__cuda_finish(cu, NULL)) == BPX_ERR_DEVICE)
+        return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: the last device cycle failed");
+    bool bad = false;
+    if ((s = bpx__cuda_check_device_boxes(cu, boxes, n, &bad)) != BPX_OK)
+        return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: checking the device boxes failed");
+    uint32_t index = 0;
+    bool min_greater = false;
+    if (bad && bpx__cuda_bad_box(cu, &index, &min_greater))
+        return report_bad_box(w, boxes, index);
+    // The host's arrays hold n inert boxes, so that nothing sized by n reads past them.
+    uint32_t old_n = w->n;
+    w->n = 0;
+    if (!bpx__boxes_resize(w, n)) {
+        w->n = old_n;
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u boxes", n);
+    }
+    bpx__cuda_use_device_boxes(cu, boxes, n);
+    w->stats.update_ns = bpx__now_ns() - start;
+    return BPX_OK;
+}
+
+bpx_status bpx_cuda_collide_device(bpx_world *w, void *stream)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx_cuda *cu = NULL;
+    bpx_status s = cuda_world(w, &cu);
+    if (s != BPX_OK)
+        return s;
+    if (w->category || w->def.track_events)
+        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          "collide_device: filters and events need the host's pairs");
+    bpx_soa soa = bpx__world_soa(w);
+    s = bpx__cuda_collide_device(cu, stream, soa.lo, soa.hi, soa.n);
+    if (s != BPX_OK)
+        return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: enqueueing the cycle failed");
+    w->stats.cycle_count++;
+    return BPX_OK;
+}
+
+bpx_status bpx_cuda_device_pairs(bpx_world *w, const bpx_pair **pairs,
+                                 const unsigned long long **count, size_t *capacity)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx_cuda *cu = NULL;
+    bpx_status s = cuda_world(w, &cu);
+    if (s != BPX_OK)
+        return s;
+    const bpx_pair *p = NULL;
+    const unsigned long long *c = NULL;
+    size_t cap = 0;
+    bpx__cuda_device_result(cu, &p, &c, &cap);
+    if (pairs)
+        *pairs = p;
+    if (count)
+        *count = c;
+    if (capacity)
+        *capacity = cap;
+    return BPX_OK;
+}
+
+bpx_status bpx_cuda_finish(bpx_world *w, size_t *count)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx_cuda *cu = NULL;
+    bpx_status s = cuda_world(w, &cu);
+    if (s != BPX_OK)
+        return s;
+    uint64_t found = 0;
+    s = bpx__cuda_finish(cu, &found);
+    if (count)
+        *count = (size_t)found;
+    if (s == BPX_ERR_NOT_FINITE) {
+        uint32_t index = 0;
+        bool min_greater = false;
+        if (bpx__cuda_bad_box(cu, &index, &min_greater))
+            return report_bad_box(w, bpx__cuda_device_boxes(cu), index);
+    }
+    if (s == BPX_ERR_CAPACITY)
+        return bpx__error(&w->error, s, UINT32_MAX, -1,
+                          "cuda: %llu pairs found, the device buffer held fewer; the next cycle "
+                          "has room",
+                          (unsigned long long)found);
+    if (s != BPX_OK)
+        return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: the device cycle failed");
+    w->stats.pair_count = found;
+    return BPX_OK;
+}
+
+bpx_status bpx_cuda_world_stream(bpx_world *w, void **stream)
+{
+    if (!w || !stream)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx_cuda *cu = NULL;
+    bpx_status s = cuda_world(w, &cu);
+    if (s != BPX_OK)
+        return s;
+    *stream = bpx__cuda_stream(cu);
+    return BPX_OK;
+}

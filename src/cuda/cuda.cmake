@@ -1,0 +1,42 @@
+# The cuda backend (src/cuda/): included by the top-level CMakeLists.txt before the library
+# targets. Sets BPX_CUDA (ON when CMake finds a CUDA compiler), appends the backend's sources to
+# BPX_SOURCES and its define to BPX_SIMD_DEFINES; bpx_cuda_link(target) links the CUDA runtime
+# (static, so users of libbpx need no CUDA at build time) where the backend is built.
+include(CheckLanguage)
+check_language(CUDA)
+set(BPX_CUDA_FOUND OFF)
+if(CMAKE_CUDA_COMPILER)
+    set(BPX_CUDA_FOUND ON)
+endif()
+option(BPX_CUDA "Build the cuda backend (needs the CUDA toolkit: nvcc, CUB)" ${BPX_CUDA_FOUND})
+if(BPX_CUDA AND NOT CMAKE_CUDA_COMPILER)
+    message(FATAL_ERROR "BPX_CUDA is ON but no CUDA compiler was found (set CMAKE_CUDA_COMPILER)")
+endif()
+
+if(BPX_CUDA)
+    # Hopper machine code, plus PTX that any GPU since Turing compiles at load time. Set
+    # CMAKE_CUDA_ARCHITECTURES for others (e.g. "native" where the GPU is present).
+    if(NOT DEFINED CMAKE_CUDA_ARCHITECTURES)
+        set(CMAKE_CUDA_ARCHITECTURES 90-real 75-virtual)
+    endif()
+    enable_language(CUDA)
+    set(CMAKE_CUDA_STANDARD 17)
+    set(CMAKE_CUDA_STANDARD_REQUIRED ON)
+    find_package(CUDAToolkit REQUIRED)
+    list(APPEND BPX_SOURCES src/cuda/backend.c src/cuda/cycle.cu src/cuda/kernels.cu)
+    list(APPEND BPX_SIMD_DEFINES BPX_HAVE_CUDA=1)
+    add_feature_info(cuda BPX_CUDA "the cuda backend (CUDA ${CUDAToolkit_VERSION})")
+    # For the installed package: consumers of the static library link the CUDA runtime too.
+    # CUB's host code needs the C++ runtime (static locals' guards).
+    string(APPEND BPX_PC_LIBS_PRIVATE
+           " -L${CUDAToolkit_LIBRARY_DIR} -lcudart_static -ldl -lrt -lstdc++")
+else()
+    list(APPEND BPX_SOURCES src/cuda/stub.c)
+    add_feature_info(cuda BPX_CUDA "the cuda backend")
+endif()
+
+function(bpx_cuda_link target)
+    if(BPX_CUDA)
+        target_link_libraries(${target} PRIVATE CUDA::cudart_static stdc++)
+    endif()
+endfunction()

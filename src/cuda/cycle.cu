@@ -1,0 +1,672 @@
+// The cuda backend's cycle: a context per world (stream, events, device buffers, pinned staging)
+// and the order of copies, kernels and sorts (kernels.cu). SPDX-License-Identifier: MIT
+//
+// Buffers only grow, geometrically, so cycles at a steady n allocate nothing. Sorting is CUB's
+// (the toolkit's CCCL): the Morton keys with the box ids, then the pair keys.
+#include <cub/device/device_radix_sort.cuh>
+
+#include <cstdio>
+#include <cstring>
+#include <pthread.h>
+
+#include "cuda_api.h"
+#include "kernels.cuh"
+
+extern "C" {
+#include "core/alloc.h"
+#include "core/log.h"
+}
+
+namespace {
+
+enum { event_start, event_in, event_device, event_out, event_count };
+
+// Boxes up to this many go through pinned staging in one copy (cheap to pack on the host);
+// beyond it each SoA array is copied straight from the world's memory.
+constexpr uint32_t staged_max = 65536;
+
+} // namespace
+
+struct bpx_cuda {
+    int device;
+    cudaStream_t stream;
+    cudaEvent_t events[event_count];
+
+    uint32_t box_capacity; // boxes the SoA arrays hold
+    float *boxes;          // 6 arrays of box_capacity floats: lo x, y, z, hi x, y, z
+    float *staging;        // pinned, same layout, for staged uploads
+    uint32_t staging_capacity;
+
+    uint32_t tree_capacity; // boxes the tree's arrays hold
+    bpx_cuda_tree tree;
+    void *tree_memory;
+
+    unsigned long long pair_capacity; // pairs the keys and the pair buffer hold
+    unsigned long long *keys[2];
+    unsigned char *out; // bpx_cuda_head, then pair_capacity pairs
+    bpx_cuda_head *host_head; // pinned: head, then host_pairs_capacity pairs
+    unsigned long long host_pairs_capacity;
+
+    void *sort_temp;
+    size_t sort_temp_bytes;
+
+    uint32_t n;       // boxes of the last cycle
+    int bits;         // bits of a pair key's j
+    int key_buffer;   // which keys buffer the last sort left sorted
+    uint64_t last_count;
+    const bpx_box *user_boxes; // boxes read in place from device memory each cycle, or NULL
+    unsigned long long host_have; // pairs of the last host cycle already in host_head
+    bool tree_path;
+    bool pending_head; // a device-resident cycle's head is on its way to host_head
+    bpx_cuda_timing timing;
+};
+
+namespace {
+
+bpx_status fail(cudaError_t e, const char *what)
+{
+    bpx__log(0, "cuda: %s failed: %s (%s)", what, cudaGetErrorName(e), cudaGetErrorString(e));
+    cudaGetLastError(); // clears a sticky-free error so the next call starts clean
+    return e == cudaErrorMemoryAllocation ? BPX_ERR_DEVICE_MEMORY : BPX_ERR_DEVICE;
+}
+
+#define CU(call)                                                                                   \
+    do {                                                                                           \
+        cudaError_t e_ = (call);                                                                   \
+        if (e_ != cudaSuccess)                                                                     \
+            return fail(e_, #call);                                                                \
+    } while (0)
+
+size_t grown(size_t have, size_t need)
+{
+    size_t size = have ? have : 1024;
+    while (size < need)
+        size += size / 2;
+    return size;
+}
+
+unsigned long long pair_bytes(unsigned long long pairs)
+{
+    return sizeof(bpx_cuda_head) + pairs * sizeof(bpx_pair);
+}
+
+bpx_pair *device_pairs(const bpx_cuda *cu)
+{
+    return reinterpret_cast<bpx_pair *>(cu->out + sizeof(bpx_cuda_head));
+}
+
+bpx_cuda_head *device_head(const bpx_cuda *cu)
+{
+    return reinterpret_cast<bpx_cuda_head *>(cu->out);
+}
+
+int key_bits(uint32_t n)
+{
+    int bits = 1;
+    while (bits < 32 && (1ull << bits) < n)
+        bits++;
+    return bits;
+}
+
+bpx_status reserve_boxes(bpx_cuda *cu, uint32_t n)
+{
+    if (n <= cu->box_capacity)
+        return BPX_OK;
+    uint32_t capacity = (uint32_t)grown(cu->box_capacity, n);
+    float *boxes = nullptr;
+    CU(cudaMalloc(&boxes, sizeof(float) * 6 * (size_t)capacity));
+    cudaFree(cu->boxes);
+    cu->boxes = boxes;
+    cu->box_capacity = capacity;
+    return BPX_OK;
+}
+
+bpx_status reserve_staging(bpx_cuda *cu, uint32_t n)
+{
+    if (n <= cu->staging_capacity)
+        return BPX_OK;
+    uint32_t capacity = (uint32_t)grown(cu->staging_capacity, n);
+    float *staging = nullptr;
+    CU(cudaMallocHost(&staging, sizeof(float) * 6 * (size_t)capacity));
+    cudaFreeHost(cu->staging);
+    cu->staging = staging;
+    cu->staging_capacity = capacity;
+    return BPX_OK;
+}
+
+size_t align_up(size_t x)
+{
+    return (x + 255) & ~(size_t)255;
+}
+
+// The tree's arrays in one allocation (offsets aligned for float4 loads).
+bpx_status reserve_tree(bpx_cuda *cu, uint32_t n)
+{
+    if (n <= cu->tree_capacity)
+        return BPX_OK;
+    size_t cap = grown(cu->tree_capacity, n);
+    size_t u32 = align_up(4 * cap), f4 = align_up(16 * cap);
+    size_t bytes = align_up(6 * 4) + 4 * u32 + 2 * f4 + align_up(sizeof(bpx_cuda_node) * cap) +
+                   3 * u32;
+    unsigned char *m = nullptr;
+    CU(cudaMalloc(&m, bytes));
+    cudaFree(cu->tree_memory);
+    cu->tree_memory = m;
+    bpx_cuda_tree *t = &cu->tree;
+    t->scene = reinterpret_cast<uint32_t *>(m), m += align_up(6 * 4);
+    t->morton[0] = reinterpret_cast<uint32_t *>(m), m += u32;
+    t->morton[1] = reinterpret_cast<uint32_t *>(m), m += u32;
+    t->ids[0] = reinterpret_cast<uint32_t *>(m), m += u32;
+    t->ids[1] = reinterpret_cast<uint32_t *>(m), m += u32;
+    t->leaf_lo = reinterpret_cast<float4 *>(m), m += f4;
+    t->leaf_hi = reinterpret_cast<float4 *>(m), m += f4;
+    t->nodes = reinterpret_cast<bpx_cuda_node *>(m), m += align_up(sizeof(bpx_cuda_node) * cap);
+    t->leaf_parent = reinterpret_cast<uint32_t *>(m), m += u32;
+    t->node_parent = reinterpret_cast<uint32_t *>(m), m += u32;
+    t->flags = reinterpret_cast<uint32_t *>(m);
+    cu->tree_capacity = (uint32_t)cap;
+    cu->sort_temp_bytes = 0; // sizes change with the item count: ask CUB again
+    return BPX_OK;
+}
+
+bpx_status reserve_pairs(bpx_cuda *cu, unsigned long long pairs)
+{
+    if (pairs <= cu->pair_capacity && cu->out)
+        return BPX_OK;
+    unsigned long long cap = grown(cu->pair_capacity, pairs < 65536 ? 65536 : pairs);
+    unsigned long long *k0 = nullptr, *k1 = nullptr;
+    unsigned char *out = nullptr;
+    cudaError_t e = cudaMalloc(&k0, 8 * cap);
+    if (e == cudaSuccess)
+        e = cudaMalloc(&k1, 8 * cap);
+    if (e == cudaSuccess)
+        e = cudaMalloc(&out, pair_bytes(cap));
+    if (e != cudaSuccess) {
+        cudaFree(k0), cudaFree(k1), cudaFree(out);
+        return fail(e, "cudaMalloc (pairs)");
+    }
+    cudaFree(cu->keys[0]), cudaFree(cu->keys[1]), cudaFree(cu->out);
+    cu->keys[0] = k0, cu->keys[1] = k1, cu->out = out;
+    cu->pair_capacity = cap;
+    cu->sort_temp_bytes = 0;
+    return BPX_OK;
+}
+
+bpx_status reserve_host_pairs(bpx_cuda *cu, unsigned long long pairs)
+{
+    if (pairs <= cu->host_pairs_capacity && cu->host_head)
+        return BPX_OK;
+    unsigned long long cap = grown(cu->host_pairs_capacity, pairs);
+    void *host = nullptr;
+    CU(cudaMallocHost(&host, pair_bytes(cap)));
+    cudaFreeHost(cu->host_head);
+    cu->host_head = static_cast<bpx_cuda_head *>(host);
+    cu->host_pairs_capacity = cap;
+    return BPX_OK;
+}
+
+// Temporary storage for both sorts at the current capacities.
+bpx_status reserve_sort(bpx_cuda *cu)
+{
+    if (cu->sort_temp_bytes)
+        return BPX_OK;
+    size_t a = 0, b = 0;
+    cub::DoubleBuffer<uint32_t> mk(cu->tree.morton[0], cu->tree.morton[1]);
+    cub::DoubleBuffer<uint32_t> ids(cu->tree.ids[0], cu->tree.ids[1]);
+    CU(cub::DeviceRadixSort::SortPairs(nullptr, a, mk, ids, (int64_t)cu->tree_capacity, 0, 30));
+    cub::DoubleBuffer<unsigned long long> keys(cu->keys[0], cu->keys[1]);
+    CU(cub::DeviceRadixSort::SortKeys(nullptr, b, keys, (int64_t)cu->pair_capacity, 0, 64));
+    size_t bytes = a > b ? a : b;
+    void *temp = nullptr;
+    CU(cudaMalloc(&temp, bytes));
+    cudaFree(cu->sort_temp);
+    cu->sort_temp = temp;
+    cu->sort_temp_bytes = bytes;
+    return BPX_OK;
+}
+
+bpx_status upload(bpx_cuda *cu, const float *const lo[3], const float *const hi[3], uint32_t n)
+{
+    const float *src[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
+    if (n <= staged_max) {
+        if (bpx_status s = reserve_staging(cu, n); s != BPX_OK)
+            return s;
+        for (int a = 0; a < 6; a++)
+            memcpy(cu->staging + (size_t)a * n, src[a], sizeof(float) * n);
+        // Packed as 6 arrays of n, then spread to the device's arrays of box_capacity.
+        CU(cudaMemcpy2DAsync(cu->boxes, sizeof(float) * cu->box_capacity, cu->staging,
+                             sizeof(float) * n, sizeof(float) * n, 6, cudaMemcpyHostToDevice,
+                             cu->stream));
+    } else {
+        for (int a = 0; a < 6; a++)
+            CU(cudaMemcpyAsync(cu->boxes + (size_t)a * cu->box_capacity, src[a],
+                               sizeof(float) * n, cudaMemcpyHostToDevice, cu->stream));
+    }
+    cu->timing.bytes_in = 24ull * n;
+    return BPX_OK;
+}
+
+void point_tree_at_boxes(bpx_cuda *cu, uint32_t n)
+{
+    for (int a = 0; a < 3; a++) {
+        cu->tree.lo[a] = cu->boxes + (size_t)a * cu->box_capacity;
+        cu->tree.hi[a] = cu->boxes + (size_t)(3 + a) * cu->box_capacity;
+    }
+    cu->tree.n = n;
+}
+
+// Bounds, Morton keys, their sort, the hierarchy: everything up to the walk.
+bpx_status enqueue_tree(bpx_cuda *cu)
+{
+    bpx_cuda_tree *t = &cu->tree;
+    uint32_t n = t->n;
+    CU(cudaMemsetAsync(t->scene, 0xff, 12, cu->stream));
+    CU(cudaMemsetAsync(t->scene + 3, 0, 12, cu->stream));
+    CU(cudaMemsetAsync(t->flags, 0, 4 * (size_t)n, cu->stream));
+    bpx__cuda_launch_bounds(cu->stream, t);
+    bpx__cuda_launch_morton(cu->stream, t);
+    cub::DoubleBuffer<uint32_t> mk(t->morton[0], t->morton[1]);
+    cub::DoubleBuffer<uint32_t> ids(t->ids[0], t->ids[1]);
+    size_t bytes = cu->sort_temp_bytes;
+    CU(cub::DeviceRadixSort::SortPairs(cu->sort_temp, bytes, mk, ids, (int64_t)n, 0, 30,
+                                       cu->stream));
+    t->current = mk.selector;
+    if (ids.selector != mk.selector) // CUB keeps both in step; the tree relies on it
+        return fail(cudaErrorUnknown, "SortPairs (buffers out of step)");
+    bpx__cuda_launch_build(cu->stream, t);
+    return BPX_OK;
+}
+
+// The walk into keys[0] (padding above count stays all ones, sorting last), then the sort of
+// `items` keys and their unpacking into the pair buffer.
+bpx_status enqueue_walk(bpx_cuda *cu)
+{
+    CU(cudaMemsetAsync(device_head(cu), 0, sizeof(unsigned long long), cu->stream));
+    bpx__cuda_launch_traverse(cu->stream, &cu->tree, cu->bits, cu->keys[0], cu->pair_capacity,
+                              device_head(cu));
+    return BPX_OK;
+}
+
+bpx_status enqueue_sort(bpx_cuda *cu, unsigned long long items)
+{
+    cub::DoubleBuffer<unsigned long long> keys(cu->keys[0], cu->keys[1]);
+    size_t bytes = cu->sort_temp_bytes;
+    if (items > 1)
+        CU(cub::DeviceRadixSort::SortKeys(cu->sort_temp, bytes, keys, (int64_t)items, 0,
+                                          2 * cu->bits, cu->stream));
+    cu->key_buffer = keys.selector;
+    bpx__cuda_launch_unpack(cu->stream, keys.Current(), cu->bits, items, device_head(cu),
+                            device_pairs(cu));
+    return BPX_OK;
+}
+
+uint64_t elapsed_ns(cudaEvent_t a, cudaEvent_t b)
+{
+    float ms = 0.0f;
+    if (cudaEventElapsedTime(&ms, a, b) != cudaSuccess) {
+        cudaGetLastError();
+        return 0;
+    }
+    return (uint64_t)((double)ms * 1e6);
+}
+
+pthread_once_t probe_once = PTHREAD_ONCE_INIT;
+const char *probe_reason = "";
+char probe_detail[96];
+bool probe_ok;
+
+__global__ void probe_kernel(int *out)
+{
+    *out = 42;
+}
+
+void probe_device()
+{
+    int count = 0;
+    cudaError_t e = cudaGetDeviceCount(&count);
+    if (e != cudaSuccess || count == 0) {
+        probe_reason = e == cudaErrorInsufficientDriver ? "no CUDA driver"
+                       : e == cudaErrorNoDevice || count == 0 ? "no CUDA device"
+                                                              : "CUDA runtime failed to start";
+        cudaGetLastError();
+        return;
+    }
+    cudaDeviceProp prop;
+    int *d = nullptr, h = 0;
+    if (cudaGetDeviceProperties(&prop, 0) != cudaSuccess || cudaMalloc(&d, sizeof(int)) != cudaSuccess) {
+        probe_reason = "CUDA device 0 unusable";
+        cudaGetLastError();
+        return;
+    }
+    probe_kernel<<<1, 1>>>(d);
+    e = cudaMemcpy(&h, d, sizeof h, cudaMemcpyDeviceToHost);
+    cudaFree(d);
+    if (e != cudaSuccess || h != 42) {
+        probe_reason = "this build has no kernels for the device (CMAKE_CUDA_ARCHITECTURES)";
+        cudaGetLastError();
+        return;
+    }
+    snprintf(probe_detail, sizeof probe_detail, "%s, sm_%d%d", prop.name, prop.major, prop.minor);
+    probe_ok = true;
+}
+
+} // namespace
+
+extern "C" {
+
+bool bpx__cuda_probe(const char **reason, char *detail, size_t size)
+{
+    pthread_once(&probe_once, probe_device);
+    if (reason)
+        *reason = probe_reason;
+    if (detail && size)
+        snprintf(detail, size, "%s", probe_ok ? probe_detail : "");
+    return probe_ok;
+}
+
+bpx_status bpx__cuda_open(bpx_cuda **out)
+{
+    *out = nullptr;
+    if (!bpx__cuda_probe(nullptr, nullptr, 0))
+        return BPX_ERR_BACKEND_UNAVAILABLE;
+    auto *cu = static_cast<bpx_cuda *>(bpx__alloc(sizeof(bpx_cuda)));
+    if (!cu)
+        return BPX_ERR_OUT_OF_MEMORY;
+    memset(cu, 0, sizeof *cu);
+    cudaError_t e = cudaSetDevice(0);
+    if (e == cudaSuccess)
+        e = cudaStreamCreateWithFlags(&cu->stream, cudaStreamNonBlocking);
+    for (int k = 0; k < event_count && e == cudaSuccess; k++)
+        e = cudaEventCreate(&cu->events[k]);
+    if (e != cudaSuccess) {
+        bpx__cuda_close(cu);
+        return fail(e, "cudaStreamCreate/cudaEventCreate");
+    }
+    *out = cu;
+    return BPX_OK;
+}
+
+void bpx__cuda_close(bpx_cuda *cu)
+{
+    if (!cu)
+        return;
+    if (cu->stream)
+        cudaStreamSynchronize(cu->stream);
+    cudaFree(cu->boxes);
+    cudaFreeHost(cu->staging);
+    cudaFree(cu->tree_memory);
+    cudaFree(cu->keys[0]);
+    cudaFree(cu->keys[1]);
+    cudaFree(cu->out);
+    cudaFreeHost(cu->host_head);
+    cudaFree(cu->sort_temp);
+    for (int k = 0; k < event_count; k++)
+        if (cu->events[k])
+            cudaEventDestroy(cu->events[k]);
+    if (cu->stream)
+        cudaStreamDestroy(cu->stream);
+    cudaGetLastError();
+    bpx__free(cu, sizeof *cu);
+}
+
+// Boxes in, from the host's SoA arrays or the caller's device buffer (converted and checked).
+static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3],
+                           const float *const hi[3], uint32_t n)
+{
+    if (bpx_status st = reserve_boxes(cu, n); st != BPX_OK)
+        return st;
+    CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, s));
+    if (!cu->user_boxes)
+        return upload(cu, lo, hi, n);
+    float *dlo[3], *dhi[3];
+    for (int a = 0; a < 3; a++) {
+        dlo[a] = cu->boxes + (size_t)a * cu->box_capacity;
+        dhi[a] = cu->boxes + (size_t)(3 + a) * cu->box_capacity;
+    }
+    if (n)
+        bpx__cuda_launch_convert(s, cu->user_boxes, n, dlo, dhi, device_head(cu));
+    return BPX_OK;
+}
+
+static unsigned long long small_pairs(uint32_t n)
+{
+    return (unsigned long long)n * (n ? n - 1 : 0) / 2;
+}
+
+bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *const hi[3],
+                          uint32_t n, uint64_t *count)
+{
+    *count = 0;
+    cu->timing = bpx_cuda_timing{};
+    cu->host_have = 0;
+    if (cu->user_boxes)
+        n = cu->n;
+    cu->n = n;
+    cu->tree_path = n > BPX_CUDA_SMALL_MAX;
+    CU(cudaSetDevice(cu->device));
+    if (bpx_status s = reserve_pairs(cu, cu->tree_path ? 0 : small_pairs(n)); s != BPX_OK)
+        return s;
+    // The pairs we expect come back in the same copy as the head (small sets); the tree's are
+    // counted first and copied straight to the caller.
+    unsigned long long guess = cu->last_count + cu->last_count / 4 + 64;
+    if (guess > small_pairs(n) || cu->tree_path)
+        guess = cu->tree_path ? 0 : small_pairs(n);
+    if (bpx_status s = reserve_host_pairs(cu, guess); s != BPX_OK)
+        return s;
+    CU(cudaEventRecord(cu->events[event_start], cu->stream));
+    if (bpx_status s = boxes_in(cu, cu->stream, lo, hi, n); s != BPX_OK)
+        return s;
+    CU(cudaEventRecord(cu->events[event_in], cu->stream));
+    point_tree_at_boxes(cu, n);
+    if (n < 2) {
+        CU(cudaMemsetAsync(device_head(cu), 0, 8, cu->stream));
+    } else if (!cu->tree_path) {
+        bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, n, device_head(cu),
+                               device_pairs(cu));
+        cu->timing.tests = small_pairs(n);
+    } else {
+        cu->bits = key_bits(n);
+        if (bpx_status s = reserve_tree(cu, n); s != BPX_OK)
+            return s;
+        if (bpx_status s = reserve_pairs(cu, cu->last_count + cu->last_count / 4); s != BPX_OK)
+            return s;
+        if (bpx_status s = reserve_sort(cu); s != BPX_OK)
+            return s;
+        if (bpx_status s = enqueue_tree(cu); s != BPX_OK)
+            return s;
+        if (bpx_status s = enqueue_walk(cu); s != BPX_OK)
+            return s;
+        CU(cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
+                           cudaMemcpyDeviceToHost, cu->stream));
+        CU(cudaStreamSynchronize(cu->stream));
+        unsigned long long found = cu->host_head->count;
+        if (found > cu->pair_capacity) { // grow to the exact need and walk again
+            if (bpx_status s = reserve_pairs(cu, found); s != BPX_OK)
+                return s;
+            if (bpx_status s = reserve_sort(cu); s != BPX_OK)
+                return s;
+            if (bpx_status s = enqueue_walk(cu); s != BPX_OK)
+                return s;
+        }
+        if (bpx_status s = enqueue_sort(cu, found); s != BPX_OK)
+            return s;
+    }
+    CU(cudaEventRecord(cu->events[event_device], cu->stream));
+    CU(cudaMemcpyAsync(cu->host_head, cu->out, pair_bytes(guess), cudaMemcpyDeviceToHost,
+                       cu->stream));
+    CU(cudaStreamSynchronize(cu->stream));
+    if (cu->user_boxes && cu->host_head->bad != ~0ull)
+        return BPX_ERR_NOT_FINITE; // the caller asks bpx__cuda_bad_box which and why
+    *count = cu->host_head->count;
+    cu->last_count = *count;
+    cu->host_have = guess < *count ? guess : *count;
+    cu->timing.bytes_out = pair_bytes(guess);
+    cu->timing.tree = cu->tree_path;
+    return BPX_OK;
+}
+
+bpx_status bpx__cuda_read_pairs(bpx_cuda *cu, bpx_pair *out, uint64_t count)
+{
+    const bpx_pair *host_pairs =
+        reinterpret_cast<const bpx_pair *>(reinterpret_cast<unsigned char *>(cu->host_head) +
+                                           sizeof(bpx_cuda_head));
+    unsigned long long have = cu->host_have < count ? cu->host_have : count;
+    if (have)
+        memcpy(out, host_pairs, sizeof(bpx_pair) * have);
+    if (count > have) {
+        CU(cudaMemcpyAsync(out + have, device_pairs(cu) + have, sizeof(bpx_pair) * (count - have),
+                           cudaMemcpyDeviceToHost, cu->stream));
+        cu->timing.bytes_out += sizeof(bpx_pair) * (count - have);
+    }
+    CU(cudaEventRecord(cu->events[event_out], cu->stream));
+    CU(cudaStreamSynchronize(cu->stream));
+    cu->timing.in_ns = elapsed_ns(cu->events[event_start], cu->events[event_in]);
+    cu->timing.device_ns = elapsed_ns(cu->events[event_in], cu->events[event_device]);
+    cu->timing.out_ns = elapsed_ns(cu->events[event_device], cu->events[event_out]);
+    return BPX_OK;
+}
+
+bool bpx__cuda_bad_box(const bpx_cuda *cu, uint32_t *index, bool *min_greater)
+{
+    unsigned long long bad = cu->host_head ? cu->host_head->bad : ~0ull;
+    if (bad == ~0ull)
+        return false;
+    *index = (uint32_t)(bad >> 32);
+    *min_greater = (bad & 0xffffffffull) >= 8;
+    return true;
+}
+
+bpx_status bpx__cuda_check_device_boxes(bpx_cuda *cu, const bpx_box *boxes, uint32_t n,
+                                        bool *bad)
+{
+    *bad = false;
+    CU(cudaSetDevice(cu->device));
+    if (bpx_status st = reserve_pairs(cu, 0); st != BPX_OK)
+        return st;
+    if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
+        return st;
+    CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, cu->stream));
+    if (n) {
+        float *none[3] = {nullptr, nullptr, nullptr};
+        bpx__cuda_launch_convert(cu->stream, boxes, n, none, none, device_head(cu));
+    }
+    CU(cudaGetLastError());
+    CU(cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
+                       cudaMemcpyDeviceToHost, cu->stream));
+    CU(cudaStreamSynchronize(cu->stream));
+    *bad = cu->host_head->bad != ~0ull;
+    return BPX_OK;
+}
+
+void bpx__cuda_use_device_boxes(bpx_cuda *cu, const bpx_box *boxes, uint32_t n)
+{
+    cu->user_boxes = boxes;
+    cu->n = n;
+}
+
+bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *const lo[3],
+                                    const float *const hi[3], uint32_t n)
+{
+    CU(cudaSetDevice(cu->device));
+    cudaStream_t s = stream ? static_cast<cudaStream_t>(stream) : cu->stream;
+    if (cu->user_boxes)
+        n = cu->n;
+    cu->n = n;
+    cu->timing = bpx_cuda_timing{};
+    // The last cycle's count, copied back behind it, sizes this cycle's buffer.
+    if (bpx_status st = bpx__cuda_finish(cu, nullptr); st != BPX_OK && st != BPX_ERR_CAPACITY &&
+                                                       st != BPX_ERR_NOT_FINITE)
+        return st;
+    unsigned long long need = n <= BPX_CUDA_SMALL_MAX ? small_pairs(n)
+                                                      : cu->last_count + cu->last_count / 2 + 1024;
+    if (bpx_status st = reserve_pairs(cu, need); st != BPX_OK)
+        return st;
+    if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
+        return st;
+    cudaStream_t own = cu->stream;
+    cu->stream = s; // the enqueue helpers work on cu->stream
+    bpx_status status = boxes_in(cu, s, lo, hi, n);
+    point_tree_at_boxes(cu, n);
+    if (status != BPX_OK) {
+    } else if (n < 2) {
+        cudaError_t e = cudaMemsetAsync(device_head(cu), 0, 8, s);
+        status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemsetAsync");
+    } else if (n <= BPX_CUDA_SMALL_MAX) {
+        bpx__cuda_launch_small(s, cu->tree.lo, cu->tree.hi, n, device_head(cu), device_pairs(cu));
+        cu->tree_path = false;
+    } else {
+        cu->tree_path = true;
+        cu->bits = key_bits(n);
+        status = reserve_tree(cu, n);
+        if (status == BPX_OK)
+            status = reserve_sort(cu);
+        if (status == BPX_OK)
+            status = enqueue_tree(cu);
+        if (status == BPX_OK) {
+            cudaError_t e = cudaMemsetAsync(cu->keys[0], 0xff, 8 * cu->pair_capacity, s);
+            status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemsetAsync (keys)");
+        }
+        if (status == BPX_OK)
+            status = enqueue_walk(cu);
+        if (status == BPX_OK)
+            status = enqueue_sort(cu, cu->pair_capacity);
+    }
+    if (status == BPX_OK) {
+        cudaError_t e = cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
+                                        cudaMemcpyDeviceToHost, s);
+        if (e == cudaSuccess)
+            e = cudaEventRecord(cu->events[event_out], s);
+        status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemcpyAsync (head)");
+        cu->pending_head = status == BPX_OK;
+    }
+    cu->stream = own;
+    cu->timing.tree = cu->tree_path;
+    return status;
+}
+
+bpx_status bpx__cuda_finish(bpx_cuda *cu, uint64_t *count)
+{
+    if (!cu->pending_head)
+        return BPX_OK;
+    CU(cudaEventSynchronize(cu->events[event_out]));
+    cu->pending_head = false;
+    cu->last_count = cu->host_head->count;
+    if (count)
+        *count = cu->last_count;
+    if (cu->host_head->bad != ~0ull)
+        return BPX_ERR_NOT_FINITE;
+    if (cu->last_count > cu->pair_capacity)
+        return BPX_ERR_CAPACITY;
+    return BPX_OK;
+}
+
+void bpx__cuda_device_result(const bpx_cuda *cu, const bpx_pair **pairs,
+                             const unsigned long long **count, size_t *capacity)
+{
+    *pairs = cu->out ? device_pairs(cu) : nullptr;
+    *count = cu->out ? &device_head(cu)->count : nullptr;
+    *capacity = (size_t)cu->pair_capacity;
+}
+
+bpx_status bpx__cuda_copy_box(bpx_box *out, const bpx_box *device_box)
+{
+    CU(cudaMemcpy(out, device_box, sizeof *out, cudaMemcpyDeviceToHost));
+    return BPX_OK;
+}
+
+const bpx_box *bpx__cuda_device_boxes(const bpx_cuda *cu)
+{
+    return cu->user_boxes;
+}
+
+bpx_cuda_timing bpx__cuda_timing(const bpx_cuda *cu)
+{
+    return cu->timing;
+}
+
+void *bpx__cuda_stream(const bpx_cuda *cu)
+{
+    return cu->stream;
+}
+
+} // extern "C"

@@ -1,0 +1,425 @@
+// The cuda backend's kernels; see kernels.cuh for the two comparators. SPDX-License-Identifier: MIT
+//
+// No fast math anywhere (the build refuses it): comparisons decide every pair, and the only
+// arithmetic, the centres behind the Morton order, only orders the tree, never decides a pair.
+#include <cub/block/block_scan.cuh>
+
+#include "kernels.cuh"
+
+namespace {
+
+constexpr int block_threads = 256;
+constexpr int stack_depth = 64; // the tree's depth is at most 30 Morton bits + 32 index bits
+constexpr int emit_buffer = 8;
+
+unsigned int grid_for(uint32_t n)
+{
+    return (n + block_threads - 1) / block_threads;
+}
+
+// Floats as unsigned keys of the same order, for atomicMin/atomicMax.
+__device__ uint32_t order_key(float f)
+{
+    uint32_t u = __float_as_uint(f);
+    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+__device__ float order_value(uint32_t k)
+{
+    return __uint_as_float((k & 0x80000000u) ? (k & 0x7fffffffu) : ~k);
+}
+
+__device__ bool overlap(float4 alo, float4 ahi, float4 blo, float4 bhi)
+{
+    return alo.x <= bhi.x && blo.x <= ahi.x && alo.y <= bhi.y && blo.y <= ahi.y &&
+           alo.z <= bhi.z && blo.z <= ahi.z;
+}
+
+// ---- small: one block, every box in shared memory -------------------------------------------
+
+__global__ void __launch_bounds__(BPX_CUDA_SMALL_MAX)
+    small_kernel(const float *lx, const float *ly, const float *lz, const float *hx,
+                 const float *hy, const float *hz, uint32_t n, bpx_cuda_head *head,
+                 bpx_pair *pairs)
+{
+    __shared__ float s[6][BPX_CUDA_SMALL_MAX];
+    using scan_t = cub::BlockScan<uint32_t, BPX_CUDA_SMALL_MAX>;
+    __shared__ typename scan_t::TempStorage scan_storage;
+    const uint32_t i = threadIdx.x;
+    if (i < n) {
+        s[0][i] = lx[i], s[1][i] = ly[i], s[2][i] = lz[i];
+        s[3][i] = hx[i], s[4][i] = hy[i], s[5][i] = hz[i];
+    }
+    __syncthreads();
+    float ax = 0, ay = 0, az = 0, bx = 0, by = 0, bz = 0;
+    uint32_t count = 0;
+    if (i < n) {
+        ax = s[0][i], ay = s[1][i], az = s[2][i], bx = s[3][i], by = s[4][i], bz = s[5][i];
+        for (uint32_t j = i + 1; j < n; j++)
+            count += ax <= s[3][j] && s[0][j] <= bx && ay <= s[4][j] && s[1][j] <= by &&
+                     az <= s[5][j] && s[2][j] <= bz;
+    }
+    uint32_t offset, total;
+    scan_t(scan_storage).ExclusiveSum(count, offset, total);
+    if (i < n && count) {
+        for (uint32_t j = i + 1; j < n; j++)
+            if (ax <= s[3][j] && s[0][j] <= bx && ay <= s[4][j] && s[1][j] <= by &&
+                az <= s[5][j] && s[2][j] <= bz)
+                pairs[offset++] = bpx_pair{i, j};
+    }
+    if (i == 0) {
+        head->count = total;
+        head->bad = ~0ull;
+    }
+}
+
+// ---- tree: bounds, Morton keys, build, refit, traverse --------------------------------------
+
+// Inert boxes (removed ids: min +inf, max -inf) have no centre; they stay out of the bounds
+// and sort last, and their empty bounds never widen a node.
+__global__ void bounds_kernel(const float *lx, const float *ly, const float *lz, const float *hx,
+                              const float *hy, const float *hz, uint32_t n, uint32_t *scene)
+{
+    uint32_t lo[3] = {~0u, ~0u, ~0u}, hi[3] = {0, 0, 0};
+    for (uint32_t i = blockIdx.x * blockDim.x + threadIdx.x; i < n; i += gridDim.x * blockDim.x) {
+        if (!(lx[i] <= hx[i]))
+            continue;
+        const float c[3] = {0.5f * lx[i] + 0.5f * hx[i], 0.5f * ly[i] + 0.5f * hy[i],
+                            0.5f * lz[i] + 0.5f * hz[i]};
+        for (int a = 0; a < 3; a++) {
+            uint32_t k = order_key(c[a]);
+            lo[a] = min(lo[a], k);
+            hi[a] = max(hi[a], k);
+        }
+    }
+    for (int a = 0; a < 3; a++) {
+        for (int d = 16; d > 0; d >>= 1) {
+            lo[a] = min(lo[a], __shfl_xor_sync(0xffffffffu, lo[a], d));
+            hi[a] = max(hi[a], __shfl_xor_sync(0xffffffffu, hi[a], d));
+        }
+    }
+    if ((threadIdx.x & 31) == 0) {
+        for (int a = 0; a < 3; a++) {
+            atomicMin(&scene[a], lo[a]);
+            atomicMax(&scene[3 + a], hi[a]);
+        }
+    }
+}
+
+__device__ uint32_t spread10(uint32_t v)
+{
+    v = (v | (v << 16)) & 0x030000FFu;
+    v = (v | (v << 8)) & 0x0300F00Fu;
+    v = (v | (v << 4)) & 0x030C30C3u;
+    v = (v | (v << 2)) & 0x09249249u;
+    return v;
+}
+
+__global__ void morton_kernel(const float *lx, const float *ly, const float *lz, const float *hx,
+                              const float *hy, const float *hz, uint32_t n,
+                              const uint32_t *scene, uint32_t *morton, uint32_t *ids)
+{
+    uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n)
+        return;
+    ids[i] = i;
+    if (!(lx[i] <= hx[i])) {
+        morton[i] = ~0u;
+        return;
+    }
+    const float c[3] = {0.5f * lx[i] + 0.5f * hx[i], 0.5f * ly[i] + 0.5f * hy[i],
+                        0.5f * lz[i] + 0.5f * hz[i]};
+    uint32_t code = 0;
+    for (int a = 0; a < 3; a++) {
+        // In double: the span of finite floats can overflow a float.
+        double lo = order_value(scene[a]), hi = order_value(scene[3 + a]);
+        double q = hi > lo ? ((double)c[a] - lo) * (1024.0 / (hi - lo)) : 0.0;
+        uint32_t cell = q < 0.0 ? 0u : q >= 1023.0 ? 1023u : (uint32_t)q;
+        code |= spread10(cell) << (2 - a);
+    }
+    morton[i] = code;
+}
+
+__global__ void gather_kernel(const float *lx, const float *ly, const float *lz, const float *hx,
+                              const float *hy, const float *hz, uint32_t n, const uint32_t *ids,
+                              float4 *leaf_lo, float4 *leaf_hi)
+{
+    uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
+    if (t >= n)
+        return;
+    uint32_t i = ids[t];
+    leaf_lo[t] = make_float4(lx[i], ly[i], lz[i], __uint_as_float(i));
+    leaf_hi[t] = make_float4(hx[i], hy[i], hz[i], 0.0f);
+}
+
+// Length of the common prefix of positions a and b's keys, the position breaking ties, so
+// that equal Morton codes still give a binary tree; -1 outside [0, n).
+__device__ int common_prefix(const uint32_t *keys, int n, int a, int b)
+{
+    if (b < 0 || b >= n)
+        return -1;
+    uint32_t ka = keys[a], kb = keys[b];
+    return ka == kb ? 32 + __clz(a ^ b) : __clz(ka ^ kb);
+}
+
+// Karras (2012), "Maximizing parallelism in the construction of BVHs, octrees, and k-d trees":
+// internal node i finds its range's other end and its split, independently of every other node.
+__global__ void build_kernel(const uint32_t *keys, int n, uint32_t *leaf_parent,
+                             uint32_t *node_parent)
+{
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n - 1)
+        return;
+    int d = common_prefix(keys, n, i, i + 1) - common_prefix(keys, n, i, i - 1) > 0 ? 1 : -1;
+    int least = common_prefix(keys, n, i, i - d);
+    int reach = 2;
+    while (common_prefix(keys, n, i, i + reach * d) > least)
+        reach <<= 1;
+    int length = 0;
+    for (int step = reach >> 1; step > 0; step >>= 1)
+        if (common_prefix(keys, n, i, i + (length + step) * d) > least)
+            length += step;
+    int j = i + length * d;
+    int node_prefix = common_prefix(keys, n, i, j);
+    int split = 0;
+    for (int div = 2, step;; div <<= 1) {
+        step = (length + div - 1) / div;
+        if (common_prefix(keys, n, i, i + (split + step) * d) > node_prefix)
+            split += step;
+        if (step <= 1)
+            break;
+    }
+    int gamma = i + split * d + min(d, 0);
+    if (min(i, j) == gamma)
+        leaf_parent[gamma] = (uint32_t)i << 1;
+    else
+        node_parent[gamma] = (uint32_t)i << 1;
+    if (max(i, j) == gamma + 1)
+        leaf_parent[gamma + 1] = ((uint32_t)i << 1) | 1u;
+    else
+        node_parent[gamma + 1] = ((uint32_t)i << 1) | 1u;
+}
+
+// Bottom-up: each leaf writes its box into its parent's slot; the second child to arrive at a
+// node writes the node's union into the node's parent, and so on to the root.
+__global__ void refit_kernel(const float4 *leaf_lo, const float4 *leaf_hi, uint32_t n,
+                             const uint32_t *leaf_parent, const uint32_t *node_parent,
+                             bpx_cuda_node *nodes, uint32_t *flags)
+{
+    uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
+    if (t >= n)
+        return;
+    float4 lo = leaf_lo[t], hi = leaf_hi[t];
+    uint32_t code = t | BPX_CUDA_LEAF;
+    uint32_t up = leaf_parent[t];
+    for (;;) {
+        uint32_t p = up >> 1, side = up & 1;
+        nodes[p].lo[side] = make_float4(lo.x, lo.y, lo.z, __uint_as_float(code));
+        nodes[p].hi[side] = make_float4(hi.x, hi.y, hi.z, 0.0f);
+        __threadfence();
+        if (atomicAdd(&flags[p], 1u) == 0)
+            return; // the sibling is not there yet: it carries on
+        if (p == 0)
+            return;
+        float4 l0 = __ldcg(&nodes[p].lo[0]), l1 = __ldcg(&nodes[p].lo[1]);
+        float4 h0 = __ldcg(&nodes[p].hi[0]), h1 = __ldcg(&nodes[p].hi[1]);
+        lo = make_float4(fminf(l0.x, l1.x), fminf(l0.y, l1.y), fminf(l0.z, l1.z), 0.0f);
+        hi = make_float4(fmaxf(h0.x, h1.x), fmaxf(h0.y, h1.y), fmaxf(h0.z, h1.z), 0.0f);
+        code = p;
+        up = node_parent[p];
+    }
+}
+
+__device__ void emit_flush(unsigned long long *buffer, int count, unsigned long long *keys,
+                           unsigned long long capacity, bpx_cuda_head *head)
+{
+    unsigned long long base = atomicAdd(&head->count, (unsigned long long)count);
+    for (int k = 0; k < count; k++)
+        if (base + k < capacity)
+            keys[base + k] = buffer[k];
+}
+
+// Thread t takes the box at Morton position t and looks only at positions after t: a subtree
+// whose last position is <= t is skipped whole. A left child's last position is its own index
+// (the split); a right child's is its parent's, so it is always > t.
+__global__ void traverse_kernel(const bpx_cuda_node *__restrict__ nodes,
+                                const float4 *__restrict__ leaf_lo,
+                                const float4 *__restrict__ leaf_hi, uint32_t n, int bits,
+                                unsigned long long *keys, unsigned long long capacity,
+                                bpx_cuda_head *head)
+{
+    const uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
+    unsigned long long buffer[emit_buffer];
+    int count = 0;
+    float4 alo = make_float4(1, 1, 1, 0), ahi = make_float4(0, 0, 0, 0);
+    if (t + 1 < n) {
+        alo = leaf_lo[t];
+        ahi = leaf_hi[t];
+    }
+    if (alo.x <= ahi.x) { // a live box with later positions
+        const uint32_t me = __float_as_uint(alo.w);
+        uint32_t stack_node[stack_depth], stack_last[stack_depth];
+        int top = 0;
+        uint32_t node = 0, last = n - 1;
+        for (;;) {
+            const bpx_cuda_node *nd = nodes + node;
+            float4 l0 = __ldg(&nd->lo[0]), h0 = __ldg(&nd->hi[0]);
+            float4 l1 = __ldg(&nd->lo[1]), h1 = __ldg(&nd->hi[1]);
+            uint32_t left = __float_as_uint(l0.w), right = __float_as_uint(l1.w);
+            uint32_t left_at = left & ~BPX_CUDA_LEAF, right_at = right & ~BPX_CUDA_LEAF;
+            bool go_left = left_at > t && overlap(alo, ahi, l0, h0);
+            bool go_right = overlap(alo, ahi, l1, h1);
+            uint32_t hit[2];
+            int hits = 0;
+            if (go_left && (left & BPX_CUDA_LEAF)) {
+                hit[hits++] = left_at;
+                go_left = false;
+            }
+            if (go_right && (right & BPX_CUDA_LEAF)) {
+                hit[hits++] = right_at;
+                go_right = false;
+            }
+            for (int h = 0; h < hits; h++) {
+                uint32_t other = __float_as_uint(__ldg(&leaf_lo[hit[h]].w));
+                uint32_t i = min(me, other), j = max(me, other);
+                if (count == emit_buffer) {
+                    emit_flush(buffer, count, keys, capacity, head);
+                    count = 0;
+                }
+                buffer[count++] = ((unsigned long long)i << bits) | j;
+            }
+            if (go_left && go_right) {
+                stack_node[top] = right_at;
+                stack_last[top] = last;
+                top++;
+                node = left_at;
+                last = left_at;
+            } else if (go_left) {
+                node = left_at;
+                last = left_at;
+            } else if (go_right) {
+                node = right_at;
+            } else {
+                if (top == 0)
+                    break;
+                top--;
+                node = stack_node[top];
+                last = stack_last[top];
+            }
+        }
+    }
+    // One atomic per warp for what is left: a warp-wide scan of the counts.
+    const int lane = threadIdx.x & 31;
+    uint32_t before = count;
+    for (int d = 1; d < 32; d <<= 1) {
+        uint32_t v = __shfl_up_sync(0xffffffffu, before, d);
+        if (lane >= d)
+            before += v;
+    }
+    uint32_t warp_total = __shfl_sync(0xffffffffu, before, 31);
+    before -= count;
+    unsigned long long base = 0;
+    if (lane == 31 && warp_total)
+        base = atomicAdd(&head->count, (unsigned long long)warp_total);
+    base = __shfl_sync(0xffffffffu, base, 31);
+    for (int k = 0; k < count; k++)
+        if (base + before + k < capacity)
+            keys[base + before + k] = buffer[k];
+}
+
+__global__ void unpack_kernel(const unsigned long long *keys, int bits,
+                              unsigned long long capacity, const bpx_cuda_head *head,
+                              bpx_pair *pairs)
+{
+    unsigned long long k = blockIdx.x * (unsigned long long)blockDim.x + threadIdx.x;
+    unsigned long long count = min(head->count, capacity);
+    if (k >= count)
+        return;
+    unsigned long long key = keys[k];
+    pairs[k] = bpx_pair{(uint32_t)(key >> bits), (uint32_t)(key & ((1ull << bits) - 1))};
+}
+
+// The host's rule (src/core/validate.c): the first bad box; in it, a non-finite coordinate
+// (min before max, axis by axis) before a min > max.
+__global__ void convert_kernel(const bpx_box *boxes, uint32_t n, float *lx, float *ly, float *lz,
+                               float *hx, float *hy, float *hz, bpx_cuda_head *head)
+{
+    uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n)
+        return;
+    bpx_box b = boxes[i];
+    if (lx) { // else only the check
+        lx[i] = b.min[0], ly[i] = b.min[1], lz[i] = b.min[2];
+        hx[i] = b.max[0], hy[i] = b.max[1], hz[i] = b.max[2];
+    }
+    uint32_t code = 0;
+    for (int a = 2; a >= 0; a--)
+        if (!(b.min[a] <= b.max[a]))
+            code = 2u * 4u + (uint32_t)a;
+    for (int a = 2; a >= 0; a--)
+        if (!isfinite(b.min[a]) || !isfinite(b.max[a]))
+            code = 1u * 4u + (uint32_t)a;
+    if (code)
+        atomicMin(&head->bad, ((unsigned long long)i << 32) | code);
+}
+
+} // namespace
+
+void bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3], const float *const hi[3],
+                            uint32_t n, bpx_cuda_head *head, bpx_pair *pairs)
+{
+    small_kernel<<<1, BPX_CUDA_SMALL_MAX, 0, stream>>>(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2],
+                                                       n, head, pairs);
+}
+
+void bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t)
+{
+    unsigned int grid = min(grid_for(t->n), 1024u);
+    bounds_kernel<<<grid, block_threads, 0, stream>>>(t->lo[0], t->lo[1], t->lo[2], t->hi[0],
+                                                      t->hi[1], t->hi[2], t->n, t->scene);
+}
+
+void bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t)
+{
+    morton_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(
+        t->lo[0], t->lo[1], t->lo[2], t->hi[0], t->hi[1], t->hi[2], t->n, t->scene,
+        t->morton[0], t->ids[0]);
+}
+
+void bpx__cuda_launch_build(cudaStream_t stream, const bpx_cuda_tree *t)
+{
+    const uint32_t *ids = t->ids[t->current];
+    gather_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(
+        t->lo[0], t->lo[1], t->lo[2], t->hi[0], t->hi[1], t->hi[2], t->n, ids, t->leaf_lo,
+        t->leaf_hi);
+    build_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(t->morton[t->current], (int)t->n,
+                                                               t->leaf_parent, t->node_parent);
+    refit_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(
+        t->leaf_lo, t->leaf_hi, t->n, t->leaf_parent, t->node_parent, t->nodes, t->flags);
+}
+
+void bpx__cuda_launch_traverse(cudaStream_t stream, const bpx_cuda_tree *t, int bits,
+                               unsigned long long *keys, unsigned long long capacity,
+                               bpx_cuda_head *head)
+{
+    traverse_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(
+        t->nodes, t->leaf_lo, t->leaf_hi, t->n, bits, keys, capacity, head);
+}
+
+void bpx__cuda_launch_unpack(cudaStream_t stream, const unsigned long long *keys, int bits,
+                             unsigned long long capacity, const bpx_cuda_head *head,
+                             bpx_pair *pairs)
+{
+    if (capacity == 0)
+        return;
+    unsigned long long grid = (capacity + block_threads - 1) / block_threads;
+    unpack_kernel<<<(unsigned int)grid, block_threads, 0, stream>>>(keys, bits, capacity, head,
+                                                                     pairs);
+}
+
+void bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, uint32_t n,
+                              float *const lo[3], float *const hi[3], bpx_cuda_head *head)
+{
+    convert_kernel<<<grid_for(n), block_threads, 0, stream>>>(boxes, n, lo[0], lo[1], lo[2],
+                                                              hi[0], hi[1], hi[2], head);
+}

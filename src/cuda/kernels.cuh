@@ -1,0 +1,65 @@
+// The cuda backend's kernels (kernels.cu), launched by the cycle (cycle.cu). SPDX-License-Identifier: MIT
+//
+// Two comparators, both exact (float comparisons of the caller's own coordinates; node bounds
+// are minima and maxima of them, so culling never rounds) and both in (i, j) order:
+//   small  n <= BPX_CUDA_SMALL_MAX: one block holds every box in shared memory, counts each
+//          row's hits, scans the counts and writes the pairs in place: one launch per cycle.
+//   tree   a linear BVH (Karras 2012) built every cycle over the boxes' centres in Morton
+//          order; each box walks it for the boxes later in that order, so every pair is found
+//          once; the pairs, packed as 64-bit (i, j) keys, are radix sorted into (i, j) order.
+#pragma once
+
+#include <cstdint>
+
+#include "bpx/types.h"
+
+enum { BPX_CUDA_SMALL_MAX = 1024 };
+
+/// The result block at the head of the pair buffer, read back in the same copy as the first
+/// pairs: the pair count, and for device input the first bad box as (index << 32) | code, code
+/// 4 + axis for a non-finite coordinate, 8 + axis for min > max (all ones: every box valid).
+struct bpx_cuda_head {
+    unsigned long long count;
+    unsigned long long bad;
+};
+
+/// One internal node of the tree: the bounds of both children and their codes (index, with
+/// BPX_CUDA_LEAF set for a leaf), as four float4 loads in one 64-byte line.
+struct bpx_cuda_node {
+    float4 lo[2]; // .w: child code (as int bits) in lo[side]
+    float4 hi[2];
+};
+#define BPX_CUDA_LEAF 0x80000000u
+
+/// Device buffers of one context (sizes in elements).
+struct bpx_cuda_tree {
+    uint32_t n;
+    const float *lo[3], *hi[3];   // the boxes, SoA
+    uint32_t *scene;              // 6 order keys: centre minima, then maxima
+    uint32_t *morton[2], *ids[2]; // CUB double buffers
+    int current;                  // which of the double buffers holds the sorted order
+    float4 *leaf_lo, *leaf_hi;    // boxes in Morton order
+    bpx_cuda_node *nodes;         // n - 1 internal nodes, root 0
+    uint32_t *leaf_parent;        // (parent << 1) | side
+    uint32_t *node_parent;
+    uint32_t *flags;              // refit arrivals, zeroed each cycle
+};
+
+void bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3], const float *const hi[3],
+                            uint32_t n, bpx_cuda_head *head, bpx_pair *pairs);
+
+void bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t);
+void bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t);
+/// After the sort: gathers the boxes into Morton order, builds the hierarchy and refits it.
+void bpx__cuda_launch_build(cudaStream_t stream, const bpx_cuda_tree *t);
+/// Every pair as a key (i << bits) | j, i < j, written below capacity; head->count counts all.
+void bpx__cuda_launch_traverse(cudaStream_t stream, const bpx_cuda_tree *t, int bits,
+                               unsigned long long *keys, unsigned long long capacity,
+                               bpx_cuda_head *head);
+/// Sorted keys back to pairs: the first min(count, capacity).
+void bpx__cuda_launch_unpack(cudaStream_t stream, const unsigned long long *keys, int bits,
+                             unsigned long long capacity, const bpx_cuda_head *head,
+                             bpx_pair *pairs);
+/// Device input: AoS boxes to the SoA arrays, checking each (first bad box into head).
+void bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, uint32_t n,
+                              float *const lo[3], float *const hi[3], bpx_cuda_head *head);

@@ -1,0 +1,297 @@
+// The cuda backend beyond what the suites that loop over every backend check (test_differential
+// and test_determinism run it wherever it is available): both comparators (one block up to 1024
+// boxes, the tree beyond) on every scene kind over moving cycles, against sap (itself checked
+// against the reference) and at small n against the reference; the same bytes on a second
+// world; device-resident round trips (boxes in device memory, pairs left on the device, then
+// read back and compared); a pair buffer too small (CAPACITY with the needed count, then room);
+// invalid device boxes; and the calls refused where they do not apply.
+//
+// Without a CUDA device (or without CUDA in the build) the test reports itself skipped (77).
+#include <math.h>
+
+#include <bpx/cuda.h>
+
+#include "pairs_util.h"
+#include "scenes.h"
+
+#if BPX_TEST_CUDA
+#include <cuda_runtime_api.h>
+#endif
+
+static bpx_world *cuda_world(bool events)
+{
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = BPX_BACKEND_CUDA;
+    def.track_events = events;
+    bpx_world *w = NULL;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    return w;
+}
+
+static bpx_world *oracle_world(uint32_t n)
+{
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = n <= 3000 ? BPX_BACKEND_REFERENCE : BPX_BACKEND_SAP;
+    def.worker_count = 2;
+    bpx_world *w = NULL;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    return w;
+}
+
+static bool same_pairs(bpx_world *a, bpx_world *b, const char *what)
+{
+    size_t na = 0, nb = 0;
+    const bpx_pair *pa = bpx_world_pairs(a, &na);
+    const bpx_pair *pb = bpx_world_pairs(b, &nb);
+    size_t diff = pairs_first_diff(pa, na, pb, nb);
+    CHECK_MSG(diff == SIZE_MAX, "%s: %zu vs %zu pairs, first difference at %zu", what, na, nb,
+              diff);
+    return diff == SIZE_MAX;
+}
+
+// Every scene kind at sizes around the two paths' border, moving for a few cycles.
+static void test_scenes(void)
+{
+    static const uint32_t sizes[] = {0, 1, 2, 3, 31, 500, 1024, 1025, 3000, 20000, 120000};
+    bpx_world *cuda = cuda_world(false);
+    for (int kind = 0; kind < SCENE_KIND_COUNT; kind++) {
+        for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
+            uint32_t n = sizes[s];
+            if (kind == SCENE_ALL_OVERLAP && n > 3000)
+                continue;
+            bpx_box *boxes = check_alloc(sizeof(bpx_box) * (n ? n : 1));
+            CHECK(scene_generate((scene_kind)kind, n, 7 + n, boxes) == 0);
+            bpx_world *oracle = oracle_world(n);
+            scene_rng rng;
+            scene_rng_seed(&rng, 99);
+            for (int cycle = 0; cycle < 3; cycle++) {
+                char what[96];
+                snprintf(what, sizeof what, "%s n=%u cycle %d", scene_kind_name((scene_kind)kind),
+                         n, cycle);
+                CHECK_STATUS(bpx_world_set_boxes(cuda, boxes, n), BPX_OK);
+                CHECK_STATUS(bpx_world_set_boxes(oracle, boxes, n), BPX_OK);
+                CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+                CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+                if (!same_pairs(cuda, oracle, what))
+                    break;
+                // Motion would push the extreme scenes' coordinates out of range.
+                if (kind == SCENE_HUGE_TINY || kind == SCENE_DENORMAL ||
+                    kind == SCENE_SIGNED_ZERO || kind == SCENE_TOUCHING)
+                    break;
+                scene_move(boxes, n, 0.2f, &rng);
+            }
+            bpx_world_destroy(oracle);
+            free(boxes);
+        }
+    }
+    bpx_world_destroy(cuda);
+}
+
+// Heavy-tailed and uniform scenes at the benchmark's density, against sap; a second cuda world
+// gives the same bytes.
+static void test_large(void)
+{
+    static const uint32_t sizes[] = {65536, 300000};
+    for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
+        uint32_t n = sizes[s];
+        bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+        for (int heavy = 0; heavy < 2; heavy++) {
+            if (heavy)
+                scene_heavy_tailed_density(n, 5, boxes);
+            else
+                scene_uniform_density(n, 1.0f, 5, boxes);
+            bpx_world *a = cuda_world(false), *b = cuda_world(false), *oracle = oracle_world(n);
+            CHECK_STATUS(bpx_world_set_boxes(a, boxes, n), BPX_OK);
+            CHECK_STATUS(bpx_world_set_boxes(b, boxes, n), BPX_OK);
+            CHECK_STATUS(bpx_world_set_boxes(oracle, boxes, n), BPX_OK);
+            CHECK_STATUS(bpx_world_collide(a), BPX_OK);
+            CHECK_STATUS(bpx_world_collide(b), BPX_OK);
+            CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+            char what[64];
+            snprintf(what, sizeof what, "%s n=%u", heavy ? "heavy" : "uniform", n);
+            same_pairs(a, oracle, what);
+            same_pairs(a, b, what);
+            bpx_cycle_stats st = bpx_world_stats(a);
+            CHECK(st.bytes_in == 24ull * n);
+            CHECK(st.device_ns > 0);
+            bpx_world_destroy(a);
+            bpx_world_destroy(b);
+            bpx_world_destroy(oracle);
+        }
+        free(boxes);
+    }
+}
+
+// Removed ids are inert boxes in the middle of the array: they sort last and pair with nothing.
+static void test_objects_and_events(void)
+{
+    enum { n = 5000 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 2.0f, 3, boxes);
+    bpx_world *cuda = cuda_world(true), *oracle = oracle_world(n);
+    uint32_t ids[n];
+    CHECK_STATUS(bpx_world_add_boxes(cuda, boxes, n, ids), BPX_OK);
+    CHECK_STATUS(bpx_world_add_boxes(oracle, boxes, n, ids), BPX_OK);
+    uint32_t gone[100];
+    for (int k = 0; k < 100; k++)
+        gone[k] = (uint32_t)(k * 37 % n);
+    for (int cycle = 0; cycle < 3; cycle++) {
+        if (cycle == 1) {
+            CHECK_STATUS(bpx_world_remove_boxes(cuda, gone, 100), BPX_OK);
+            CHECK_STATUS(bpx_world_remove_boxes(oracle, gone, 100), BPX_OK);
+        }
+        CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+        same_pairs(cuda, oracle, "objects");
+        bpx_pair_events ec, eo;
+        CHECK_STATUS(bpx_world_pair_events(cuda, &ec), BPX_OK);
+        CHECK_STATUS(bpx_world_pair_events(oracle, &eo), BPX_OK);
+        CHECK(ec.began_count == eo.began_count && ec.ended_count == eo.ended_count);
+    }
+    bpx_world_destroy(cuda);
+    bpx_world_destroy(oracle);
+    free(boxes);
+}
+
+// Calls that do not apply are refused, with the world unchanged.
+static void test_refusals(void)
+{
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = BPX_BACKEND_SAP;
+    bpx_world *sap = NULL;
+    CHECK_STATUS(bpx_world_create(&def, &sap), BPX_OK);
+    CHECK_STATUS(bpx_cuda_collide_device(sap, NULL), BPX_ERR_BACKEND_UNAVAILABLE);
+    CHECK_STATUS(bpx_cuda_set_boxes_device(sap, NULL, 0), BPX_ERR_BACKEND_UNAVAILABLE);
+    CHECK_STATUS(bpx_cuda_finish(NULL, NULL), BPX_ERR_NULL_ARGUMENT);
+    bpx_world_destroy(sap);
+
+    bpx_world *w = cuda_world(true);
+    CHECK_STATUS(bpx_cuda_collide_device(w, NULL), BPX_ERR_BAD_STATE); // events need the host
+    CHECK_STATUS(bpx_cuda_set_boxes_device(w, NULL, 5), BPX_ERR_NULL_ARGUMENT);
+    bpx_world_destroy(w);
+}
+
+#if BPX_TEST_CUDA
+static bpx_box *to_device(const bpx_box *boxes, uint32_t n)
+{
+    void *d = NULL;
+    CHECK(cudaMalloc(&d, sizeof(bpx_box) * (n ? n : 1)) == cudaSuccess);
+    CHECK(cudaMemcpy(d, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess);
+    return d;
+}
+
+// Device in, device out; then the pairs read back and compared with the oracle. A first cycle
+// whose pairs pass the buffer reports CAPACITY with the count, and the next has room.
+static void test_device_resident(void)
+{
+    static const uint32_t sizes[] = {500, 1024, 5000, 200000, 2500};
+    for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
+        uint32_t n = sizes[s];
+        bool crowded = n == 2500; // every box over one point: n(n-1)/2 pairs, past the buffer
+        bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+        if (crowded)
+            CHECK(scene_generate(SCENE_ALL_OVERLAP, n, 1, boxes) == 0);
+        else
+            scene_heavy_tailed_density(n, 11, boxes);
+        bpx_box *d_boxes = to_device(boxes, n);
+        bpx_world *cuda = cuda_world(false), *oracle = oracle_world(n);
+        CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
+        CHECK(bpx_world_box_count(cuda) == n);
+        CHECK_STATUS(bpx_world_set_boxes(oracle, boxes, n), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+        size_t want = 0;
+        const bpx_pair *want_pairs = bpx_world_pairs(oracle, &want);
+        for (int cycle = 0; cycle < 3; cycle++) {
+            CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+            size_t count = 0;
+            bpx_status st = bpx_cuda_finish(cuda, &count);
+            CHECK_MSG(count == want, "n=%u cycle %d: %zu pairs, want %zu", n, cycle, count, want);
+            if (crowded && cycle == 0) {
+                CHECK_STATUS(st, BPX_ERR_CAPACITY);
+                continue;
+            }
+            CHECK_STATUS(st, BPX_OK);
+            const bpx_pair *d_pairs = NULL;
+            const unsigned long long *d_count = NULL;
+            size_t capacity = 0;
+            CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, &d_count, &capacity), BPX_OK);
+            CHECK(capacity >= count);
+            unsigned long long on_device = 0;
+            CHECK(cudaMemcpy(&on_device, d_count, sizeof on_device, cudaMemcpyDeviceToHost) ==
+                  cudaSuccess);
+            CHECK(on_device == want);
+            bpx_pair *got = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
+            CHECK(cudaMemcpy(got, d_pairs, sizeof(bpx_pair) * count, cudaMemcpyDeviceToHost) ==
+                  cudaSuccess);
+            CHECK_MSG(pairs_first_diff(got, count, want_pairs, want) == SIZE_MAX,
+                      "device-resident n=%u cycle %d differs", n, cycle);
+            free(got);
+        }
+        // Device in, host out: the ordinary collide reads the same device boxes.
+        CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+        same_pairs(cuda, oracle, "device in, host out");
+        bpx_world_destroy(cuda);
+        bpx_world_destroy(oracle);
+        cudaFree(d_boxes);
+        free(boxes);
+    }
+}
+
+// A bad box in device memory is named like a bad host box, and the world keeps its boxes; one
+// that turns bad after the check is reported by the cycle that reads it.
+static void test_device_errors(void)
+{
+    enum { n = 3000 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, 2, boxes);
+    bpx_box *good = to_device(boxes, n);
+    boxes[1234].min[1] = NAN;
+    boxes[2000].min[0] = boxes[2000].max[0] + 1.0f;
+    bpx_box *bad = to_device(boxes, n);
+    bpx_world *cuda = cuda_world(false);
+    CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, good, n), BPX_OK);
+    CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, bad, n), BPX_ERR_NOT_FINITE);
+    const bpx_error *e = bpx_world_error(cuda);
+    CHECK(e->index == 1234 && e->axis == 1);
+    CHECK(bpx_world_box_count(cuda) == n);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK); // still the good boxes
+    size_t first = 0;
+    bpx_world_pairs(cuda, &first);
+    // The good buffer turns bad between cycles.
+    CHECK(cudaMemcpy(good, bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
+    CHECK(bpx_world_error(cuda)->index == 1234);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+    CHECK_STATUS(bpx_cuda_finish(cuda, NULL), BPX_ERR_NOT_FINITE);
+    CHECK(bpx_world_error(cuda)->index == 1234);
+    bpx_world_destroy(cuda);
+    cudaFree(good);
+    cudaFree(bad);
+    free(boxes);
+}
+#endif
+
+int main(void)
+{
+    bpx_backend_info info = bpx_backend_query(BPX_BACKEND_CUDA);
+    printf("cuda: %s%s\n", info.available ? info.detail : "unavailable: ",
+           info.available ? "" : info.reason);
+    if (!info.available) {
+        // The calls exist in every build and refuse politely.
+        bpx_world_def def = bpx_default_world_def();
+        def.backend = BPX_BACKEND_CUDA;
+        bpx_world *w = NULL;
+        CHECK_STATUS(bpx_world_create(&def, &w), BPX_ERR_BACKEND_UNAVAILABLE);
+        CHECK(w == NULL);
+        return check_finish("test_cuda", 0);
+    }
+    test_refusals();
+    test_scenes();
+    test_large();
+    test_objects_and_events();
+#if BPX_TEST_CUDA
+    test_device_resident();
+    test_device_errors();
+#endif
+    return check_finish("test_cuda", 1);
+}
