@@ -155,7 +155,7 @@ static inline void *check_alloc(size_t size)
 /// FNV-1a 64 over bytes.
 static inline uint64_t check_fnv1a(const void *data, size_t size)
 {
-    const unsigned char *p = data;
+    const unsigned char *p = (const unsigned char *)data; // a cast for C++ includers
     uint64_t h = 0xcbf29ce484222325ull;
     for (size_t k = 0; k < size; k++) {
         h ^= p[k];

@@ -5,11 +5,11 @@
 #include <cub/block/block_scan.cuh>
 
 #include "kernels.cuh"
+#include "tree.cuh"
 
 namespace {
 
 constexpr int block_threads = 256;
-constexpr int stack_depth = 64; // the tree's depth is at most 30 Morton bits + 32 index bits
 constexpr int emit_buffer = 8;
 
 unsigned int grid_for(uint32_t n)
@@ -17,23 +17,7 @@ unsigned int grid_for(uint32_t n)
     return (n + block_threads - 1) / block_threads;
 }
 
-// Floats as unsigned keys of the same order, for atomicMin/atomicMax.
-__device__ uint32_t order_key(float f)
-{
-    uint32_t u = __float_as_uint(f);
-    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
-}
-
-__device__ float order_value(uint32_t k)
-{
-    return __uint_as_float((k & 0x80000000u) ? (k & 0x7fffffffu) : ~k);
-}
-
-__device__ bool overlap(float4 alo, float4 ahi, float4 blo, float4 bhi)
-{
-    return alo.x <= bhi.x && blo.x <= ahi.x && alo.y <= bhi.y && blo.y <= ahi.y &&
-           alo.z <= bhi.z && blo.z <= ahi.z;
-}
+using namespace bpx_tree;
 
 // ---- small: one block, every box in shared memory -------------------------------------------
 
@@ -82,10 +66,11 @@ __global__ void bounds_kernel(const float *lx, const float *ly, const float *lz,
 {
     uint32_t lo[3] = {~0u, ~0u, ~0u}, hi[3] = {0, 0, 0};
     for (uint32_t i = blockIdx.x * blockDim.x + threadIdx.x; i < n; i += gridDim.x * blockDim.x) {
-        if (!(lx[i] <= hx[i]))
+        if (!live(lx[i], hx[i]))
             continue;
-        const float c[3] = {0.5f * lx[i] + 0.5f * hx[i], 0.5f * ly[i] + 0.5f * hy[i],
-                            0.5f * lz[i] + 0.5f * hz[i]};
+        const float blo[3] = {lx[i], ly[i], lz[i]}, bhi[3] = {hx[i], hy[i], hz[i]};
+        float c[3];
+        centre(blo, bhi, c);
         for (int a = 0; a < 3; a++) {
             uint32_t k = order_key(c[a]);
             lo[a] = min(lo[a], k);
@@ -106,15 +91,6 @@ __global__ void bounds_kernel(const float *lx, const float *ly, const float *lz,
     }
 }
 
-__device__ uint32_t spread10(uint32_t v)
-{
-    v = (v | (v << 16)) & 0x030000FFu;
-    v = (v | (v << 8)) & 0x0300F00Fu;
-    v = (v | (v << 4)) & 0x030C30C3u;
-    v = (v | (v << 2)) & 0x09249249u;
-    return v;
-}
-
 __global__ void morton_kernel(const float *lx, const float *ly, const float *lz, const float *hx,
                               const float *hy, const float *hz, uint32_t n,
                               const uint32_t *scene, uint32_t *morton, uint32_t *ids)
@@ -123,21 +99,14 @@ __global__ void morton_kernel(const float *lx, const float *ly, const float *lz,
     if (i >= n)
         return;
     ids[i] = i;
-    if (!(lx[i] <= hx[i])) {
+    if (!live(lx[i], hx[i])) {
         morton[i] = ~0u;
         return;
     }
-    const float c[3] = {0.5f * lx[i] + 0.5f * hx[i], 0.5f * ly[i] + 0.5f * hy[i],
-                        0.5f * lz[i] + 0.5f * hz[i]};
-    uint32_t code = 0;
-    for (int a = 0; a < 3; a++) {
-        // In double: the span of finite floats can overflow a float.
-        double lo = order_value(scene[a]), hi = order_value(scene[3 + a]);
-        double q = hi > lo ? ((double)c[a] - lo) * (1024.0 / (hi - lo)) : 0.0;
-        uint32_t cell = q < 0.0 ? 0u : q >= 1023.0 ? 1023u : (uint32_t)q;
-        code |= spread10(cell) << (2 - a);
-    }
-    morton[i] = code;
+    const float blo[3] = {lx[i], ly[i], lz[i]}, bhi[3] = {hx[i], hy[i], hz[i]};
+    float c[3];
+    centre(blo, bhi, c);
+    morton[i] = bpx_tree::morton(c, scene);
 }
 
 __global__ void gather_kernel(const float *lx, const float *ly, const float *lz, const float *hx,
@@ -152,56 +121,15 @@ __global__ void gather_kernel(const float *lx, const float *ly, const float *lz,
     leaf_hi[t] = make_float4(hx[i], hy[i], hz[i], 0.0f);
 }
 
-// Length of the common prefix of positions a and b's keys, the position breaking ties, so
-// that equal Morton codes still give a binary tree; -1 outside [0, n).
-__device__ int common_prefix(const uint32_t *keys, int n, int a, int b)
-{
-    if (b < 0 || b >= n)
-        return -1;
-    uint32_t ka = keys[a], kb = keys[b];
-    return ka == kb ? 32 + __clz(a ^ b) : __clz(ka ^ kb);
-}
-
-// Karras (2012), "Maximizing parallelism in the construction of BVHs, octrees, and k-d trees":
-// internal node i finds its range's other end and its split, independently of every other node.
 __global__ void build_kernel(const uint32_t *keys, int n, uint32_t *leaf_parent,
                              uint32_t *node_parent)
 {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n - 1)
         return;
-    int d = common_prefix(keys, n, i, i + 1) - common_prefix(keys, n, i, i - 1) > 0 ? 1 : -1;
-    int least = common_prefix(keys, n, i, i - d);
-    int reach = 2;
-    while (common_prefix(keys, n, i, i + reach * d) > least)
-        reach <<= 1;
-    int length = 0;
-    for (int step = reach >> 1; step > 0; step >>= 1)
-        if (common_prefix(keys, n, i, i + (length + step) * d) > least)
-            length += step;
-    int j = i + length * d;
-    int node_prefix = common_prefix(keys, n, i, j);
-    int split = 0;
-    for (int div = 2, step;; div <<= 1) {
-        step = (length + div - 1) / div;
-        if (common_prefix(keys, n, i, i + (split + step) * d) > node_prefix)
-            split += step;
-        if (step <= 1)
-            break;
-    }
-    int gamma = i + split * d + min(d, 0);
-    if (min(i, j) == gamma)
-        leaf_parent[gamma] = (uint32_t)i << 1;
-    else
-        node_parent[gamma] = (uint32_t)i << 1;
-    if (max(i, j) == gamma + 1)
-        leaf_parent[gamma + 1] = ((uint32_t)i << 1) | 1u;
-    else
-        node_parent[gamma + 1] = ((uint32_t)i << 1) | 1u;
+    build_node(keys, n, i, leaf_parent, node_parent);
 }
 
-// Bottom-up: each leaf writes its box into its parent's slot; the second child to arrive at a
-// node writes the node's union into the node's parent, and so on to the root.
 __global__ void refit_kernel(const float4 *leaf_lo, const float4 *leaf_hi, uint32_t n,
                              const uint32_t *leaf_parent, const uint32_t *node_parent,
                              bpx_cuda_node *nodes, uint32_t *flags)
@@ -209,25 +137,10 @@ __global__ void refit_kernel(const float4 *leaf_lo, const float4 *leaf_hi, uint3
     uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= n)
         return;
-    float4 lo = leaf_lo[t], hi = leaf_hi[t];
-    uint32_t code = t | BPX_CUDA_LEAF;
-    uint32_t up = leaf_parent[t];
-    for (;;) {
-        uint32_t p = up >> 1, side = up & 1;
-        nodes[p].lo[side] = make_float4(lo.x, lo.y, lo.z, __uint_as_float(code));
-        nodes[p].hi[side] = make_float4(hi.x, hi.y, hi.z, 0.0f);
-        __threadfence();
-        if (atomicAdd(&flags[p], 1u) == 0)
-            return; // the sibling is not there yet: it carries on
-        if (p == 0)
-            return;
-        float4 l0 = __ldcg(&nodes[p].lo[0]), l1 = __ldcg(&nodes[p].lo[1]);
-        float4 h0 = __ldcg(&nodes[p].hi[0]), h1 = __ldcg(&nodes[p].hi[1]);
-        lo = make_float4(fminf(l0.x, l1.x), fminf(l0.y, l1.y), fminf(l0.z, l1.z), 0.0f);
-        hi = make_float4(fmaxf(h0.x, h1.x), fmaxf(h0.y, h1.y), fmaxf(h0.z, h1.z), 0.0f);
-        code = p;
-        up = node_parent[p];
-    }
+    refit_leaf(t, leaf_lo, leaf_hi, leaf_parent, node_parent, nodes, [flags](uint32_t p) {
+        __threadfence(); // this child's slot is out before its arrival is
+        return atomicAdd(&flags[p], 1u);
+    });
 }
 
 __device__ void emit_flush(unsigned long long *buffer, int count, unsigned long long *keys,
@@ -239,9 +152,8 @@ __device__ void emit_flush(unsigned long long *buffer, int count, unsigned long 
             keys[base + k] = buffer[k];
 }
 
-// Thread t takes the box at Morton position t and looks only at positions after t: a subtree
-// whose last position is <= t is skipped whole. A left child's last position is its own index
-// (the split); a right child's is its parent's, so it is always > t.
+// Thread t walks for the box at Morton position t (tree.cuh); hits gather in a small buffer
+// that goes out with one atomic per flush.
 __global__ void traverse_kernel(const bpx_cuda_node *__restrict__ nodes,
                                 const float4 *__restrict__ leaf_lo,
                                 const float4 *__restrict__ leaf_hi, uint32_t n, int bits,
@@ -251,62 +163,14 @@ __global__ void traverse_kernel(const bpx_cuda_node *__restrict__ nodes,
     const uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
     unsigned long long buffer[emit_buffer];
     int count = 0;
-    float4 alo = make_float4(1, 1, 1, 0), ahi = make_float4(0, 0, 0, 0);
     if (t + 1 < n) {
-        alo = leaf_lo[t];
-        ahi = leaf_hi[t];
-    }
-    if (alo.x <= ahi.x) { // a live box with later positions
-        const uint32_t me = __float_as_uint(alo.w);
-        uint32_t stack_node[stack_depth], stack_last[stack_depth];
-        int top = 0;
-        uint32_t node = 0, last = n - 1;
-        for (;;) {
-            const bpx_cuda_node *nd = nodes + node;
-            float4 l0 = __ldg(&nd->lo[0]), h0 = __ldg(&nd->hi[0]);
-            float4 l1 = __ldg(&nd->lo[1]), h1 = __ldg(&nd->hi[1]);
-            uint32_t left = __float_as_uint(l0.w), right = __float_as_uint(l1.w);
-            uint32_t left_at = left & ~BPX_CUDA_LEAF, right_at = right & ~BPX_CUDA_LEAF;
-            bool go_left = left_at > t && overlap(alo, ahi, l0, h0);
-            bool go_right = overlap(alo, ahi, l1, h1);
-            uint32_t hit[2];
-            int hits = 0;
-            if (go_left && (left & BPX_CUDA_LEAF)) {
-                hit[hits++] = left_at;
-                go_left = false;
+        walk(t, n, nodes, leaf_lo, leaf_hi, [&](uint32_t i, uint32_t j) {
+            if (count == emit_buffer) {
+                emit_flush(buffer, count, keys, capacity, head);
+                count = 0;
             }
-            if (go_right && (right & BPX_CUDA_LEAF)) {
-                hit[hits++] = right_at;
-                go_right = false;
-            }
-            for (int h = 0; h < hits; h++) {
-                uint32_t other = __float_as_uint(__ldg(&leaf_lo[hit[h]].w));
-                uint32_t i = min(me, other), j = max(me, other);
-                if (count == emit_buffer) {
-                    emit_flush(buffer, count, keys, capacity, head);
-                    count = 0;
-                }
-                buffer[count++] = ((unsigned long long)i << bits) | j;
-            }
-            if (go_left && go_right) {
-                stack_node[top] = right_at;
-                stack_last[top] = last;
-                top++;
-                node = left_at;
-                last = left_at;
-            } else if (go_left) {
-                node = left_at;
-                last = left_at;
-            } else if (go_right) {
-                node = right_at;
-            } else {
-                if (top == 0)
-                    break;
-                top--;
-                node = stack_node[top];
-                last = stack_last[top];
-            }
-        }
+            buffer[count++] = ((unsigned long long)i << bits) | j;
+        });
     }
     // One atomic per warp for what is left: a warp-wide scan of the counts.
     const int lane = threadIdx.x & 31;

@@ -1,0 +1,237 @@
+// The tree comparator's per-item steps, for one box, one node or one walk: __host__ __device__,
+// so the kernels (kernels.cu) and the host twin in test/test_cuda_twin.cu run the same code; the
+// twin proves the algorithm on machines without a GPU. SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+
+#include "kernels.cuh"
+
+#define BPX_HD __host__ __device__ inline
+
+namespace bpx_tree {
+
+BPX_HD uint32_t bits_of(float f)
+{
+#ifdef __CUDA_ARCH__
+    return __float_as_uint(f);
+#else
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    return u;
+#endif
+}
+
+BPX_HD float float_of(uint32_t u)
+{
+#ifdef __CUDA_ARCH__
+    return __uint_as_float(u);
+#else
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+#endif
+}
+
+BPX_HD int leading_zeros(uint32_t x)
+{
+#ifdef __CUDA_ARCH__
+    return __clz(x);
+#else
+    return x ? __builtin_clz(x) : 32;
+#endif
+}
+
+/// Floats as unsigned keys of the same order, for atomicMin/atomicMax.
+BPX_HD uint32_t order_key(float f)
+{
+    uint32_t u = bits_of(f);
+    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+BPX_HD float order_value(uint32_t k)
+{
+    return float_of((k & 0x80000000u) ? (k & 0x7fffffffu) : ~k);
+}
+
+/// Closed intervals on every axis (Algorithm 1): touching boxes overlap, -0.0 equals 0.0.
+BPX_HD bool overlap(float4 alo, float4 ahi, float4 blo, float4 bhi)
+{
+    return alo.x <= bhi.x && blo.x <= ahi.x && alo.y <= bhi.y && blo.y <= ahi.y &&
+           alo.z <= bhi.z && blo.z <= ahi.z;
+}
+
+/// Inert boxes (removed ids: min +inf, max -inf) have no centre: they stay out of the scene's
+/// bounds, sort last, and their empty bounds never widen a node.
+BPX_HD bool live(float lo_x, float hi_x)
+{
+    return lo_x <= hi_x;
+}
+
+BPX_HD void centre(const float lo[3], const float hi[3], float c[3])
+{
+    for (int a = 0; a < 3; a++)
+        c[a] = 0.5f * lo[a] + 0.5f * hi[a]; // halves first: lo + hi can overflow
+}
+
+BPX_HD uint32_t spread10(uint32_t v)
+{
+    v = (v | (v << 16)) & 0x030000FFu;
+    v = (v | (v << 8)) & 0x0300F00Fu;
+    v = (v | (v << 4)) & 0x030C30C3u;
+    v = (v | (v << 2)) & 0x09249249u;
+    return v;
+}
+
+/// The 30-bit Morton code of a centre in the scene's centre bounds (6 order keys).
+BPX_HD uint32_t morton(const float c[3], const uint32_t scene[6])
+{
+    uint32_t code = 0;
+    for (int a = 0; a < 3; a++) {
+        // In double: the span of finite floats can overflow a float.
+        double lo = order_value(scene[a]), hi = order_value(scene[3 + a]);
+        double q = hi > lo ? ((double)c[a] - lo) * (1024.0 / (hi - lo)) : 0.0;
+        uint32_t cell = q < 0.0 ? 0u : q >= 1023.0 ? 1023u : (uint32_t)q;
+        code |= spread10(cell) << (2 - a);
+    }
+    return code;
+}
+
+/// Length of the common prefix of positions a and b's keys, the position breaking ties, so that
+/// equal Morton codes still give a binary tree; -1 outside [0, n).
+BPX_HD int common_prefix(const uint32_t *keys, int n, int a, int b)
+{
+    if (b < 0 || b >= n)
+        return -1;
+    uint32_t ka = keys[a], kb = keys[b];
+    return ka == kb ? 32 + leading_zeros((uint32_t)(a ^ b)) : leading_zeros(ka ^ kb);
+}
+
+/// Karras (2012), "Maximizing parallelism in the construction of BVHs, octrees, and k-d trees":
+/// internal node i (of n - 1, root 0) finds its range's other end and its split, independently
+/// of every other node, and tells its two children that it is their parent: (i << 1) | side.
+BPX_HD void build_node(const uint32_t *keys, int n, int i, uint32_t *leaf_parent,
+                       uint32_t *node_parent)
+{
+    int d = common_prefix(keys, n, i, i + 1) - common_prefix(keys, n, i, i - 1) > 0 ? 1 : -1;
+    int least = common_prefix(keys, n, i, i - d);
+    int reach = 2;
+    while (common_prefix(keys, n, i, i + reach * d) > least)
+        reach <<= 1;
+    int length = 0;
+    for (int step = reach >> 1; step > 0; step >>= 1)
+        if (common_prefix(keys, n, i, i + (length + step) * d) > least)
+            length += step;
+    int j = i + length * d;
+    int node_prefix = common_prefix(keys, n, i, j);
+    int split = 0;
+    for (int div = 2;; div <<= 1) {
+        int step = (length + div - 1) / div;
+        if (common_prefix(keys, n, i, i + (split + step) * d) > node_prefix)
+            split += step;
+        if (step <= 1)
+            break;
+    }
+    int gamma = i + split * d + (d < 0 ? d : 0);
+    int first = i < j ? i : j, last = i < j ? j : i;
+    uint32_t up = (uint32_t)i << 1;
+    if (first == gamma)
+        leaf_parent[gamma] = up;
+    else
+        node_parent[gamma] = up;
+    if (last == gamma + 1)
+        leaf_parent[gamma + 1] = up | 1u;
+    else
+        node_parent[gamma + 1] = up | 1u;
+}
+
+/// Bottom-up from leaf t: it writes its box into its parent's slot; the second child to arrive
+/// at a node writes the node's union into the node's parent, and so on to the root. `arrive`
+/// returns how many children had arrived before (an atomic increment on the device).
+// The host twin passes host-only functors: the check belongs to each instantiation's caller.
+#pragma nv_exec_check_disable
+template <class Arrive>
+BPX_HD void refit_leaf(uint32_t t, const float4 *leaf_lo, const float4 *leaf_hi,
+                       const uint32_t *leaf_parent, const uint32_t *node_parent,
+                       bpx_cuda_node *nodes, Arrive arrive)
+{
+    float4 lo = leaf_lo[t], hi = leaf_hi[t];
+    uint32_t code = t | BPX_CUDA_LEAF;
+    uint32_t up = leaf_parent[t];
+    for (;;) {
+        uint32_t p = up >> 1, side = up & 1;
+        nodes[p].lo[side] = make_float4(lo.x, lo.y, lo.z, float_of(code));
+        nodes[p].hi[side] = make_float4(hi.x, hi.y, hi.z, 0.0f);
+        if (arrive(p) == 0 || p == 0)
+            return; // the sibling is not there yet (it carries on), or this was the root
+#ifdef __CUDA_ARCH__
+        float4 l0 = __ldcg(&nodes[p].lo[0]), l1 = __ldcg(&nodes[p].lo[1]);
+        float4 h0 = __ldcg(&nodes[p].hi[0]), h1 = __ldcg(&nodes[p].hi[1]);
+#else
+        float4 l0 = nodes[p].lo[0], l1 = nodes[p].lo[1], h0 = nodes[p].hi[0], h1 = nodes[p].hi[1];
+#endif
+        lo = make_float4(fminf(l0.x, l1.x), fminf(l0.y, l1.y), fminf(l0.z, l1.z), 0.0f);
+        hi = make_float4(fmaxf(h0.x, h1.x), fmaxf(h0.y, h1.y), fmaxf(h0.z, h1.z), 0.0f);
+        code = p;
+        up = node_parent[p];
+    }
+}
+
+/// The walk of the box at Morton position t (t + 1 < n) over the positions after t: a subtree
+/// whose last position is <= t is skipped whole. A left child's last position is its own index
+/// (the split); a right child's is its parent's, which is > t from the root (n - 1) down, so
+/// only left children are ever skipped. emit(i, j), i < j, for each overlapping pair; every
+/// pair is emitted by exactly one walk, the one from its lower Morton position.
+#pragma nv_exec_check_disable
+template <class Emit>
+BPX_HD void walk(uint32_t t, uint32_t n, const bpx_cuda_node *nodes, const float4 *leaf_lo,
+                 const float4 *leaf_hi, Emit emit)
+{
+    enum { stack_depth = 64 }; // the tree's depth is at most 30 Morton bits + 32 index bits
+    float4 alo = leaf_lo[t], ahi = leaf_hi[t];
+    if (!live(alo.x, ahi.x))
+        return;
+    const uint32_t me = bits_of(alo.w);
+    uint32_t stack[stack_depth];
+    int top = 0;
+    uint32_t node = 0;
+    (void)n;
+    for (;;) {
+        const bpx_cuda_node *nd = nodes + node;
+#ifdef __CUDA_ARCH__
+        float4 l0 = __ldg(&nd->lo[0]), h0 = __ldg(&nd->hi[0]);
+        float4 l1 = __ldg(&nd->lo[1]), h1 = __ldg(&nd->hi[1]);
+#else
+        float4 l0 = nd->lo[0], h0 = nd->hi[0], l1 = nd->lo[1], h1 = nd->hi[1];
+#endif
+        uint32_t left = bits_of(l0.w), right = bits_of(l1.w);
+        uint32_t left_at = left & ~BPX_CUDA_LEAF, right_at = right & ~BPX_CUDA_LEAF;
+        bool go_left = left_at > t && overlap(alo, ahi, l0, h0);
+        bool go_right = overlap(alo, ahi, l1, h1);
+        if (go_left && (left & BPX_CUDA_LEAF)) {
+            uint32_t other = bits_of(leaf_lo[left_at].w);
+            emit(me < other ? me : other, me < other ? other : me);
+            go_left = false;
+        }
+        if (go_right && (right & BPX_CUDA_LEAF)) {
+            uint32_t other = bits_of(leaf_lo[right_at].w);
+            emit(me < other ? me : other, me < other ? other : me);
+            go_right = false;
+        }
+        if (go_left && go_right) {
+            stack[top++] = right_at;
+            node = left_at;
+        } else if (go_left) {
+            node = left_at;
+        } else if (go_right) {
+            node = right_at;
+        } else {
+            if (top == 0)
+                break;
+            node = stack[--top];
+        }
+    }
+}
+
+} // namespace bpx_tree
