@@ -577,8 +577,9 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
     if (bpx_status st = bpx__cuda_finish(cu, nullptr); st != BPX_OK && st != BPX_ERR_CAPACITY &&
                                                        st != BPX_ERR_NOT_FINITE)
         return st;
-    unsigned long long need = n <= BPX_CUDA_SMALL_MAX ? small_pairs(n)
-                                                      : cu->last_count + cu->last_count / 2 + 1024;
+    // Without a last count, room for two pairs per box (the benchmark scenes have about one).
+    unsigned long long seen = cu->last_count ? cu->last_count : 2ull * n;
+    unsigned long long need = n <= BPX_CUDA_SMALL_MAX ? small_pairs(n) : seen + seen / 2 + 1024;
     if (bpx_status st = reserve_pairs(cu, need); st != BPX_OK)
         return st;
     if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
