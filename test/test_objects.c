@@ -214,9 +214,79 @@ static void errors(void)
     bpx_world_destroy(w);
 }
 
+// Pairs of one collide (which must succeed).
+static size_t pair_count(bpx_world *w)
+{
+    size_t count = 0;
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    bpx_world_pairs(w, &count);
+    return count;
+}
+
+// set_boxes leaves the two-phase mode (issue 22: load_extents(5), set_boxes(300), removing ids
+// 250..259 and update_centres wrote past the end of the 5-object arrays and shrank n to 5).
+static void mode_changes(void)
+{
+    check_set_context("two-phase mode and set_boxes");
+    bpx_world_def def = bpx_default_world_def();
+    def.track_events = true;
+    bpx_world *w;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    if (!w)
+        return;
+    float minima[3 * 5], centres[3 * 5];
+    for (int k = 0; k < 3 * 5; k++) {
+        minima[k] = -0.5f;
+        centres[k] = k % 3 == 0 ? 0.75f * (float)(k / 3) : 0.0f; // neighbours overlap on x
+    }
+    enum { n = 300 };
+    static bpx_box boxes[n], shadow_boxes[n];
+    for (uint32_t i = 0; i < n; i++)
+        boxes[i] = (bpx_box){{(float)i, 0, 0}, {(float)i + 1.5f, 1, 1}}; // pairs (i, i + 1)
+    CHECK_STATUS(bpx_world_load_extents(w, minima, 5), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+    uint32_t ids[10];
+    for (uint32_t k = 0; k < 10; k++)
+        ids[k] = 250 + k;
+    CHECK_STATUS(bpx_world_remove_boxes(w, ids, 10), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(w, centres), BPX_ERR_BAD_STATE);
+    CHECK(strstr(bpx_world_error(w)->message, "load_extents") != NULL);
+    CHECK_EQ_U64(bpx_world_box_count(w), n);
+    memcpy(shadow_boxes, boxes, sizeof boxes);
+    for (uint32_t k = 0; k < 10; k++)
+        shadow_boxes[ids[k]] = inert;
+    pair_list want = {0};
+    pair_list_brute(&want, shadow_boxes, n);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    size_t count = 0;
+    const bpx_pair *got = bpx_world_pairs(w, &count);
+    CHECK_PAIRS_EQ(want.pairs, want.count, got, count);
+    uint32_t id = UINT32_MAX;
+    CHECK_STATUS(bpx_world_add_boxes(w, boxes, 1, &id), BPX_OK); // general mode again
+    CHECK(id >= 250 && id < 260);
+
+    check_set_context("load_extents enters the two-phase mode again");
+    CHECK_STATUS(bpx_world_load_extents(w, minima, 5), BPX_OK);
+    CHECK_EQ_U64(bpx_world_box_count(w), 5);
+    CHECK_STATUS(bpx_world_add_boxes(w, boxes, 1, &id), BPX_ERR_BAD_STATE);
+    uint32_t two = 2;
+    CHECK_STATUS(bpx_world_remove_boxes(w, &two, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(w, centres), BPX_OK);
+    CHECK(pair_count(w) == 2); // (0, 1) and (3, 4): the removed id stays out
+    CHECK_STATUS(bpx_world_update_centres(w, centres), BPX_OK);
+    CHECK(pair_count(w) == 2);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 3), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(w, centres), BPX_ERR_BAD_STATE);
+    CHECK_EQ_U64(bpx_world_box_count(w), 3);
+    CHECK(pair_count(w) == 2);
+    pair_list_free(&want);
+    bpx_world_destroy(w);
+}
+
 int main(void)
 {
     errors();
+    mode_changes();
     int ran = 0;
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
         if (!bpx_backend_query((bpx_backend)b).available)

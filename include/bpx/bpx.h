@@ -55,18 +55,23 @@ BPX_API const bpx_error *bpx_world_error(const bpx_world *world);
 /// Initialisation phase: loads n objects' origin-centred boxes as their minima (x, y, z per
 /// object, 3n floats). Maxima are the negated minima, so each minimum must be finite and <= 0.
 /// The world's box count becomes n and, until the first bpx_world_update_centres, every box sits
-/// at the origin ([minimum, -minimum]).
+/// at the origin ([minimum, -minimum]). The world is then in the two-phase mode, which
+/// bpx_world_set_boxes leaves: update_centres works, add_boxes is refused.
 /// Errors: NULL_ARGUMENT (minima NULL with n > 0), TOO_MANY_BOXES, NOT_FINITE,
 /// MIN_GREATER_THAN_MAX (a minimum > 0), OUT_OF_MEMORY. On error the world is unchanged.
 BPX_API bpx_status bpx_world_load_extents(bpx_world *world, const float *minima, uint32_t n);
 
 /// Updating phase: current centres (x, y, z per object, 3n floats for the n loaded extents).
 /// Box i becomes [centre_i + minimum_i, centre_i - minimum_i] per axis.
-/// Errors: BAD_STATE (no extents loaded), NULL_ARGUMENT, NOT_FINITE (a centre, or a box
-/// coordinate that overflowed). On error the world keeps its previous boxes.
+/// Errors: BAD_STATE (not in the two-phase mode: no extents loaded, or bpx_world_set_boxes
+/// since), NULL_ARGUMENT, NOT_FINITE (a centre, or a box coordinate that overflowed). On error
+/// the world keeps its previous boxes.
 BPX_API bpx_status bpx_world_update_centres(bpx_world *world, const float *centres);
 
 /// General mode: sets the n current boxes directly (any shape each cycle; rotating objects).
+/// Leaves the two-phase mode: bpx_world_update_centres is BAD_STATE until the next
+/// bpx_world_load_extents, and bpx_world_add_boxes works. Ids become 0 .. n-1, all in use
+/// (removed ones come back).
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, NOT_FINITE, MIN_GREATER_THAN_MAX, OUT_OF_MEMORY;
 /// the error names the first offending box. On error the world keeps its previous boxes.
 BPX_API bpx_status bpx_world_set_boxes(bpx_world *world, const bpx_box *boxes, uint32_t n);

@@ -407,6 +407,8 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
     swap_in_spare(w, n);
+    // The boxes no longer come from the loaded extents: centres would rebuild stale boxes.
+    w->extents_loaded = false;
     if (w->backend->boxes_set)
         w->backend->boxes_set(w, NULL);
     w->stats.update_ns = bpx__now_ns() - start;
