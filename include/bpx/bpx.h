@@ -73,7 +73,7 @@ BPX_API bpx_status bpx_world_update_centres(bpx_world *world, const float *centr
 /// bpx_world_load_extents, and bpx_world_add_boxes works. Ids become 0 .. n-1, all in use
 /// (removed ones come back).
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, NOT_FINITE, MIN_GREATER_THAN_MAX, OUT_OF_MEMORY;
-/// the error names the first offending box. On error the world keeps its previous boxes.
+/// the error names the first offending box. On error the world is unchanged.
 BPX_API bpx_status bpx_world_set_boxes(bpx_world *world, const bpx_box *boxes, uint32_t n);
 
 /// Number of boxes in the world (the paper's n register): the highest id in use + 1 when boxes
@@ -120,6 +120,9 @@ BPX_API bpx_status bpx_world_pair_events(const bpx_world *world, bpx_pair_events
 /// Finds every overlapping pair among the current boxes into the world's own buffer, which grows
 /// as needed and is kept between cycles (after the first cycles, no allocation).
 /// Errors: OUT_OF_MEMORY (the pair set does not fit in memory; no partial result is reported).
+/// After an error, pairs and events read as none (pair_events: BAD_STATE) until a collide
+/// succeeds; that one reports its events against the last successful collide, and ids removed
+/// before it are still held back until then.
 BPX_API bpx_status bpx_world_collide(bpx_world *world);
 
 /// The pairs of the last successful collide, sorted by (i, j). *count receives their number

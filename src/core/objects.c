@@ -296,11 +296,11 @@ bpx_status bpx__objects_after_collide(bpx_world *w, const bpx_pair *pairs, size_
 {
     if (w->def.track_events) {
         w->events_valid = false;
-        const bpx_pair_list *prev = &w->previous;
-        if (!diff_sorted(prev->pairs, prev->count, pairs, count, &w->began, &w->ended))
-            return BPX_ERR_OUT_OF_MEMORY;
-        w->previous.count = 0;
-        if (!bpx__list_reserve(&w->previous, count))
+        bpx_pair_list *prev = &w->previous;
+        // Room for this cycle's pairs before the last cycle's are dropped: on failure they stay,
+        // and the next collide reports its events against them.
+        if (!bpx__list_reserve(prev, count > prev->count ? count - prev->count : 0) ||
+            !diff_sorted(prev->pairs, prev->count, pairs, count, &w->began, &w->ended))
             return BPX_ERR_OUT_OF_MEMORY;
         if (count)
             memcpy(w->previous.pairs, pairs, count * sizeof(bpx_pair));
