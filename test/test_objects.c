@@ -283,10 +283,61 @@ static void mode_changes(void)
     bpx_world_destroy(w);
 }
 
+// Filters across set_boxes: an id in use below both the old and the new n keeps its filter;
+// ids removed, dropped or new start unfiltered. set_filters refuses a removed id.
+static void filters_and_set_boxes(void)
+{
+    check_set_context("filters and set_boxes");
+    bpx_world_def def = bpx_default_world_def();
+    bpx_world *w;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    if (!w)
+        return;
+    bpx_box boxes[6];
+    for (int i = 0; i < 6; i++)
+        boxes[i] = (bpx_box){{0, 0, 0}, {1, 1, 1}}; // every pair overlaps
+    uint32_t lone = 2, none = 0; // category 2 against masks of 0: pairs with nothing
+    uint32_t id0 = 0, id1 = 1, id2 = 2, id3 = 3;
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK);
+    CHECK_STATUS(bpx_world_set_filters(w, &id0, &lone, &none, 1), BPX_OK);
+    CHECK(pair_count(w) == 3);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK); // same objects, new boxes
+    CHECK(pair_count(w) == 3);
+
+    CHECK_STATUS(bpx_world_set_filters(w, &id3, &lone, &none, 1), BPX_OK);
+    CHECK(pair_count(w) == 1);
+    CHECK_STATUS(bpx_world_remove_boxes(w, &id1, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_set_filters(w, &id1, &lone, &none, 1), BPX_ERR_INVALID_ARGUMENT);
+    CHECK(bpx_world_error(w)->index == 0);
+    CHECK(strstr(bpx_world_error(w)->message, "ids[0] = 1") != NULL);
+    uint32_t cats[3] = {1, 1, 1}, masks[3] = {1, 1, 1};
+    CHECK_STATUS(bpx_world_set_filters(w, NULL, cats, masks, 3), BPX_ERR_INVALID_ARGUMENT);
+    CHECK(bpx_world_error(w)->index == 1);
+    CHECK(pair_count(w) == 0); // nothing changed: 0 and 3 filtered, 1 removed
+    CHECK_STATUS(bpx_world_remove_boxes(w, &id3, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK); // 1 and 3 back, unfiltered
+    CHECK(pair_count(w) == 3);
+
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 6), BPX_OK); // 4 and 5 new, unfiltered
+    CHECK(pair_count(w) == 10);
+    CHECK_STATUS(bpx_world_set_filters(w, &id2, &lone, &none, 1), BPX_OK);
+    CHECK(pair_count(w) == 6);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 2), BPX_OK); // drops 2: it forgets its filter
+    CHECK(pair_count(w) == 0);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK);
+    CHECK(pair_count(w) == 3);
+
+    float minima[3 * 4] = {-1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1};
+    CHECK_STATUS(bpx_world_load_extents(w, minima, 4), BPX_OK); // the same rule
+    CHECK(pair_count(w) == 3);
+    bpx_world_destroy(w);
+}
+
 int main(void)
 {
     errors();
     mode_changes();
+    filters_and_set_boxes();
     int ran = 0;
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
         if (!bpx_backend_query((bpx_backend)b).available)

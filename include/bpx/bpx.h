@@ -56,7 +56,8 @@ BPX_API const bpx_error *bpx_world_error(const bpx_world *world);
 /// object, 3n floats). Maxima are the negated minima, so each minimum must be finite and <= 0.
 /// The world's box count becomes n and, until the first bpx_world_update_centres, every box sits
 /// at the origin ([minimum, -minimum]). The world is then in the two-phase mode, which
-/// bpx_world_set_boxes leaves: update_centres works, add_boxes is refused.
+/// bpx_world_set_boxes leaves: update_centres works, add_boxes is refused. Removed ids come back
+/// and filters follow the rule of bpx_world_set_boxes.
 /// Errors: NULL_ARGUMENT (minima NULL with n > 0), TOO_MANY_BOXES, NOT_FINITE,
 /// MIN_GREATER_THAN_MAX (a minimum > 0), OUT_OF_MEMORY. On error the world is unchanged.
 BPX_API bpx_status bpx_world_load_extents(bpx_world *world, const float *minima, uint32_t n);
@@ -71,7 +72,9 @@ BPX_API bpx_status bpx_world_update_centres(bpx_world *world, const float *centr
 /// General mode: sets the n current boxes directly (any shape each cycle; rotating objects).
 /// Leaves the two-phase mode: bpx_world_update_centres is BAD_STATE until the next
 /// bpx_world_load_extents, and bpx_world_add_boxes works. Ids become 0 .. n-1, all in use
-/// (removed ones come back).
+/// (removed ones come back). An id is the same object before and after, as events see it, so an
+/// id in use below both the old and the new n keeps its filter; every other id (one beyond the
+/// old n, beyond the new n, or removed before the call) starts again unfiltered.
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, NOT_FINITE, MIN_GREATER_THAN_MAX, OUT_OF_MEMORY;
 /// the error names the first offending box. On error the world is unchanged.
 BPX_API bpx_status bpx_world_set_boxes(bpx_world *world, const bpx_box *boxes, uint32_t n);
@@ -103,8 +106,10 @@ BPX_API bpx_status bpx_world_move_boxes(bpx_world *world, const uint32_t *ids,
 /// Collision filtering, applied inside the broad phase (no filtered pair is ever emitted or
 /// counted): boxes a and b can pair only if (category_a & mask_b) && (category_b & mask_a).
 /// Every box starts with category 1 and mask 0xFFFFFFFF (pairs with everything). ids may be
-/// NULL for ids 0 .. count-1. Errors: NULL_ARGUMENT, INVALID_ARGUMENT (an id not in use),
-/// OUT_OF_MEMORY.
+/// NULL for ids 0 .. count-1. A filter stays with its id until the box is removed (add_boxes
+/// hands the id out unfiltered again) or set_boxes / load_extents drop it (see set_boxes).
+/// Errors: NULL_ARGUMENT, INVALID_ARGUMENT (an id not in use: >= n, or removed; the error's
+/// index is its position in ids), OUT_OF_MEMORY. Nothing is changed on error.
 BPX_API bpx_status bpx_world_set_filters(bpx_world *world, const uint32_t *ids,
                                          const uint32_t *categories, const uint32_t *masks,
                                          uint32_t count);
