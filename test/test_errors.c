@@ -803,6 +803,211 @@ static void test_allocation_failure(void)
     free(centres);
 }
 
+// ---------------------------------------------------------------------------------------------
+// A call that fails for memory leaves the world as it was: a twin world that never saw the call
+// answers every later call the same (statuses, ids handed out, pairs, events).
+
+enum { keep_n = 300, keep_small = 50 };
+
+static struct {
+    bpx_box dense[keep_n];
+    bpx_box apart[keep_n]; // the same boxes far apart: no pairs
+    bpx_box pile[keep_n];  // every pair overlaps
+    float minima[3 * keep_n];
+    float tiny[3 * keep_n];
+    float centres[3 * keep_n]; // with minima, neighbours overlap on x
+    bpx_pair out[keep_n * keep_n / 2];
+    uint32_t ids[keep_n];
+} keep;
+
+static void setup_two_phase(bpx_world *w)
+{
+    CHECK_STATUS(bpx_world_load_extents(w, keep.minima, 2), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(w, keep.centres), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+}
+
+static void setup_plain(bpx_world *w)
+{
+    CHECK_STATUS(bpx_world_set_boxes(w, keep.dense, keep_small), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+}
+
+// Filters, removed ids free for reuse and one removed id still pending.
+static void setup_objects(bpx_world *w)
+{
+    setup_plain(w);
+    const uint32_t filtered[2] = {5, 9}, cats[2] = {2, 2}, masks[2] = {0, 1};
+    CHECK_STATUS(bpx_world_set_filters(w, filtered, cats, masks, 2), BPX_OK);
+    const uint32_t removed[3] = {3, 7, 11};
+    CHECK_STATUS(bpx_world_remove_boxes(w, removed, 2), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK_STATUS(bpx_world_remove_boxes(w, removed + 2, 1), BPX_OK);
+}
+
+// One pair last cycle, every pair now: the events' lists must grow, and the next events must
+// still be reported against that one pair.
+static void setup_events(bpx_world *w)
+{
+    bpx_box one_pair[keep_small];
+    memcpy(one_pair, keep.apart, sizeof one_pair);
+    one_pair[1] = one_pair[0];
+    CHECK_STATUS(bpx_world_set_boxes(w, one_pair, keep_small), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes(w, keep.pile, keep_small), BPX_OK);
+}
+
+static void setup_events_pending(bpx_world *w)
+{
+    setup_events(w);
+    const uint32_t removed[2] = {3, 11};
+    CHECK_STATUS(bpx_world_remove_boxes(w, removed, 2), BPX_OK);
+}
+
+static bpx_status call_load(bpx_world *w)
+{
+    return bpx_world_load_extents(w, keep.tiny, keep_n);
+}
+static bpx_status call_set(bpx_world *w)
+{
+    return bpx_world_set_boxes(w, keep.dense, keep_n);
+}
+static bpx_status call_add(bpx_world *w)
+{
+    return bpx_world_add_boxes(w, keep.dense, keep_n, keep.ids);
+}
+static const uint32_t some_ids[3] = {1, 2, 4};
+static bpx_status call_remove(bpx_world *w)
+{
+    return bpx_world_remove_boxes(w, some_ids, 3);
+}
+static bpx_status call_move(bpx_world *w)
+{
+    return bpx_world_move_boxes(w, some_ids, keep.apart + keep_n - 3, 3);
+}
+static bpx_status call_filters(bpx_world *w)
+{
+    const uint32_t cats[3] = {2, 2, 2}, masks[3] = {0, 0, 0};
+    return bpx_world_set_filters(w, some_ids, cats, masks, 3);
+}
+static bpx_status call_collide(bpx_world *w)
+{
+    return bpx_world_collide(w);
+}
+static bpx_status call_collide_into(bpx_world *w)
+{
+    size_t count = 0;
+    return bpx_world_collide_into(w, keep.out, sizeof keep.out / sizeof keep.out[0], &count);
+}
+
+typedef struct keep_case {
+    const char *name;
+    void (*setup)(bpx_world *w);
+    bpx_status (*call)(bpx_world *w);
+} keep_case;
+
+static void check_same_cycle(bpx_world *w, bpx_world *twin)
+{
+    CHECK_EQ_U64(bpx_world_box_count(w), bpx_world_box_count(twin));
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(twin), BPX_OK);
+    size_t count = 0, want_count = 0;
+    const bpx_pair *got = bpx_world_pairs(w, &count);
+    const bpx_pair *want = bpx_world_pairs(twin, &want_count);
+    CHECK_PAIRS_EQ(want, want_count, got, count);
+    bpx_pair_events ev, want_ev;
+    CHECK_STATUS(bpx_world_pair_events(w, &ev), BPX_OK);
+    CHECK_STATUS(bpx_world_pair_events(twin, &want_ev), BPX_OK);
+    CHECK_PAIRS_EQ(want_ev.began, want_ev.began_count, ev.began, ev.began_count);
+    CHECK_PAIRS_EQ(want_ev.ended, want_ev.ended_count, ev.ended, ev.ended_count);
+}
+
+// Adds a box to both (before a collide: pending ids must still be held back), then cycles.
+static void check_same_world(bpx_world *w, bpx_world *twin)
+{
+    uint32_t id = UINT32_MAX, want_id = UINT32_MAX;
+    CHECK_STATUS(bpx_world_add_boxes(w, keep.dense, 1, &id),
+                 bpx_world_add_boxes(twin, keep.dense, 1, &want_id));
+    CHECK_EQ_U64(id, want_id);
+    check_same_cycle(w, twin);
+    CHECK_STATUS(bpx_world_update_centres(w, keep.centres),
+                 bpx_world_update_centres(twin, keep.centres));
+    check_same_cycle(w, twin);
+    CHECK_STATUS(bpx_world_add_boxes(w, keep.dense, 2, keep.ids),
+                 bpx_world_add_boxes(twin, keep.dense, 2, keep.ids + 2));
+    CHECK(keep.ids[0] == keep.ids[2] && keep.ids[1] == keep.ids[3]);
+    check_same_cycle(w, twin);
+}
+
+static void test_failure_keeps_world(void)
+{
+    CHECK(scene_generate(SCENE_DENSE, keep_n, 2222, keep.dense) == 0);
+    for (uint32_t i = 0; i < keep_n; i++) {
+        keep.apart[i] = keep.dense[i];
+        keep.apart[i].min[0] += 1000.0f * (float)i;
+        keep.apart[i].max[0] += 1000.0f * (float)i;
+        keep.pile[i] = (bpx_box){{0, 0, 0}, {1 + 0.01f * (float)i, 1, 1}};
+        for (int a = 0; a < 3; a++) {
+            keep.minima[3 * i + a] = -0.5f;
+            keep.tiny[3 * i + a] = -0.01f;
+            keep.centres[3 * i + a] = a == 0 ? 0.75f * (float)i : 0.0f;
+        }
+    }
+    static const keep_case cases[] = {
+        {"load_extents over two-phase", setup_two_phase, call_load},
+        {"load_extents over objects", setup_objects, call_load},
+        {"set_boxes over two-phase", setup_two_phase, call_set},
+        {"set_boxes over objects", setup_objects, call_set},
+        {"add_boxes", setup_plain, call_add},
+        {"add_boxes over objects", setup_objects, call_add},
+        {"remove_boxes, first", setup_plain, call_remove},
+        {"move_boxes, first", setup_plain, call_move},
+        {"set_filters, first", setup_plain, call_filters},
+        {"collide with events", setup_events, call_collide},
+        {"collide_into with events", setup_events, call_collide_into},
+        {"collide with pending ids", setup_events_pending, call_collide},
+    };
+    int64_t start = bpx_allocated_bytes();
+    atomic_store(&fa_budget, -1);
+    bpx_set_allocator(fa_alloc, fa_free, &fa_tag);
+    bpx_world_def def = bpx_default_world_def();
+    def.track_events = true;
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        int failures = 0;
+        for (long long budget = 0; budget < 1000; budget++) {
+            check_set_context("%s, failing after %lld allocations", cases[c].name, budget);
+            bpx_world *w = NULL, *twin = NULL;
+            CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+            CHECK_STATUS(bpx_world_create(&def, &twin), BPX_OK);
+            if (!w || !twin) {
+                bpx_world_destroy(w);
+                bpx_world_destroy(twin);
+                break;
+            }
+            cases[c].setup(w);
+            cases[c].setup(twin);
+            atomic_store(&fa_budget, budget);
+            bpx_status s = cases[c].call(w);
+            atomic_store(&fa_budget, -1);
+            bool done = s == BPX_OK;
+            if (!done) {
+                failures++;
+                check_world_error(w, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1);
+                check_same_world(w, twin);
+            }
+            bpx_world_destroy(w);
+            bpx_world_destroy(twin);
+            CHECK_EQ_U64(atomic_load(&fa_live), 0);
+            if (done)
+                break;
+        }
+        check_set_context("%s", cases[c].name);
+        CHECK_MSG(failures > 0, "no allocation of the call failed: the case tests nothing");
+    }
+    bpx_set_allocator(NULL, NULL, NULL);
+    CHECK(bpx_allocated_bytes() == start);
+}
+
 int main(void)
 {
     const uint64_t seed = 5;
@@ -822,5 +1027,6 @@ int main(void)
     test_too_many_boxes(boxes);
     test_updater_errors(boxes);
     test_allocation_failure();
+    test_failure_keeps_world();
     return check_finish("test_errors", 1);
 }

@@ -214,9 +214,130 @@ static void errors(void)
     bpx_world_destroy(w);
 }
 
+// Pairs of one collide (which must succeed).
+static size_t pair_count(bpx_world *w)
+{
+    size_t count = 0;
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    bpx_world_pairs(w, &count);
+    return count;
+}
+
+// set_boxes leaves the two-phase mode (issue 22: load_extents(5), set_boxes(300), removing ids
+// 250..259 and update_centres wrote past the end of the 5-object arrays and shrank n to 5).
+static void mode_changes(void)
+{
+    check_set_context("two-phase mode and set_boxes");
+    bpx_world_def def = bpx_default_world_def();
+    def.track_events = true;
+    bpx_world *w;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    if (!w)
+        return;
+    float minima[3 * 5], centres[3 * 5];
+    for (int k = 0; k < 3 * 5; k++) {
+        minima[k] = -0.5f;
+        centres[k] = k % 3 == 0 ? 0.75f * (float)(k / 3) : 0.0f; // neighbours overlap on x
+    }
+    enum { n = 300 };
+    static bpx_box boxes[n], shadow_boxes[n];
+    for (uint32_t i = 0; i < n; i++)
+        boxes[i] = (bpx_box){{(float)i, 0, 0}, {(float)i + 1.5f, 1, 1}}; // pairs (i, i + 1)
+    CHECK_STATUS(bpx_world_load_extents(w, minima, 5), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+    uint32_t ids[10];
+    for (uint32_t k = 0; k < 10; k++)
+        ids[k] = 250 + k;
+    CHECK_STATUS(bpx_world_remove_boxes(w, ids, 10), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(w, centres), BPX_ERR_BAD_STATE);
+    CHECK(strstr(bpx_world_error(w)->message, "load_extents") != NULL);
+    CHECK_EQ_U64(bpx_world_box_count(w), n);
+    memcpy(shadow_boxes, boxes, sizeof boxes);
+    for (uint32_t k = 0; k < 10; k++)
+        shadow_boxes[ids[k]] = inert;
+    pair_list want = {0};
+    pair_list_brute(&want, shadow_boxes, n);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    size_t count = 0;
+    const bpx_pair *got = bpx_world_pairs(w, &count);
+    CHECK_PAIRS_EQ(want.pairs, want.count, got, count);
+    uint32_t id = UINT32_MAX;
+    CHECK_STATUS(bpx_world_add_boxes(w, boxes, 1, &id), BPX_OK); // general mode again
+    CHECK(id >= 250 && id < 260);
+
+    check_set_context("load_extents enters the two-phase mode again");
+    CHECK_STATUS(bpx_world_load_extents(w, minima, 5), BPX_OK);
+    CHECK_EQ_U64(bpx_world_box_count(w), 5);
+    CHECK_STATUS(bpx_world_add_boxes(w, boxes, 1, &id), BPX_ERR_BAD_STATE);
+    uint32_t two = 2;
+    CHECK_STATUS(bpx_world_remove_boxes(w, &two, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(w, centres), BPX_OK);
+    CHECK(pair_count(w) == 2); // (0, 1) and (3, 4): the removed id stays out
+    CHECK_STATUS(bpx_world_update_centres(w, centres), BPX_OK);
+    CHECK(pair_count(w) == 2);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 3), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(w, centres), BPX_ERR_BAD_STATE);
+    CHECK_EQ_U64(bpx_world_box_count(w), 3);
+    CHECK(pair_count(w) == 2);
+    pair_list_free(&want);
+    bpx_world_destroy(w);
+}
+
+// Filters across set_boxes: an id in use below both the old and the new n keeps its filter;
+// ids removed, dropped or new start unfiltered. set_filters refuses a removed id.
+static void filters_and_set_boxes(void)
+{
+    check_set_context("filters and set_boxes");
+    bpx_world_def def = bpx_default_world_def();
+    bpx_world *w;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    if (!w)
+        return;
+    bpx_box boxes[6];
+    for (int i = 0; i < 6; i++)
+        boxes[i] = (bpx_box){{0, 0, 0}, {1, 1, 1}}; // every pair overlaps
+    uint32_t lone = 2, none = 0; // category 2 against masks of 0: pairs with nothing
+    uint32_t id0 = 0, id1 = 1, id2 = 2, id3 = 3;
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK);
+    CHECK_STATUS(bpx_world_set_filters(w, &id0, &lone, &none, 1), BPX_OK);
+    CHECK(pair_count(w) == 3);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK); // same objects, new boxes
+    CHECK(pair_count(w) == 3);
+
+    CHECK_STATUS(bpx_world_set_filters(w, &id3, &lone, &none, 1), BPX_OK);
+    CHECK(pair_count(w) == 1);
+    CHECK_STATUS(bpx_world_remove_boxes(w, &id1, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_set_filters(w, &id1, &lone, &none, 1), BPX_ERR_INVALID_ARGUMENT);
+    CHECK(bpx_world_error(w)->index == 0);
+    CHECK(strstr(bpx_world_error(w)->message, "ids[0] = 1") != NULL);
+    uint32_t cats[3] = {1, 1, 1}, masks[3] = {1, 1, 1};
+    CHECK_STATUS(bpx_world_set_filters(w, NULL, cats, masks, 3), BPX_ERR_INVALID_ARGUMENT);
+    CHECK(bpx_world_error(w)->index == 1);
+    CHECK(pair_count(w) == 0); // nothing changed: 0 and 3 filtered, 1 removed
+    CHECK_STATUS(bpx_world_remove_boxes(w, &id3, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK); // 1 and 3 back, unfiltered
+    CHECK(pair_count(w) == 3);
+
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 6), BPX_OK); // 4 and 5 new, unfiltered
+    CHECK(pair_count(w) == 10);
+    CHECK_STATUS(bpx_world_set_filters(w, &id2, &lone, &none, 1), BPX_OK);
+    CHECK(pair_count(w) == 6);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 2), BPX_OK); // drops 2: it forgets its filter
+    CHECK(pair_count(w) == 0);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK);
+    CHECK(pair_count(w) == 3);
+
+    float minima[3 * 4] = {-1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1};
+    CHECK_STATUS(bpx_world_load_extents(w, minima, 4), BPX_OK); // the same rule
+    CHECK(pair_count(w) == 3);
+    bpx_world_destroy(w);
+}
+
 int main(void)
 {
     errors();
+    mode_changes();
+    filters_and_set_boxes();
     int ran = 0;
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
         if (!bpx_backend_query((bpx_backend)b).available)

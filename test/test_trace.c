@@ -6,7 +6,9 @@
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <math.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "bpx_trace.h"
 #include "check.h"
@@ -316,6 +318,100 @@ static void test_writer_rejects_bad_boxes(void)
     free(all);
 }
 
+#if defined(__SANITIZE_ADDRESS__)
+#define TRACE_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define TRACE_TEST_ASAN 1
+#endif
+#endif
+
+// Caps the address space 1 GiB above its size now, so that an allocation of gigabytes fails
+// instead of being granted lazily. Not under ASan, whose shadow memory needs terabytes.
+static bool cap_address_space(struct rlimit *old)
+{
+#ifdef TRACE_TEST_ASAN
+    (void)old;
+    return false;
+#else
+    FILE *f = fopen("/proc/self/statm", "r");
+    unsigned long long pages = 0;
+    bool known = f && fscanf(f, "%llu", &pages) == 1;
+    if (f)
+        fclose(f);
+    if (!known || getrlimit(RLIMIT_AS, old) != 0)
+        return false;
+    struct rlimit cap = *old;
+    cap.rlim_cur = (rlim_t)(pages * (unsigned long long)sysconf(_SC_PAGESIZE) + (1ull << 30));
+    if (old->rlim_max != RLIM_INFINITY && cap.rlim_cur > old->rlim_max)
+        return false;
+    return setrlimit(RLIMIT_AS, &cap) == 0;
+#endif
+}
+
+// A 32-byte file: a valid header and no cycle data.
+static const char *write_header(const char *name, uint32_t n, uint64_t cycles)
+{
+    unsigned char h[BPX_TRACE_HEADER_BYTES] = "BPXTRACE";
+    put_u32(h + 8, BPX_TRACE_VERSION);
+    put_u32(h + 12, n);
+    put_u32(h + 16, (uint32_t)cycles);
+    put_u32(h + 20, (uint32_t)(cycles >> 32));
+    put_u32(h + 24, 6);
+    put_u32(h + 28, 0);
+    const char *path = path_of(name);
+    write_all(path, h, sizeof h);
+    return path;
+}
+
+// Sizes in the header bounded by the file's length (issue 22): 0 boxes per cycle and 2^62
+// cycles made bpx_trace_load loop 2^62 times; 0x06000000 boxes and no cycles made
+// bpx_trace_open allocate 2.4 GB for a 32-byte file.
+static void test_header_sizes(void)
+{
+    check_set_context("0 boxes, 2^62 cycles");
+    const uint64_t many = 1ull << 62;
+    const char *path = write_header("empty-cycles.trace", 0, many);
+    alarm(60); // a loop over the cycles fails here rather than at the suite's timeout
+    bpx_trace_header h;
+    bpx_trace_error err;
+    bpx_box *all = (bpx_box *)&all;
+    CHECK(bpx_trace_load(path, &h, &all, &err) == BPX_TRACE_OK);
+    CHECK(all == NULL && h.box_count == 0 && h.cycle_count == many);
+    bpx_trace_reader *r;
+    CHECK(bpx_trace_open(path, &r, &err) == BPX_TRACE_OK);
+    if (r) {
+        CHECK(bpx_trace_read_cycle(r, NULL, &err) == BPX_TRACE_OK);
+        CHECK(bpx_trace_seek_cycle(r, many, &err) == BPX_TRACE_OK);
+        CHECK(bpx_trace_read_cycle(r, NULL, &err) == BPX_TRACE_END);
+        bpx_trace_close(r);
+    }
+    alarm(0);
+
+    check_set_context("0x06000000 boxes, no cycles");
+    path = write_header("no-cycles.trace", 0x06000000u, 0);
+    struct rlimit old;
+    bool capped = cap_address_space(&old);
+    bpx_trace_status opened = bpx_trace_open(path, &r, &err);
+    bpx_trace_status loaded = bpx_trace_load(path, &h, &all, &err);
+    if (capped)
+        setrlimit(RLIMIT_AS, &old);
+    printf("  header of 0x06000000 boxes and no cycles opened %s the address space capped\n",
+           capped ? "with" : "without");
+    CHECK_MSG(opened == BPX_TRACE_OK, "open: %s", bpx_trace_status_string(opened));
+    CHECK_MSG(loaded == BPX_TRACE_OK, "load: %s", bpx_trace_status_string(loaded));
+    CHECK(all == NULL && h.box_count == 0x06000000u && h.cycle_count == 0);
+    if (opened == BPX_TRACE_OK) {
+        bpx_box unused; // out must not be NULL for n > 0; END writes nothing to it
+        CHECK(bpx_trace_read_cycle(r, &unused, &err) == BPX_TRACE_END);
+        bpx_trace_close(r);
+    }
+    // One cycle announced: the file must hold its 2.4 GB.
+    path = write_header("no-data.trace", 0x06000000u, 1);
+    CHECK(bpx_trace_open(path, &r, &err) == BPX_TRACE_ERR_TRUNCATED && r == NULL);
+    CHECK(err.offset == BPX_TRACE_HEADER_BYTES);
+}
+
 int main(int argc, char **argv)
 {
     snprintf(scratch, sizeof scratch, "%s", argc > 1 ? argv[1] : "trace_scratch");
@@ -326,5 +422,6 @@ int main(int argc, char **argv)
     test_round_trip();
     test_corrupt();
     test_writer_rejects_bad_boxes();
+    test_header_sizes();
     return check_finish("test_trace", 1);
 }

@@ -199,8 +199,10 @@ bpx_trace_status bpx_trace_open(const char *path, bpx_trace_reader **out, bpx_tr
         header.cycle_count = get_u64(h + 16);
         uint32_t floats = get_u32(h + 24);
         uint32_t reserved = get_u32(h + 28);
-        uint64_t cycle_bytes = (uint64_t)header.box_count * BPX_TRACE_BOX_BYTES;
-        uint64_t data_bytes = file_bytes - BPX_TRACE_HEADER_BYTES;
+        uint64_t cycle_bytes = (uint64_t)header.box_count * BPX_TRACE_BOX_BYTES; // < 2^35
+        // The file may have grown between fstat and fread: never below 0.
+        uint64_t data_bytes =
+            file_bytes > BPX_TRACE_HEADER_BYTES ? file_bytes - BPX_TRACE_HEADER_BYTES : 0;
         if (header.version != BPX_TRACE_VERSION) {
             status = fail(err, BPX_TRACE_ERR_BAD_VERSION, 8, path,
                           "version %" PRIu32 " at byte 8; this reader knows version %u",
@@ -243,11 +245,14 @@ bpx_trace_status bpx_trace_open(const char *path, bpx_trace_reader **out, bpx_tr
         return status;
     }
 
-    bpx_trace_reader *r = calloc(1, sizeof *r);
-    size_t cycle_bytes = (size_t)header.box_count * BPX_TRACE_BOX_BYTES;
+    // The buffer holds one cycle, which lies in the file only if there is one: a header of n
+    // boxes and no cycles (an empty trace) must not make it allocate n * 24 bytes.
+    uint64_t buffer_bytes =
+        header.cycle_count ? (uint64_t)header.box_count * BPX_TRACE_BOX_BYTES : 0;
+    bpx_trace_reader *r = buffer_bytes <= SIZE_MAX ? calloc(1, sizeof *r) : NULL;
     if (r) {
         r->path = copy_string(path);
-        r->buffer = malloc(cycle_bytes ? cycle_bytes : 1);
+        r->buffer = malloc(buffer_bytes ? (size_t)buffer_bytes : 1);
     }
     if (!r || !r->path || !r->buffer) {
         if (r) {
@@ -362,7 +367,7 @@ bpx_trace_status bpx_trace_load(const char *path, bpx_trace_header *header, bpx_
     if (status != BPX_TRACE_OK)
         return status;
     const bpx_trace_header *h = bpx_trace_header_of(r);
-    uint64_t total = h->cycle_count * h->box_count;
+    uint64_t total = h->cycle_count * h->box_count; // at most the file's length / 24 (open)
     bpx_box *all = NULL;
     if (total > 0) {
         if (total > SIZE_MAX / sizeof(bpx_box) || !(all = malloc((size_t)total * sizeof *all))) {
@@ -371,7 +376,10 @@ bpx_trace_status bpx_trace_load(const char *path, bpx_trace_header *header, bpx_
                         "out of memory for %" PRIu64 " boxes", total);
         }
     }
-    for (uint64_t c = 0; c < h->cycle_count && status == BPX_TRACE_OK; c++)
+    // Cycles of 0 boxes take no bytes, so nothing in the file bounds their count (it may be
+    // 2^64 - 1): there is nothing to read or check in them, and no loop runs over them.
+    uint64_t cycles = h->box_count ? h->cycle_count : 0;
+    for (uint64_t c = 0; c < cycles && status == BPX_TRACE_OK; c++)
         status = bpx_trace_read_cycle(r, all + c * h->box_count, err);
     if (status != BPX_TRACE_OK) {
         free(all);

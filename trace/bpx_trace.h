@@ -20,6 +20,10 @@
 // byte offset. A writer that is interrupted leaves cycle count 0 in the header (it is written at
 // close), which the reader reports as trailing data.
 //
+// The reader trusts no size in the header beyond the file's length: it allocates at most one
+// cycle's bytes, and only when the file holds a cycle. Cycles of n = 0 take no bytes, so their
+// count is bounded by nothing in the file; bpx_trace_load does not iterate over them.
+//
 // Library code: never prints, never exits; every error is a status plus a message.
 #pragma once
 

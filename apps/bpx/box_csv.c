@@ -295,6 +295,11 @@ int box_csv_read(FILE *in, const char *name, box_array *boxes, char *message,
             break;
         }
         ctx.line_number++;
+        // A UTF-8 byte-order mark opens files saved as Excel's "CSV UTF-8"; it is no data.
+        if (ctx.line_number == 1 && length >= 3 && memcmp(line, "\xEF\xBB\xBF", 3) == 0) {
+            line += 3;
+            length -= 3;
+        }
         bpx_box box;
         int parsed = parse_line(&ctx, line, length, &box);
         if (parsed < 0) {

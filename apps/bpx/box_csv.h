@@ -3,7 +3,8 @@
 //
 // Format: one box per line, six numbers separated by commas (spaces and tabs allowed around
 // them): min x, min y, min z, max x, max y, max z. '#' starts a comment running to the end of
-// the line; blank lines are skipped; CRLF line ends are accepted. Every box is checked as the
+// the line; blank lines are skipped; CRLF line ends and a UTF-8 byte-order mark at the start
+// of the input are accepted. Every box is checked as the
 // library would (finite, min <= max) so that errors can name the line, not just the box index.
 #pragma once
 

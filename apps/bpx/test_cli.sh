@@ -324,6 +324,26 @@ printf '# c\r\n\r\n0,0,0,1,1,1\r\n  \r\n0,0,0,1,1\r\n' >"$tmp/crlf.csv"
 run pairs "$tmp/crlf.csv"
 expect_error 1 "crlf.csv:5:" "found 5"
 
+# Excel's "CSV UTF-8" starts with a byte-order mark; once skipped, the rest is an ordinary file.
+begin "pairs: UTF-8 byte-order mark at the start"
+{
+    printf '\xef\xbb\xbf'
+    cat "$tmp/small.csv"
+} >"$tmp/bom.csv"
+run pairs "$tmp/bom.csv"
+expect_ok "$tmp/small.expected"
+
+begin "pairs: byte-order mark before a comment line, CRLF ends"
+printf '\xef\xbb\xbf# exported\r\n0,0,0,1,1,1\r\n0.5,0.5,0.5,2,2,2\r\n' >"$tmp/bom2.csv"
+run pairs --count "$tmp/bom2.csv"
+printf '1\n' >"$tmp/one.count"
+expect_ok "$tmp/one.count"
+
+begin "malformed: a byte-order mark past the start is not a number"
+printf '0,0,0,1,1,1\n\xef\xbb\xbf0,0,0,1,1,1\n' >"$tmp/bom3.csv"
+run pairs "$tmp/bom3.csv"
+expect_error 1 "bom3.csv:2:" "field 1 (min x): not a number"
+
 begin "malformed: first line, no final newline"
 printf 'x,0,0,1,1,1' >"$tmp/first.csv"
 run pairs "$tmp/first.csv"

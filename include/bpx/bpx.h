@@ -55,20 +55,28 @@ BPX_API const bpx_error *bpx_world_error(const bpx_world *world);
 /// Initialisation phase: loads n objects' origin-centred boxes as their minima (x, y, z per
 /// object, 3n floats). Maxima are the negated minima, so each minimum must be finite and <= 0.
 /// The world's box count becomes n and, until the first bpx_world_update_centres, every box sits
-/// at the origin ([minimum, -minimum]).
+/// at the origin ([minimum, -minimum]). The world is then in the two-phase mode, which
+/// bpx_world_set_boxes leaves: update_centres works, add_boxes is refused. Removed ids come back
+/// and filters follow the rule of bpx_world_set_boxes.
 /// Errors: NULL_ARGUMENT (minima NULL with n > 0), TOO_MANY_BOXES, NOT_FINITE,
 /// MIN_GREATER_THAN_MAX (a minimum > 0), OUT_OF_MEMORY. On error the world is unchanged.
 BPX_API bpx_status bpx_world_load_extents(bpx_world *world, const float *minima, uint32_t n);
 
 /// Updating phase: current centres (x, y, z per object, 3n floats for the n loaded extents).
 /// Box i becomes [centre_i + minimum_i, centre_i - minimum_i] per axis.
-/// Errors: BAD_STATE (no extents loaded), NULL_ARGUMENT, NOT_FINITE (a centre, or a box
-/// coordinate that overflowed). On error the world keeps its previous boxes.
+/// Errors: BAD_STATE (not in the two-phase mode: no extents loaded, or bpx_world_set_boxes
+/// since), NULL_ARGUMENT, NOT_FINITE (a centre, or a box coordinate that overflowed). On error
+/// the world keeps its previous boxes.
 BPX_API bpx_status bpx_world_update_centres(bpx_world *world, const float *centres);
 
 /// General mode: sets the n current boxes directly (any shape each cycle; rotating objects).
+/// Leaves the two-phase mode: bpx_world_update_centres is BAD_STATE until the next
+/// bpx_world_load_extents, and bpx_world_add_boxes works. Ids become 0 .. n-1, all in use
+/// (removed ones come back). An id is the same object before and after, as events see it, so an
+/// id in use below both the old and the new n keeps its filter; every other id (one beyond the
+/// old n, beyond the new n, or removed before the call) starts again unfiltered.
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, NOT_FINITE, MIN_GREATER_THAN_MAX, OUT_OF_MEMORY;
-/// the error names the first offending box. On error the world keeps its previous boxes.
+/// the error names the first offending box. On error the world is unchanged.
 BPX_API bpx_status bpx_world_set_boxes(bpx_world *world, const bpx_box *boxes, uint32_t n);
 
 /// Number of boxes in the world (the paper's n register): the highest id in use + 1 when boxes
@@ -98,8 +106,10 @@ BPX_API bpx_status bpx_world_move_boxes(bpx_world *world, const uint32_t *ids,
 /// Collision filtering, applied inside the broad phase (no filtered pair is ever emitted or
 /// counted): boxes a and b can pair only if (category_a & mask_b) && (category_b & mask_a).
 /// Every box starts with category 1 and mask 0xFFFFFFFF (pairs with everything). ids may be
-/// NULL for ids 0 .. count-1. Errors: NULL_ARGUMENT, INVALID_ARGUMENT (an id not in use),
-/// OUT_OF_MEMORY.
+/// NULL for ids 0 .. count-1. A filter stays with its id until the box is removed (add_boxes
+/// hands the id out unfiltered again) or set_boxes / load_extents drop it (see set_boxes).
+/// Errors: NULL_ARGUMENT, INVALID_ARGUMENT (an id not in use: >= n, or removed; the error's
+/// index is its position in ids), OUT_OF_MEMORY. Nothing is changed on error.
 BPX_API bpx_status bpx_world_set_filters(bpx_world *world, const uint32_t *ids,
                                          const uint32_t *categories, const uint32_t *masks,
                                          uint32_t count);
@@ -115,6 +125,9 @@ BPX_API bpx_status bpx_world_pair_events(const bpx_world *world, bpx_pair_events
 /// Finds every overlapping pair among the current boxes into the world's own buffer, which grows
 /// as needed and is kept between cycles (after the first cycles, no allocation).
 /// Errors: OUT_OF_MEMORY (the pair set does not fit in memory; no partial result is reported).
+/// After an error, pairs and events read as none (pair_events: BAD_STATE) until a collide
+/// succeeds; that one reports its events against the last successful collide, and ids removed
+/// before it are still held back until then.
 BPX_API bpx_status bpx_world_collide(bpx_world *world);
 
 /// The pairs of the last successful collide, sorted by (i, j). *count receives their number

@@ -74,6 +74,14 @@ bool bpx__objects_reset(bpx_world *w, uint32_t n)
         return true;
     if (!reserve_objects(w, n))
         return false;
+    if (w->category) {
+        // A filter lasts while its id holds a box: ids kept (below the old and the new n, and
+        // not removed) keep theirs; the rest start again unfiltered. w->n is still the old n.
+        uint32_t kept = n < w->n ? n : w->n;
+        for (uint32_t id = 0; id < w->object_capacity; id++)
+            if (id >= kept || w->dead[id])
+                w->category[id] = 1, w->mask[id] = UINT32_MAX;
+    }
     memset(w->dead, 0, w->object_capacity);
     w->pending_count = w->free_count = 0;
     return true;
@@ -221,9 +229,10 @@ bpx_status bpx_world_set_filters(bpx_world *w, const uint32_t *ids, const uint32
                           "categories or masks is NULL");
     for (uint32_t k = 0; k < count; k++) {
         uint32_t id = ids ? ids[k] : k;
-        if (id >= w->n)
+        if (id >= w->n || (w->dead && w->dead[id]))
             return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, k, -1,
-                              "set_filters: id %u is not a box in use (n = %u)", id, w->n);
+                              "set_filters: ids[%u] = %u is not a box in use (n = %u)", k, id,
+                              w->n);
     }
     if (!reserve_objects(w, w->n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1, "no memory");
@@ -296,11 +305,11 @@ bpx_status bpx__objects_after_collide(bpx_world *w, const bpx_pair *pairs, size_
 {
     if (w->def.track_events) {
         w->events_valid = false;
-        const bpx_pair_list *prev = &w->previous;
-        if (!diff_sorted(prev->pairs, prev->count, pairs, count, &w->began, &w->ended))
-            return BPX_ERR_OUT_OF_MEMORY;
-        w->previous.count = 0;
-        if (!bpx__list_reserve(&w->previous, count))
+        bpx_pair_list *prev = &w->previous;
+        // Room for this cycle's pairs before the last cycle's are dropped: on failure they stay,
+        // and the next collide reports its events against them.
+        if (!bpx__list_reserve(prev, count > prev->count ? count - prev->count : 0) ||
+            !diff_sorted(prev->pairs, prev->count, pairs, count, &w->began, &w->ended))
             return BPX_ERR_OUT_OF_MEMORY;
         if (count)
             memcpy(w->previous.pairs, pairs, count * sizeof(bpx_pair));

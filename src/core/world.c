@@ -407,10 +407,12 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
     int ok = run_update(w, set_task, &job);
     if (!ok)
         return bpx__check_boxes(boxes, n, &w->error); // names the first bad box
-    if (!bpx__objects_reset(w, n))
+    if (!bpx__objects_reset(w, n)) // the last step that can fail: it changes nothing on failure
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
     swap_in_spare(w, n);
+    // The boxes no longer come from the loaded extents: centres would rebuild stale boxes.
+    w->extents_loaded = false;
     if (w->backend->boxes_set)
         w->backend->boxes_set(w, NULL);
     w->stats.update_ns = bpx__now_ns() - start;
@@ -430,25 +432,37 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
     bpx_status status = bpx__check_minima(minima, n, &w->error);
     if (status != BPX_OK)
         return status;
-    if (n > w->extent_capacity) {
-        float *arrays[3] = {0};
+    // Everything that can fail comes first, into memory the world does not use yet, so that
+    // an error leaves the world as it was: new minima arrays, the spare set, a grown current
+    // set (update_centres swaps the two and never allocates), the per-id arrays.
+    float *arrays[3] = {0};
+    bpx_box_arrays grown = {0};
+    bool grow_minima = n > w->extent_capacity;
+    bool ok = true;
+    for (int a = 0; a < 3 && grow_minima && ok; a++)
+        ok = (arrays[a] = bpx__alloc(sizeof(float) * n)) != NULL;
+    ok = ok && reserve_arrays(&w->spare, n);
+    if (ok && padded(n) > w->boxes.capacity)
+        ok = reserve_arrays(&grown, n);
+    ok = ok && bpx__objects_reset(w, n); // the last step that can fail; it commits on success
+    if (!ok) {
         for (int a = 0; a < 3; a++)
-            if (!(arrays[a] = bpx__alloc(sizeof(float) * n))) {
-                for (int f = 0; f < a; f++)
-                    bpx__free(arrays[f], sizeof(float) * n);
-                return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
-                                  "no memory for %u extents", n);
-            }
+            bpx__free(arrays[a], sizeof(float) * n);
+        free_arrays(&grown);
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u objects", n);
+    }
+    if (grow_minima) {
         for (int a = 0; a < 3; a++) {
             bpx__free(w->minima[a], sizeof(float) * w->extent_capacity);
             w->minima[a] = arrays[a];
         }
         w->extent_capacity = n;
     }
-    // Reserve the boxes now so that update_centres never allocates.
-    if (!reserve_arrays(&w->spare, n) || !reserve_arrays(&w->boxes, n))
-        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
-                          "no memory for %u boxes", n);
+    if (grown.capacity) {
+        free_arrays(&w->boxes);
+        w->boxes = grown;
+    }
     // Until the first centres arrive, every object sits at the origin (the paper's n register
     // is set at initialisation).
     for (uint32_t i = 0; i < n; i++)
@@ -458,9 +472,6 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
             w->spare.lo[a][i] = m;
             w->spare.hi[a][i] = -m;
         }
-    if (!bpx__objects_reset(w, n))
-        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
-                          "no memory for %u objects", n);
     w->extent_count = n;
     w->extents_loaded = true;
     swap_in_spare(w, n);

@@ -131,7 +131,9 @@ bool bpx__boxes_resize(bpx_world *w, uint32_t n);
 void bpx__box_make_inert(bpx_world *w, uint32_t id);
 
 // Objects, filters and events (objects.c).
-/// Every id below n live, none pending or free, filters kept for ids below n (set_boxes, load).
+/// Every id below n live, none pending or free; filters kept for the ids in use below both the
+/// old n (w->n, so call before the boxes change) and the new, else reset (set_boxes, load).
+/// All or nothing: on false (no memory) nothing changed.
 bool bpx__objects_reset(bpx_world *w, uint32_t n);
 /// Re-inerts removed ids after the updater rewrote every box.
 void bpx__objects_reinert(bpx_world *w);
