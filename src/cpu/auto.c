@@ -1,6 +1,6 @@
 // The auto backend: each cycle, the CPU backend that should be fastest for what it observes.
 //
-// The rule (measured with `bpx bench`; the README's Speed section has the runs):
+// The rule (measured with `bpx bench`; docs/performance.md has the runs):
 //   n <= 128                       brute: no sort to pay for, a few SIMD steps per row
 //   boxes nearly at rest, n > 96   sap:   its fat boxes absorb small moves, so a cycle touches
 //                                         only the few boxes that left theirs
