@@ -41,7 +41,7 @@ void bpx__grid_free(void **state);
 void bpx__grid_forget(void *state);
 
 /// What sap's cycles did that their pairs do not show, since its state was made (zeros for a
-/// world of another backend): endpoint lists sorted (see sap.c's make_lists), and warm cycles
+/// world of another backend): endpoint lists sorted (see sap/lists.c), and warm cycles
 /// that gave up without trying to mend. For the tests.
 typedef struct bpx_sap_counters {
     uint32_t lists_made, untried;
