@@ -133,8 +133,9 @@ static bench_series *series_for(scale_state *st, int scene, const bench_variant 
 // Warm-up: long enough for fat boxes (bpx sap's margin is 1/16 of the box size, Bullet's and
 // Box2D's 0.05 and 0.1) to turn over at the scene's speed, so the timed cycles show the steady
 // state and not the first cycles after the fat boxes were made, where a box at rest costs
-// nothing (at 0.001 per cycle: 150 cycles; sap at 1M averaged 38 ms over 13 cycles after
-// creation, 41 ms over 360; bullet-dbvt 68 ms, then 250 ms). Slow variants stop warming up
+// nothing (at 0.001 per cycle: 150 cycles; sap at 1M averages 38 ms over 13 cycles after
+// creation, 41 ms over 360; bullet-dbvt 68 ms, then 250 ms: `bpx bench --backend
+// sap,bullet-dbvt --sizes 1000000 --scene resting --seconds 15`). Slow variants stop warming up
 // after 20 times the timed budget (10 with --quick).
 static bench_budget warmup_budget(const bench_options *o, int scene)
 {

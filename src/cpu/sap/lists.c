@@ -57,7 +57,7 @@ void bpx__sap_append_boxes(sap_state *st, uint32_t n_old, uint32_t n)
 // of pairs whose intervals overlap on the axis (inert boxes, the only ones with infinite keys,
 // left out). where[axis] waits for the first few-boxes mend (the one-pass mend does without):
 // a million boxes at rest may need none before their next rebuild, and its 2n scattered stores
-// took a third of the list's time.
+// would take a third of the list's time.
 static void rebuild_list(sap_state *st, uint32_t n, int axis, bpx_radix_work *work,
                          uint64_t *overlaps, uint32_t *live)
 {
@@ -120,7 +120,8 @@ bool bpx__sap_reserve_radix(sap_state *st, int sorts, size_t words)
 //
 // Where the grid is chosen (hundreds of thousands of boxes, dense), the next rebuilds keep the
 // choice and leave the lists unmade while the n it was made at is within an eighth of theirs:
-// there the lists cost more than the grid (1M boxes, 2 threads: 80-100 ms against 66-82), and
+// there the lists cost more than the grid (1M boxes, 2 threads: 80-100 ms against 66-82,
+// `bpx bench --backend sap --scene resting --sizes 1000000 --threads 2`), and
 // a million boxes at rest may need no mend before the next rebuild (all fat boxes are made
 // together, so the fastest boxes leave together: too many to mend). The first warm cycle that
 // must mend (or grow) makes them, so such a cycle is warm but may cost a sort of three lists;

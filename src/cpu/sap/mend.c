@@ -5,26 +5,27 @@
 //  1. One pass (ranges on the workers) copies the boxes (AoS, for the exact filter) and lists
 //     the boxes that left their fat boxes.
 //  2. None: nothing to mend. A few (at most n / 64 + 16): each in turn gets a new fat box, and its
-//     six endpoints are found by where (each word's index in its list, kept by every move: a
-//     binary search per endpoint was 60% of this mend at 1k boxes; made after a rebuild by the
-//     first such mend) and moved to their places, the lists sorted at every step. More (or boxes
-//     were added): the moved boxes' endpoints take their new words in place and each list is
+//     six endpoints are found by where (each word's index in its list, kept by every move, since a
+//     binary search per endpoint would be most of this mend at 1k boxes; made after a rebuild by
+//     the first such mend) and moved to their places, the lists sorted at every step. More (or
+//     boxes were added): the moved boxes' endpoints take their new words in place and each list is
 //     mended by one pass of insertion sort (the three at once on the workers). Insertion swaps
 //     exactly the endpoints whose relative order changed, and the order of min_a and max_b is the
 //     truth of lo_a <= hi_b, so a pair whose fat overlap changed has at least one of its six
-//     conditions flipped: it is met at least once as a swap of a min with a max, and noted when
-//     the fat boxes' overlap before and after the step differ (box by box: b's old and new fat box
+//     conditions flipped: it is met at least once as a swap of a min with a max, and noted when the
+//     fat boxes' overlap before and after the step differ (box by box: b's old and new fat box
 //     against the other's current one; all at once: old against old, new against new).
 //  3. The noted pairs (few when the scene is coherent) are sorted and merged into the fat
 //     pairs: each is kept iff the fat boxes overlap now, whether or not it was there before. So
 //     a pair noted twice, or noted and then turned back, costs nothing but a test.
 //  4. The fat pairs are filtered by the exact overlap (the second box prefetched: it is
 //     anywhere in memory) into block 0, already in (i, j) order.
+//
 // Growth (add_boxes appending ids) stays warm: a new box enters as if it had been inert last
 // cycle (max at the front, min at the back of each list) and the one-pass mend sorts it in. An
 // id freed by remove_boxes keeps its fat box (its inert box lies in any box) until it is reused;
 // its stale fat pairs never pass the exact filter. Both cost O(n) moves per box, like
-// AxisSweep3's insert and remove, and fall under the budget below (without lists, see below,
+// AxisSweep3's insert and remove, and fall under the move budget (rebuild.c; without lists,
 // growth past what the budget allows rebuilds untried).
 
 #include <string.h>
@@ -160,7 +161,8 @@ static inline uint64_t fresh_word(uint64_t w, const bpx_box *fat, int axis, cons
 // workers at once (mend_all). While where is not made yet (since the last rebuild), the changed
 // boxes' words are renewed as the pass reaches them (`moved` flags them), and where stays
 // unmade: a million boxes at rest after a rebuild leave their fat boxes together ~60 cycles
-// later, too many to mend, and indexing the lists first cost that give-up 45 ms on 2 threads.
+// later, too many to mend, and indexing the lists first would add 45 ms to that give-up on 2
+// threads (`bpx bench --backend sap --scene resting --sizes 1000000 --threads 2`).
 static inline mend_result mend_list_as(sap_state *st, uint32_t n, uint32_t changed,
                                        uint64_t budget, int axis, atomic_bool *stop,
                                        const uint64_t *moved, bool keep_where)

@@ -144,7 +144,7 @@ static void margin_task(int begin, int end, int worker, void *context)
 }
 
 // The fat margins: on each axis, the (non-inert) boxes' mean extent / MARGIN_DIVISOR. One pass
-// for the three axes (three passes, one per axis, took 12 ms at a million boxes), in ranges on
+// for the three axes (a pass per axis would cost 12 ms more at a million boxes), in ranges on
 // the workers that depend on n only, summed in order, so the margins are the same for any worker
 // count. With them, the fewest endpoint moves a box that leaves its fat box is expected to cost:
 // its two endpoints on the axis it left by, each past a margin's worth of the list at the list's

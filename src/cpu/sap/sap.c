@@ -2,15 +2,14 @@
 // lists of SOLID and of Bullet's AxisSweep3, written here from the idea, not their code), over
 // fat boxes.
 //
-// Files: sap_internal.h (the state), lists.c (the endpoint lists), mend.c (the warm cycle),
-// scan.c (the scan mend), filter.c (the boxes checked, the exact filter), rebuild.c (the cold
-// cycle), this file (memory and the cycle's choice).
+// This file: the state's memory, and each cycle's choice between the warm cycle (mend.c) and a
+// rebuild (rebuild.c); sap_internal.h describes the state and lists the other files.
 //
 // Threads: from PARALLEL_MIN boxes, the warm cycle's check of the boxes and its exact filter split
 // into ranges on the world's workers (each range's output packed after, in order), and the
 // one-pass mend and a full rebuild's sorts run the three lists at once (each list has its own sort
-// memory: at a million boxes the three sorts in a row were half of a rebuild, and a rebuild is
-// what sets p99 there); the few-boxes mend is serial; the cold sweep (or grid) runs on the
+// memory: at a million boxes the three sorts in a row would be half of a rebuild, and a rebuild
+// is what sets p99 there); the few-boxes mend is serial; the cold sweep (or grid) runs on the
 // workers. The output is the same bytes either way. Memory: about 230 bytes per box (three
 // endpoint lists, their indexes and their unsorted copies, three box copies, the cold sweep's
 // arrays) plus a few pair lists, 24 KiB of sort memory (72 KiB when the lists sort at once, and

@@ -14,8 +14,12 @@
 // pairs whose boxes overlap, found by one pass over the fat pairs in order (so they come out
 // sorted). Fat boxes change rarely (a box at rest never leaves its own), so the lists and the
 // fat pairs mostly stay as they are; that, not mending every endpoint every cycle, is what makes
-// a coherent cycle cheap (measured: a first version that mended every list each cycle spent
-// most of its time on mispredicted branches and random reads, one per endpoint per axis).
+// a coherent cycle cheap: mending every list each cycle costs a mispredicted branch and a random
+// read per endpoint per axis.
+//
+// Files: lists.c (the endpoint lists), mend.c (the warm cycle), scan.c (the scan mend),
+// filter.c (the boxes checked, the exact filter), rebuild.c (the cold cycle), sap.c (memory and
+// the cycle's choice).
 
 #pragma once
 
@@ -33,13 +37,13 @@
 enum {
     ROWS_PER_BLOCK = 1024, // cold sweep rows per work item, as prune
     PAD = BPX_PAD_LANES,   // sentinel boxes after the swept boxes
-    // A warm cycle gives up past MOVES_PER_BOX * n + MOVES_BASE element moves (see the top):
-    // a move costs a few ns, a full rebuild 150 to 300 ns per box (2-vCPU Xeon VM), so past
-    // the budget a cycle costs at most about two rebuilds.
+    // A warm cycle gives up past MOVES_PER_BOX * n + MOVES_BASE element moves (mend.c): a move
+    // costs a few ns and a full rebuild 150 to 300 ns per box, so past the budget a cycle costs at
+    // most about two rebuilds (`bpx bench --backend sap --scene resting --sizes 100000,1000000`).
     MOVES_PER_BOX = 32,
     // Past CACHED_BOXES the fat boxes no longer fit in cache: a move's overlap test misses, so
-    // the budget is this much smaller (measured at 1M boxes: a give-up at 32 moves per box
-    // cost 0.9 s, six rebuilds).
+    // the budget is this much smaller (with UNCACHED_DIVISOR 1, a give-up at 1M boxes costs
+    // 0.9 s, six rebuilds: `bpx bench --backend sap --scene resting --sizes 1000000`).
     CACHED_BOXES = 1 << 16,
     UNCACHED_DIVISOR = 4,
     MOVES_BASE = 4096,
@@ -51,7 +55,7 @@ enum {
     CHECK_EVERY = 4096,  // endpoints between the early give-up checks of the first list
     PREFETCH = 32,       // pairs ahead whose second box the exact filter prefetches
     PARALLEL_MIN = 16384, // boxes (or fat pairs) from which a warm pass splits over the workers
-    // The scan mend (see the top): up to SCAN_MAX_BOXES boxes whose fat extents on the swept
+    // The scan mend (scan.c): up to SCAN_MAX_BOXES boxes whose fat extents on the swept
     // axis are at most SCAN_WIDTH_RATIO times their mean; a cycle gives up past SCAN_WORK_PER_BOX
     // * n + MOVES_BASE boxes scanned and shifted.
     SCAN_MAX_BOXES = 1 << 15,
