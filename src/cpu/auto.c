@@ -1,6 +1,6 @@
 // The auto backend: each cycle, the CPU backend that should be fastest for what it observes.
 //
-// The rule (measured with `bpx bench`; the README's Speed section has the runs):
+// The rule (measured with `bpx bench`; docs/performance.md has the runs):
 //   n <= 128                       brute: no sort to pay for, a few SIMD steps per row
 //   boxes nearly at rest, n > 96   sap:   its fat boxes absorb small moves, so a cycle touches
 //                                         only the few boxes that left theirs
@@ -27,17 +27,20 @@
 #include "kernels.h"
 
 enum {
-    // Table 2's scenario, full runs of 2026-11-22, mean us per cycle: n = 100 brute 1.68, prune
-    // 2.07; n = 150 brute 2.84 and 4.45, prune 2.95 and 3.79 (two runs).
+    // Brute and prune cross between 100 and 150 boxes on Table 2's scenario (mean us per cycle:
+    // n = 100 brute 1.68, prune 2.07; n = 150 brute 2.84-4.45, prune 2.95-3.79; `bpx bench
+    // --table2 --backend brute,prune`).
     AUTO_BRUTE_MAX = 128,
-    // Past this many boxes the statistics come from every (n / AUTO_SAMPLE)-th box: the pass
-    // over all boxes cost 10% of grid's cycle at 1M (measured: auto 2t 139 ms, grid 2t 122 ms).
+    // Past this many boxes the statistics come from every (n / AUTO_SAMPLE)-th box: a pass over
+    // all boxes costs 10% of grid's cycle at 1M (auto 2t 139 ms against grid 2t 122 ms, `bpx
+    // bench --backend auto,grid --sizes 1000000 --scene uniform --threads 2`).
     AUTO_SAMPLE = 16384,
 };
-// sap below this motion (boxes moving at constant velocity, `bpx bench --step`): at 0.0005 sap
-// is 1.5x (10k) to 1.8x (100k) faster than the best of prune and grid, at 0.0015 even with
-// prune at 10k and 1.2x faster than grid at 100k, at 0.005 slower than both. Leaving sap takes
-// twice the motion of entering it, so the choice doesn't flicker.
+// sap below this motion (boxes moving at constant velocity, `bpx bench --backend sap,prune,grid
+// --sizes 10000,100000 --scene resting --step S`): at 0.0005 sap is 1.5x (10k) to 1.8x (100k)
+// faster than the best of prune and grid, at 0.0015 even with prune at 10k and 1.2x faster than
+// grid at 100k, at 0.005 slower than both. Leaving sap takes twice the motion of entering it, so
+// the choice doesn't flicker.
 static const double AUTO_SAP_MAX_MOTION = 0.002;
 
 typedef struct auto_state {
@@ -114,7 +117,7 @@ static void add_samples(auto_sums *a, const float *lo, const float *hi, const fl
 
 #if defined(__SSE2__)
 // Every box (stride 1), LANES at a time; returns how many it took (the rest: add_samples).
-// Box by box, this pass was 3 us of sap's 19 at resting 1k.
+// Box by box, this pass would cost 3 us of sap's 19 at resting 1k.
 static uint32_t add_boxes_sse2(auto_sums *a, const float *lo, const float *hi, const float *last,
                                uint32_t count)
 {

@@ -26,14 +26,15 @@ bpx_scan_differs_fn *bpx__scan_differs_for(bpx_simd simd);
 void bpx__prune_sweep_blocks(bpx_world *w, const bpx_sorted *sorted, int blocks);
 
 /// A sweep along one axis tests about this many candidates per box at most before the grid's
-/// cells are cheaper (measured: the grid on 2 threads is ahead from n = 20k boxes at constant
-/// density, where a sweep meets n^(2/3) / 2 = 368 boxes per box). auto and sap's rebuild use it.
+/// cells are cheaper: the grid on 2 threads is ahead from n = 20k boxes at constant density,
+/// where a sweep meets n^(2/3) / 2 = 368 boxes per box (`bpx bench --backend prune,grid --sizes
+/// 10000,20000,50000 --scene uniform --threads 2`). auto and sap's rebuild use it.
 #define BPX_SWEEP_MAX_CANDIDATES 350.0
 
 /// The grid's pairs of `boxes` (boxes.n must be the world's n; any boxes of that count, e.g. sap's
 /// fat ones, padded to a multiple of BPX_PAD_LANES with inert boxes) into block 0, in (i, j)
-/// order, on the world's workers (grid.c). *state is the grid's own, made on first use and kept
-/// between calls; bpx__grid_free releases it.
+/// order, on the world's workers (grid/grid.c). *state is the grid's own, made on first use and
+/// kept between calls; bpx__grid_free releases it.
 bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes);
 void bpx__grid_free(void **state);
 /// Makes the grid's next call pick its cells from those boxes alone, not from its last call's
@@ -41,7 +42,7 @@ void bpx__grid_free(void **state);
 void bpx__grid_forget(void *state);
 
 /// What sap's cycles did that their pairs do not show, since its state was made (zeros for a
-/// world of another backend): endpoint lists sorted (see sap.c's make_lists), and warm cycles
+/// world of another backend): endpoint lists sorted (see sap/lists.c), and warm cycles
 /// that gave up without trying to mend. For the tests.
 typedef struct bpx_sap_counters {
     uint32_t lists_made, untried;

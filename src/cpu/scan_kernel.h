@@ -1,4 +1,4 @@
-// sap's scan mend (sap.c): the boxes of a sorted run tested against a box's old and new fat
+// sap's scan mend (sap/scan.c): the boxes of a sorted run tested against a box's old and new fat
 // boxes at once, written once over the wide-float layer like prune_kernel.h.
 #include "core/world.h"
 

@@ -51,8 +51,9 @@ static inline void put_line(uint64_t *to, const uint64_t *line)
 // One pass by the digit at `shift`: counts[b] is where bucket b starts in dst. Past
 // BPX_RADIX_STREAM_WORDS the words leave the caches between passes (L2 is 1.25 MiB a core on the
 // 2-vCPU Xeon VM), so a pass gathers a line per bucket and writes it whole, bypassing the cache
-// (words scattered one by one to 2048 places each cost a read of their line first: 2M words
-// took 66-72 ms plain, 37-45 gathered, on the VM; 200k words 3.3 against 2.4 ms). A line shared
+// (words scattered one by one to 2048 places each cost a read of their line first: 2M words take
+// 66-72 ms plain against 37-45 gathered, 200k words 3.3 against 2.4 ms; the rebuilds of `bpx
+// bench --backend sap --scene resting --sizes 1000000`). A line shared
 // by several buckets (a bucket can be shorter than a line) is written whole by the last of them,
 // garbage in the others' parts included; those parts are the others' tails, written at the end,
 // so every word lands where the plain pass would put it.

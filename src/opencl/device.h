@@ -18,8 +18,9 @@
 /// BPX_CL_SMALL_N_GPU boxes on a GPU or accelerator (H100, NVIDIA OpenCL, per cycle against the
 /// tiled kernels: 68 against 119 us at 50 boxes, 120 against 145 at 512, 265 against 187 at
 /// 1000: one multiprocessor's work outgrows the launches it saves) and BPX_CL_SMALL_N_CPU on a
-/// CPU device, where a work-group is one core (PoCL: 1.6x faster at 50 boxes, 1.3x at 200,
-/// 1.6x slower at 300).
+/// CPU device, where a work-group is one core (PoCL: 1.6x faster at 50 boxes, 1.3x at 200, 1.6x
+/// slower at 300). `bpx bench --table2 --backend opencl` and `bpx bench --backend opencl --sizes
+/// 256,512,1000,2000 --scene uniform`, with and without the kernel.
 #define BPX_CL_SMALL_N 1024u
 #define BPX_CL_SMALL_N_GPU 512u
 #define BPX_CL_SMALL_N_CPU 256u

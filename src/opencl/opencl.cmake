@@ -30,9 +30,13 @@ if(BPX_OPENCL)
         COMMENT "Embedding the OpenCL kernels"
         VERBATIM)
     list(APPEND BPX_SOURCES
+        src/opencl/brute.c
+        src/opencl/buffers.c
         src/opencl/device.c
         src/opencl/opencl.c
+        src/opencl/sweep.c
         src/opencl/twin.c
+        src/opencl/update.c
         ${BPX_OPENCL_EMBEDDED})
     list(APPEND BPX_SIMD_DEFINES BPX_HAVE_OPENCL=1)
     # For the installed package: consumers of the static library link OpenCL too.

@@ -1,4 +1,4 @@
-// The grid backend's tests (grid.c lays the boxes out), written once over the wide-float layer
+// The grid backend's tests (grid.c and its passes lay the boxes out), written once over the wide-float layer
 // like brute_kernel.h; a per-ISA file includes its wide header, names the functions with
 // BPX_GRID_COLUMNS / BPX_GRID_BIG, then this.
 //
@@ -199,7 +199,7 @@ void BPX_GRID_BIG(const bpx_grid_layout *g, uint32_t b, uint32_t j0, uint32_t j1
 }
 
 // ---------------------------------------------------------------------------------------------
-// Keys (grid.c's key pass): GRID_KEY_LANES boxes at a time, every step a select, so that the
+// Keys (keys.c's key pass): GRID_KEY_LANES boxes at a time, every step a select, so that the
 // compiler makes each line one vector instruction of this file's ISA.
 
 enum { GRID_KEY_LANES = 16 };

@@ -1,4 +1,4 @@
-// The grid backend's layout, shared by grid.c (which builds it) and the kernels that test it
+// The grid backend's layout, shared by the passes (which build it) and the kernels that test it
 // (grid_kernel.h, compiled once per instruction set as grid_<isa>.c).
 #pragma once
 
@@ -77,7 +77,7 @@ typedef struct bpx_grid_cells {
 } bpx_grid_cells;
 
 /// What a key pass saw of the live boxes: the range of their min corners and their largest
-/// extent (grid.c's parameters next cycle).
+/// extent (the grid's parameters next cycle, keys.c).
 typedef struct bpx_grid_seen {
     float lo_min[3], lo_max[3], largest;
 } bpx_grid_seen;

@@ -1,0 +1,166 @@
+// The grid backend's state between cycles and what its passes share (grid.c runs the cycle;
+// keys.c, scatter.c, sweep.c and emit.c are its passes).
+
+#pragma once
+
+#include <math.h>
+#include <string.h>
+
+#include "core/alloc.h"
+#include "core/world.h"
+#include "cpu/kernels.h"
+#include "cpu/sort.h"
+#include "grid.h"
+
+enum {
+    SAMPLE = 1023,            // boxes sampled for sizes (and first-cycle bounds)
+    GRID_SWEEP_BOXES = 8,     // boxes one sweep should meet at the scene's density
+    GRID_CELL_SIZES = 3,      // cell side / box size
+    GRID_BOXES_PER_COLUMN = 16,
+    CHUNKS_MAX = 64,          // box ranges of the key and scatter passes
+    ITEM_ENTRIES = 4096,      // positions per test item (at least)
+    ITEMS_MAX = 512,
+    KEY_BLOCK = 1024,         // boxes keyed in vectors, then counted, while in cache
+    BIG_SPAN = 1 << 14,       // ids per big-box work item (all big boxes against them)
+    BIG_STEP = 2048,          // ids in cache at a time while every big box passes over them
+    EMIT_SHIFT = 11,          // at most 2^11 ids per bucket of pairs, 11-bit sort digits
+    EMIT_BUCKET_PAIRS = 8192, // pairs per bucket wanted (the in-cache sort)
+    EMIT_GROUPS = 64,
+    EMIT_ITEMS = 256,
+    PAD = BPX_PAD_LANES,
+    LEVELS = BPX_GRID_LEVELS,
+    WORKERS_MAX = 256, // bpx_world_def.worker_count's range
+};
+
+// A box on its way to its column.
+typedef struct grid_entry {
+    float lo[3], hi[3];
+    uint32_t id;
+    uint32_t fx; // fine x cell of min x | flags << 24
+} grid_entry;
+
+typedef struct grid_params {
+    float origin[3], inv[3];
+    uint32_t top[3]; // largest cell coordinate per axis (on x, of the fine cells)
+    int fine_bits;   // x is cut 2^fine_bits times finer than the cells, for the column sort
+    uint32_t columns;
+} grid_params;
+
+// Sorted runs in SoA form, with the sort's scratch; `capacity` positions (padding included).
+typedef struct grid_soa {
+    float *lo[3], *hi[3];
+    uint32_t *id, *cx, *keys, *ids, *scratch_keys, *scratch_ids;
+    uint8_t *flags;
+    size_t capacity;
+} grid_soa;
+
+typedef struct grid_chunk {
+    uint32_t begin, end;
+    uint32_t level_count[LEVELS];
+    float lo_min[3], lo_max[3];
+    float max_extent;
+} grid_chunk;
+
+typedef struct grid_state {
+    // Last cycle's exact figures, for this cycle's parameters.
+    bool have_stats;
+    float bounds_lo[3], bounds_hi[3];
+    float max_extent;
+
+    grid_params params;
+    bpx_grid_layout layout;
+    grid_chunk chunks[CHUNKS_MAX];
+    int chunk_count;
+
+    uint32_t *key; // per box id (padded to a whole group for the big kernel)
+    size_t key_capacity;
+    uint32_t *hist; // chunk x column: counts, then write offsets
+    size_t hist_capacity;
+    uint32_t *column_start;
+    size_t column_capacity;
+    grid_entry *entries;
+    size_t entry_capacity;
+    // Scatter's write-combining, per worker: a column's entry waiting for the other half of its
+    // cache line, and the position it goes to.
+    grid_entry *stash;
+    size_t stash_capacity;
+    uint32_t wcolumns; // columns of the windowed levels
+    uint32_t *stash_at;
+    size_t stash_at_capacity;
+    // Positions of the coarser levels' runs (level 0's are sorted in the workers' scratch).
+    grid_soa positions;
+    grid_soa scratch[WORKERS_MAX];
+    int scratch_count;
+    uint32_t *big_ids;
+    size_t big_capacity;
+    uint32_t item_column[ITEMS_MAX + 1];
+    int item_count, big_items;
+    uint32_t big_parts; // work items of the big boxes, BIG_SPAN ids each
+
+    // Emitter.
+    bpx_pair_list a, b;
+    uint32_t *emit_hist; // groups x buckets
+    size_t emit_hist_capacity;
+    uint32_t *bucket_start;
+    size_t bucket_capacity;
+    size_t *block_hits; // last cycle's hits per block
+    size_t block_hits_capacity;
+} grid_state;
+
+typedef struct grid_job {
+    bpx_world *world;
+    grid_state *st;
+    bpx_soa soa;
+    bpx_grid_column_fn *column;
+    bpx_grid_big_fn *big;
+    bpx_grid_keys_fn *keys;
+} grid_job;
+
+// Makes *array hold at least `need` elements of `size` bytes (contents not kept; grows by half
+// again, so it settles after a few cycles). Never zero-sized, so NULL means no memory.
+static inline bool reserve_array(void **array, size_t *capacity, size_t need, size_t size)
+{
+    if (need <= *capacity && *array)
+        return true;
+    bpx__free(*array, *capacity * size);
+    *capacity = need + need / 2 + 64;
+    *array = bpx__alloc(*capacity * size);
+    if (!*array)
+        *capacity = 0;
+    return *array != NULL;
+}
+
+// Sentinels after a run: never in reach (min x +inf), never overlapping.
+static inline void pad_soa(grid_soa *r, size_t at)
+{
+    for (size_t k = at; k < at + PAD; k++) {
+        for (int a = 0; a < 3; a++) {
+            r->lo[a][k] = INFINITY;
+            r->hi[a][k] = -INFINITY;
+        }
+        r->id[k] = 0;
+        r->cx[k] = UINT32_MAX;
+        r->flags[k] = 0;
+    }
+}
+
+// The cell of coordinate v on one axis: monotone in v (rounding is), clamped to [0, top].
+static inline uint32_t cell_of(float v, float origin, float inv, uint32_t top)
+{
+    return bpx__grid_cell(v, origin, inv, (float)top); // exact: top < 2^24
+}
+
+// ---------------------------------------------------------------------------------------------
+// Across the files of this folder
+
+// keys.c: 1. parameters, 2. keys.
+void bpx__grid_choose_params(const bpx_soa *s, grid_state *st, grid_params *p);
+void bpx__grid_set_levels(grid_state *st);
+void bpx__grid_key_task(int begin, int end, int worker, void *context);
+// scatter.c: 4. scatter.
+void bpx__grid_scatter_task(int begin, int end, int worker, void *context);
+// sweep.c: 5. per-column sorts, 6. tests.
+void bpx__grid_sort_task(int begin, int end, int worker, void *context);
+void bpx__grid_test_task(int begin, int end, int worker, void *context);
+// emit.c: 7. hits to (i, j) order.
+bpx_status bpx__grid_emit_sorted(bpx_world *w, grid_state *st, uint32_t n);

@@ -1,0 +1,238 @@
+// The opencl backend's brute-force comparator: tiles in local memory, per-row counts, a scan
+// and ordered writes; one bpx__cl_launch for small sets; blocks streamed past the memory limit.
+
+#include <string.h>
+
+#include "core/alloc.h"
+#include "state.h"
+
+// ---------------------------------------------------------------------------------------------
+// Brute force
+
+// The first pair buffer: def.opencl_pair_capacity pairs (default 65536), or less when the
+// memory limit is tight (down to 1024 pairs; pairs beyond are read out in windows).
+static bpx_status reserve_pair_window(cl_state *st)
+{
+    size_t want = st->first_pair_capacity;
+    for (;;) {
+        bpx_status status = bpx__cl_dbuf_reserve(st, &st->pairs, want * sizeof(bpx_pair));
+        if (status != BPX_ERR_DEVICE_MEMORY || want <= 1024)
+            return status;
+        want /= 2;
+    }
+}
+
+// Rows (keys lo/hi, padded_rows, numbered from ia) against columns (lo_b/hi_b, padded_cols,
+// numbered from jb): every pair with j > i, appended to out in (i, j) order.
+static bpx_status brute_block(cl_state *st, cl_mem lo, cl_mem hi, uint32_t padded_rows, uint32_t ia,
+                              cl_mem lo_b, cl_mem hi_b, uint32_t padded_cols, uint32_t jb,
+                              bpx_pair_list *out)
+{
+    unsigned tile = st->tile;
+    size_t groups = padded_rows / tile;
+    TRY(bpx__cl_dbuf_reserve(st, &st->row_count, (size_t)padded_rows * sizeof(cl_uint)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->stash, (size_t)padded_rows * BPX_CL_STASH * sizeof(cl_uint)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->group_sum, groups * sizeof(cl_ulong)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->group_long, groups * sizeof(cl_uint)));
+    cl_uint ia_arg = ia, jb_arg = jb, cols_arg = padded_cols, groups_arg = (cl_uint)groups;
+    cl_uint slot = 0;
+    const kernel_arg count_args[] = {ARG(lo),
+                                     ARG(hi),
+                                     ARG(ia_arg),
+                                     ARG(lo_b),
+                                     ARG(hi_b),
+                                     ARG(cols_arg),
+                                     ARG(jb_arg),
+                                     ARG(st->row_count.mem),
+                                     ARG(st->stash.mem),
+                                     ARG(st->group_sum.mem),
+                                     ARG(st->group_long.mem)};
+    TRY(bpx__cl_launch(st, K_BRUTE_COUNT, padded_rows, tile, 11, count_args));
+    const kernel_arg sums_args[] = {ARG(st->group_sum.mem), ARG(groups_arg), ARG(st->registers.mem),
+                                    ARG(slot)};
+    TRY(bpx__cl_launch(st, K_SCAN_SUMS, st->dev->scan_wg, st->dev->scan_wg, 4, sums_args));
+    // Tests made, as the kernel walks them: each group from its first tile to the end.
+    for (size_t g = 0; g < groups; g++) {
+        uint64_t first = (uint64_t)ia + g * tile + 1;
+        uint64_t start = first <= jb ? 0 : (first - jb) / tile * tile;
+        if (start < padded_cols)
+            st->tests += (padded_cols - start) * (uint64_t)tile;
+    }
+
+    // Emit at once into the buffer there is (the count is not known yet), then read the
+    // register: when the buffer was too small, grow it (or, past the memory limit, read the
+    // pairs out in windows) and emit again. No pair is lost either way.
+    if (st->pairs.size == 0)
+        TRY(reserve_pair_window(st));
+    cl_ulong window = 0, capacity = st->pairs.size / sizeof(bpx_pair);
+    const kernel_arg emit_args[] = {ARG(lo),
+                                    ARG(hi),
+                                    ARG(ia_arg),
+                                    ARG(lo_b),
+                                    ARG(hi_b),
+                                    ARG(cols_arg),
+                                    ARG(jb_arg),
+                                    ARG(st->row_count.mem),
+                                    ARG(st->stash.mem),
+                                    ARG(st->group_sum.mem),
+                                    ARG(st->group_long.mem),
+                                    ARG(st->pairs.mem),
+                                    ARG(window),
+                                    ARG(capacity)};
+    TRY(bpx__cl_launch(st, K_BRUTE_EMIT, padded_rows, tile, 14, emit_args));
+    uint64_t total;
+    TRY(bpx__cl_read_register(st, slot, &total));
+    if (total > capacity) {
+        // Too small: grow to the exact need and emit again; past the memory limit keep the
+        // buffer, which holds the first window already, and read the rest window by window.
+        bpx_status grown = bpx__cl_dbuf_reserve(st, &st->pairs, total * sizeof(bpx_pair));
+        if (grown == BPX_OK) {
+            st->counters.emit_reruns++;
+            capacity = st->pairs.size / sizeof(bpx_pair);
+            TRY(bpx__cl_launch(st, K_BRUTE_EMIT, padded_rows, tile, 14, emit_args));
+        } else if (grown != BPX_ERR_DEVICE_MEMORY) {
+            return grown;
+        }
+    }
+    for (;;) {
+        size_t count = total - window < capacity ? (size_t)(total - window) : (size_t)capacity;
+        TRY(bpx__cl_read_pairs(st, st->pairs.mem, count, out));
+        window += count;
+        if (window >= total)
+            return BPX_OK;
+        st->counters.pair_windows++;
+        TRY(bpx__cl_launch(st, K_BRUTE_EMIT, padded_rows, tile, 14, emit_args));
+    }
+}
+
+// Everything on the device at once.
+bpx_status bpx__cl_brute_all(cl_state *st, bpx_world *w, bpx_block *block)
+{
+    uint32_t padded = (uint32_t)round_up(w->n, st->tile);
+    TRY(bpx__cl_upload_keys(st, w, 0, w->n, padded, 0, &st->lo, &st->hi));
+    st->counters.brute_cycles++;
+    return brute_block(st, st->lo.mem, st->hi.mem, padded, 0, st->lo.mem, st->hi.mem, padded, 0,
+                       &block->hits);
+}
+
+// Small sets: one bpx__cl_launch (bpx_brute_small), then the count and the pairs read back
+// together, as many pairs as last cycle's count and a quarter more (a second read when that was
+// short).
+bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block)
+{
+    uint32_t n = w->n;
+    uint32_t padded = (uint32_t)round_up(n, st->tile);
+    TRY(bpx__cl_upload_keys(st, w, 0, n, padded, 0, &st->lo, &st->hi));
+    if (st->pairs.size == 0)
+        TRY(reserve_pair_window(st));
+    cl_ulong capacity = st->pairs.size / sizeof(bpx_pair);
+    cl_uint n_arg = n, slot = 0;
+    const kernel_arg args[] = {ARG(st->lo.mem),    ARG(st->hi.mem), ARG(n_arg),
+                               ARG(st->pairs.mem), ARG(capacity),   ARG(st->registers.mem),
+                               ARG(slot)};
+    TRY(bpx__cl_launch(st, K_BRUTE_SMALL, st->dev->small_wg, st->dev->small_wg, 7, args));
+    st->tests += (uint64_t)n * (n - 1) / 2;
+    st->counters.brute_cycles++;
+    uint64_t guess = st->last_pairs + st->last_pairs / 4 + 64;
+    size_t first = (size_t)(guess < capacity ? guess : capacity);
+    TRY(bpx__cl_pinned_reserve(st, &st->down, first * sizeof(bpx_pair)));
+    TRY(bpx__cl_read_later(st, st->registers.mem, 0, sizeof(cl_ulong), st->reg.host));
+    TRY(bpx__cl_read_later(st, st->pairs.mem, 0, first * sizeof(bpx_pair), st->down.host));
+    CL_CHECK(st, clFinish(st->queue), "clFinish");
+    cl_ulong total;
+    memcpy(&total, st->reg.host, sizeof total);
+    if (total > capacity) { // the buffer was too small: grow it to the need and run again
+        bpx_status grown = bpx__cl_dbuf_reserve(st, &st->pairs, total * sizeof(bpx_pair));
+        if (grown == BPX_ERR_DEVICE_MEMORY) {
+            // Past the memory limit: the tiled path reads the pairs in windows, from now on
+            // (its own buffers first, then a window in the room left).
+            st->small_off = true;
+            bpx__cl_dbuf_release(st, &st->pairs);
+            return bpx__cl_brute_all(st, w, block);
+        }
+        if (grown != BPX_OK)
+            return grown;
+        st->counters.emit_reruns++;
+        capacity = total;
+        TRY(bpx__cl_launch(st, K_BRUTE_SMALL, st->dev->small_wg, st->dev->small_wg, 7, args));
+    }
+    if (total > first) // the guess was short: read them all
+        return bpx__cl_read_pairs(st, st->pairs.mem, (size_t)total, &block->hits);
+    if (!bpx__list_reserve(&block->hits, (size_t)total))
+        return BPX_ERR_OUT_OF_MEMORY;
+    memcpy(block->hits.pairs, st->down.host, (size_t)total * sizeof(bpx_pair));
+    block->hits.count = (size_t)total;
+    return BPX_OK;
+}
+
+// The paper's "streaming AABBs between CPU and FPGA": blocks of `block_boxes` boxes; each row
+// block stays on the device while every later column block passes through. A row block's pairs
+// arrive column block by column block, and are put back in row order on the host (stable
+// counting sort by row), so the stream stays ordered by (i, j).
+bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
+                                  uint32_t block_boxes)
+{
+    uint32_t n = w->n;
+    uint32_t blocks = (n + block_boxes - 1) / block_boxes;
+    size_t region = 6 * (size_t)block_boxes * sizeof(float);
+    TRY(bpx__cl_pinned_reserve(st, &st->up, 2 * region));
+    // Every block-sized buffer first, then the pair window takes what is left.
+    size_t keys = (size_t)block_boxes * 16, groups = block_boxes / st->tile;
+    TRY(bpx__cl_dbuf_reserve(st, &st->input, 2 * region));
+    TRY(bpx__cl_dbuf_reserve(st, &st->lo, keys));
+    TRY(bpx__cl_dbuf_reserve(st, &st->hi, keys));
+    TRY(bpx__cl_dbuf_reserve(st, &st->lo_b, keys));
+    TRY(bpx__cl_dbuf_reserve(st, &st->hi_b, keys));
+    TRY(bpx__cl_dbuf_reserve(st, &st->row_count, (size_t)block_boxes * sizeof(cl_uint)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->stash, (size_t)block_boxes * BPX_CL_STASH * sizeof(cl_uint)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->group_sum, groups * sizeof(cl_ulong)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->group_long, groups * sizeof(cl_uint)));
+    if (st->pairs.size == 0)
+        TRY(reserve_pair_window(st));
+    if (st->row_hist_count < (size_t)block_boxes + 1) {
+        bpx__free(st->row_hist, st->row_hist_count * sizeof(uint32_t));
+        st->row_hist_count = 0;
+        if (!(st->row_hist = bpx__alloc(((size_t)block_boxes + 1) * sizeof(uint32_t))))
+            return BPX_ERR_OUT_OF_MEMORY;
+        st->row_hist_count = (size_t)block_boxes + 1;
+    }
+    bpx_pair_list *stage = &block->stage;
+    for (uint32_t bi = 0; bi < blocks; bi++) {
+        uint32_t ia = bi * block_boxes;
+        uint32_t rows = n - ia < block_boxes ? n - ia : block_boxes;
+        uint32_t padded_rows = (uint32_t)round_up(rows, st->tile);
+        TRY(bpx__cl_upload_keys(st, w, ia, rows, padded_rows, 0, &st->lo, &st->hi));
+        st->counters.streamed_blocks++;
+        stage->count = 0;
+        for (uint32_t bj = bi; bj < blocks; bj++) {
+            uint32_t jb = bj * block_boxes;
+            uint32_t cols = n - jb < block_boxes ? n - jb : block_boxes;
+            uint32_t padded_cols = (uint32_t)round_up(cols, st->tile);
+            cl_mem lo_b = st->lo.mem, hi_b = st->hi.mem;
+            if (bj != bi) {
+                TRY(bpx__cl_upload_keys(st, w, jb, cols, padded_cols, region, &st->lo_b,
+                                        &st->hi_b));
+                st->counters.streamed_blocks++;
+                lo_b = st->lo_b.mem;
+                hi_b = st->hi_b.mem;
+            }
+            TRY(brute_block(st, st->lo.mem, st->hi.mem, padded_rows, ia, lo_b, hi_b, padded_cols,
+                            jb, stage));
+        }
+        // Stable counting sort of the row block's pairs by row.
+        uint32_t *start = st->row_hist;
+        memset(start, 0, ((size_t)rows + 1) * sizeof(uint32_t));
+        for (size_t k = 0; k < stage->count; k++)
+            start[stage->pairs[k].i - ia + 1]++;
+        for (uint32_t r = 0; r < rows; r++)
+            start[r + 1] += start[r];
+        if (!bpx__list_reserve(&block->hits, stage->count))
+            return BPX_ERR_OUT_OF_MEMORY;
+        bpx_pair *dst = block->hits.pairs + block->hits.count;
+        for (size_t k = 0; k < stage->count; k++)
+            dst[start[stage->pairs[k].i - ia]++] = stage->pairs[k];
+        block->hits.count += stage->count;
+    }
+    st->counters.brute_cycles++;
+    return BPX_OK;
+}

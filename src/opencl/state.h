@@ -1,0 +1,163 @@
+// The opencl backend's state (one per world) and the calls its files share: buffers.c (device
+// memory, events, launches, transfers), update.c (the updater), brute.c and sweep.c (the
+// comparator's two paths), opencl.c (the cycle and the public calls).
+
+#pragma once
+
+#include <string.h>
+
+#include "core/alloc.h"
+#include "core/world.h"
+#include "device.h"
+#include "opencl_internal.h"
+
+enum kernel_id {
+    K_UPDATE,
+    K_CONVERT,
+    K_VALIDATE,
+    K_BRUTE_COUNT,
+    K_BRUTE_EMIT,
+    K_SCAN_REDUCE,
+    K_SCAN_SUMS,
+    K_SCAN_APPLY,
+    K_RADIX_COUNT,
+    K_RADIX_SCATTER,
+    K_SWEEP_KEYS,
+    K_SWEEP_GATHER,
+    K_SWEEP_COUNT,
+    K_SWEEP_WRITE,
+    K_SWEEP_INTERLEAVE,
+    K_BRUTE_SMALL,
+    K_COUNT
+};
+
+enum {
+    EVENTS_MAX = 128,
+    DEFAULT_PAIR_CAPACITY = 65536,
+    // Auto method: sort and sweep from this many boxes on, unless the last cycle found more than
+    // DENSE_PAIRS_PER_BOX pairs per box (then ordering the pairs costs the sweep more than brute
+    // force's second pass). Measured on PoCL: docs/opencl.md.
+    SWEEP_MIN_N = 4096,
+    DENSE_PAIRS_PER_BOX = 16,
+    // Device bytes per box: keys (2 x 16), per-row count and stash (4 + 16), input (24).
+    BYTES_PER_BOX = 2 * 16 + 4 + 4 * BPX_CL_STASH + 24,
+    // Streaming keeps two blocks of keys and of input.
+    BYTES_PER_STREAMED_BOX = BYTES_PER_BOX + 2 * 16 + 24,
+    REGISTER_SLOTS = 4, // 0: brute count, 1: sweep count, 2: scratch scans
+};
+
+enum { EV_IN, EV_OUT, EV_DEVICE, EV_CLASSES };
+
+typedef enum box_source {
+    SOURCE_HOST,    // the world's boxes, uploaded as six planes (24 bytes per box)
+    SOURCE_CENTRES, // this cycle's centres (12 bytes per object) + minima kept on the device
+    SOURCE_BUFFER,  // the caller's device buffer of bpx_box (nothing uploaded)
+} box_source;
+
+typedef struct dbuf {
+    cl_mem mem;
+    size_t size;
+} dbuf;
+
+typedef struct pinned {
+    cl_mem mem;
+    void *host;
+    size_t size;
+} pinned;
+
+typedef struct cl_state {
+    const bpx_cl_device *dev;
+    cl_command_queue queue;
+    cl_kernel kernels[K_COUNT];
+    unsigned tile;
+    size_t first_pair_capacity;
+    uint64_t limit; // device bytes this world may use
+    uint64_t used;  // device bytes held now
+
+    box_source source;
+    bool minima_on_device; // the current extents are in `minima`
+    cl_mem user_buffer;    // SOURCE_BUFFER (retained)
+
+    pinned up;         // uploads: six planes, two regions (row block, column block)
+    pinned up_centres; // the centres of the last update_centres
+    pinned down;       // pair read-back
+    pinned reg;        // count registers read-back
+    dbuf registers;    // REGISTER_SLOTS ulongs
+    dbuf check;        // bpx_validate's answer
+    dbuf input, minima;
+    dbuf lo, hi, lo_b, hi_b;
+    dbuf row_count, stash, group_sum, group_long;
+    dbuf pairs;
+    // Sort and sweep.
+    dbuf keys[2], values[2], sorted_lo, sorted_hi, counts, offsets, sums, hist, hist_offsets;
+    dbuf pi[2], pj[2];
+
+    cl_event events[EVENTS_MAX];
+    unsigned char event_class[EVENTS_MAX];
+    int event_count;
+    uint64_t ns[EV_CLASSES];
+    uint64_t bytes_in, bytes_out, tests;
+    uint64_t last_pairs; // the previous cycle's, for the auto method
+    bool small_off;      // the small-set kernel's pairs did not fit under the memory limit
+
+    uint32_t *row_hist; // streaming: per-row counts of one row block (host)
+    size_t row_hist_count;
+
+    bpx__opencl_counters counters;
+} cl_state;
+
+#define CL_CHECK(st, call, what)                                                                   \
+    do {                                                                                           \
+        cl_int check_err_ = (call);                                                                \
+        if (check_err_ != CL_SUCCESS)                                                              \
+            return bpx__cl_cl_fail((st), check_err_, (what));                                      \
+    } while (0)
+
+#define TRY(expr)                                                                                  \
+    do {                                                                                           \
+        bpx_status try_status_ = (expr);                                                           \
+        if (try_status_ != BPX_OK)                                                                 \
+            return try_status_;                                                                    \
+    } while (0)
+
+static inline size_t round_up(size_t value, size_t multiple)
+{
+    return (value + multiple - 1) / multiple * multiple;
+}
+
+typedef struct kernel_arg {
+    size_t size;
+    const void *value;
+} kernel_arg;
+
+#define ARG(x) ((kernel_arg){sizeof(x), &(x)})
+
+// ---------------------------------------------------------------------------------------------
+// Across the files of this folder
+
+// buffers.c: errors, events, device and pinned buffers, launches and transfers, the state.
+bpx_status bpx__cl_cl_fail(cl_state *st, cl_int err, const char *what);
+void bpx__cl_events_flush(cl_state *st);
+void bpx__cl_dbuf_release(cl_state *st, dbuf *b);
+bpx_status bpx__cl_dbuf_reserve(cl_state *st, dbuf *b, size_t size);
+bpx_status bpx__cl_pinned_reserve(cl_state *st, pinned *p, size_t size);
+bpx_status bpx__cl_launch(cl_state *st, int k, size_t global, size_t local, int arg_count,
+                          const kernel_arg *args);
+bpx_status bpx__cl_write_buffer(cl_state *st, cl_mem mem, size_t offset, size_t size,
+                                const void *host, bool blocking);
+bpx_status bpx__cl_read_buffer(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host);
+bpx_status bpx__cl_read_later(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host);
+bpx_status bpx__cl_read_register(cl_state *st, cl_uint slot, uint64_t *value);
+bpx_status bpx__cl_read_pairs(cl_state *st, cl_mem pairs, size_t count, bpx_pair_list *out);
+void bpx__cl_state_free(cl_state *st);
+bpx_status bpx__cl_state_get(bpx_world *w, cl_state **out);
+// update.c: the updater.
+bpx_status bpx__cl_upload_keys(cl_state *st, const bpx_world *w, uint32_t first, uint32_t count,
+                               uint32_t padded, size_t region_offset, dbuf *lo, dbuf *hi);
+// brute.c: the tiled comparator, whole, small or streamed.
+bpx_status bpx__cl_brute_all(cl_state *st, bpx_world *w, bpx_block *block);
+bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block);
+bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
+                                  uint32_t block_boxes);
+// sweep.c: sort and sweep.
+bpx_status bpx__cl_sweep_all(cl_state *st, bpx_world *w, bpx_block *block);
