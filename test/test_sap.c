@@ -1,4 +1,4 @@
-// The sap backend (src/cpu/sap.c) over long incremental sequences, every cycle against the
+// The sap backend (src/cpu/sap/) over long incremental sequences, every cycle against the
 // reference backend, byte for byte: coherent motion, sudden jumps, boxes passing through each
 // other, many boxes sharing one x, everything overlapping, touching faces that part and meet
 // again by one ulp (-0.0, subnormals, +-FLT_MAX included), n changing between cycles, objects
