@@ -67,7 +67,7 @@ std::vector<bpx_pair> twin_pairs(const std::vector<bpx_box> &boxes)
     for (uint32_t i = 0; i + 1 < n; i++)
         CHECK_MSG(arrivals[i] == 2, "node %u: %u arrivals", i, arrivals[i]);
     for (uint32_t t = 0; t + 1 < n; t++)
-        bpx_tree::walk(t, n, nodes.data(), leaf_lo.data(), leaf_hi.data(),
+        bpx_tree::walk(t, nodes.data(), leaf_lo.data(), leaf_hi.data(),
                        [&](uint32_t i, uint32_t j) { pairs.push_back(bpx_pair{i, j}); });
     std::sort(pairs.begin(), pairs.end(),
               [](bpx_pair a, bpx_pair b) { return a.i != b.i ? a.i < b.i : a.j < b.j; });

@@ -113,6 +113,8 @@ const bpx_backend_impl bpx__cuda_backend = {
 
 static bpx_status cuda_world(bpx_world *w, bpx_cuda **cu)
 {
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
     bpx__error_clear(&w->error);
     if (w->backend->id != BPX_BACKEND_CUDA)
         return bpx__error(&w->error, BPX_ERR_BACKEND_UNAVAILABLE, UINT32_MAX, -1,
@@ -122,8 +124,6 @@ static bpx_status cuda_world(bpx_world *w, bpx_cuda **cu)
 
 bpx_status bpx_cuda_set_boxes_device(bpx_world *w, const bpx_box *boxes, uint32_t n)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_cuda *cu = NULL;
     bpx_status s = cuda_world(w, &cu);
     if (s != BPX_OK)
@@ -161,8 +161,6 @@ bpx_status bpx_cuda_set_boxes_device(bpx_world *w, const bpx_box *boxes, uint32_
 
 bpx_status bpx_cuda_collide_device(bpx_world *w, void *stream)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_cuda *cu = NULL;
     bpx_status s = cuda_world(w, &cu);
     if (s != BPX_OK)
@@ -181,8 +179,6 @@ bpx_status bpx_cuda_collide_device(bpx_world *w, void *stream)
 bpx_status bpx_cuda_device_pairs(bpx_world *w, const bpx_pair **pairs,
                                  const unsigned long long **count, size_t *capacity)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_cuda *cu = NULL;
     bpx_status s = cuda_world(w, &cu);
     if (s != BPX_OK)
@@ -202,8 +198,6 @@ bpx_status bpx_cuda_device_pairs(bpx_world *w, const bpx_pair **pairs,
 
 bpx_status bpx_cuda_finish(bpx_world *w, size_t *count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_cuda *cu = NULL;
     bpx_status s = cuda_world(w, &cu);
     if (s != BPX_OK)
@@ -231,10 +225,8 @@ bpx_status bpx_cuda_finish(bpx_world *w, size_t *count)
 
 bpx_status bpx_cuda_world_stream(bpx_world *w, void **stream)
 {
-    if (!w || !stream)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_cuda *cu = NULL;
-    bpx_status s = cuda_world(w, &cu);
+    bpx_status s = stream ? cuda_world(w, &cu) : BPX_ERR_NULL_ARGUMENT;
     if (s != BPX_OK)
         return s;
     *stream = bpx__cuda_stream(cu);

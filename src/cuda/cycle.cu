@@ -225,22 +225,22 @@ bpx_status reserve_sort(bpx_cuda *cu)
     return BPX_OK;
 }
 
-bpx_status upload(bpx_cuda *cu, const float *const lo[3], const float *const hi[3], uint32_t n)
+bpx_status upload(bpx_cuda *cu, cudaStream_t s, const float *const lo[3], const float *const hi[3],
+                  uint32_t n)
 {
     const float *src[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
     if (n <= staged_max) {
-        if (bpx_status s = reserve_staging(cu, n); s != BPX_OK)
-            return s;
+        if (bpx_status st = reserve_staging(cu, n); st != BPX_OK)
+            return st;
         for (int a = 0; a < 6; a++)
             memcpy(cu->staging + (size_t)a * n, src[a], sizeof(float) * n);
         // Packed as 6 arrays of n, then spread to the device's arrays of box_capacity.
         CU(cudaMemcpy2DAsync(cu->boxes, sizeof(float) * cu->box_capacity, cu->staging,
-                             sizeof(float) * n, sizeof(float) * n, 6, cudaMemcpyHostToDevice,
-                             cu->stream));
+                             sizeof(float) * n, sizeof(float) * n, 6, cudaMemcpyHostToDevice, s));
     } else {
         for (int a = 0; a < 6; a++)
             CU(cudaMemcpyAsync(cu->boxes + (size_t)a * cu->box_capacity, src[a],
-                               sizeof(float) * n, cudaMemcpyHostToDevice, cu->stream));
+                               sizeof(float) * n, cudaMemcpyHostToDevice, s));
     }
     cu->timing.bytes_in = 24ull * n;
     return BPX_OK;
@@ -256,46 +256,46 @@ void point_tree_at_boxes(bpx_cuda *cu, uint32_t n)
 }
 
 // Bounds, Morton keys, their sort, the hierarchy: everything up to the walk.
-bpx_status enqueue_tree(bpx_cuda *cu)
+bpx_status enqueue_tree(bpx_cuda *cu, cudaStream_t s)
 {
     bpx_cuda_tree *t = &cu->tree;
     uint32_t n = t->n;
-    CU(cudaMemsetAsync(t->scene, 0xff, 12, cu->stream));
-    CU(cudaMemsetAsync(t->scene + 3, 0, 12, cu->stream));
-    CU(cudaMemsetAsync(t->flags, 0, 4 * (size_t)n, cu->stream));
-    bpx__cuda_launch_bounds(cu->stream, t);
-    bpx__cuda_launch_morton(cu->stream, t);
+    CU(cudaMemsetAsync(t->scene, 0xff, 12, s));
+    CU(cudaMemsetAsync(t->scene + 3, 0, 12, s));
+    CU(cudaMemsetAsync(t->flags, 0, 4 * (size_t)n, s));
+    bpx__cuda_launch_bounds(s, t);
+    bpx__cuda_launch_morton(s, t);
     cub::DoubleBuffer<uint32_t> mk(t->morton[0], t->morton[1]);
     cub::DoubleBuffer<uint32_t> ids(t->ids[0], t->ids[1]);
     size_t bytes = cu->sort_temp_bytes;
     CU(cub::DeviceRadixSort::SortPairs(cu->sort_temp, bytes, mk, ids, (int64_t)n, 0, 30,
-                                       cu->stream));
+                                       s));
     t->current = mk.selector;
     if (ids.selector != mk.selector) // CUB keeps both in step; the tree relies on it
         return fail(cudaErrorUnknown, "SortPairs (buffers out of step)");
-    bpx__cuda_launch_build(cu->stream, t);
+    bpx__cuda_launch_build(s, t);
     return BPX_OK;
 }
 
-// The walk into keys[0] (padding above count stays all ones, sorting last), then the sort of
-// `items` keys and their unpacking into the pair buffer.
-bpx_status enqueue_walk(bpx_cuda *cu)
+// The walk into keys[0] (on the device path, keys above the count stay all ones and sort last).
+bpx_status enqueue_walk(bpx_cuda *cu, cudaStream_t s)
 {
-    CU(cudaMemsetAsync(device_head(cu), 0, sizeof(unsigned long long), cu->stream));
-    bpx__cuda_launch_traverse(cu->stream, &cu->tree, cu->bits, cu->keys[0], cu->pair_capacity,
+    CU(cudaMemsetAsync(device_head(cu), 0, sizeof(unsigned long long), s));
+    bpx__cuda_launch_traverse(s, &cu->tree, cu->bits, cu->keys[0], cu->pair_capacity,
                               device_head(cu));
     return BPX_OK;
 }
 
-bpx_status enqueue_sort(bpx_cuda *cu, unsigned long long items)
+// The sort of `items` keys and their unpacking into the pair buffer.
+bpx_status enqueue_sort(bpx_cuda *cu, cudaStream_t s, unsigned long long items)
 {
     cub::DoubleBuffer<unsigned long long> keys(cu->keys[0], cu->keys[1]);
     size_t bytes = cu->sort_temp_bytes;
     if (items > 1)
         CU(cub::DeviceRadixSort::SortKeys(cu->sort_temp, bytes, keys, (int64_t)items, 0,
-                                          2 * cu->bits, cu->stream));
+                                          2 * cu->bits, s));
     cu->key_buffer = keys.selector;
-    bpx__cuda_launch_unpack(cu->stream, keys.Current(), cu->bits, items, device_head(cu),
+    bpx__cuda_launch_unpack(s, keys.Current(), cu->bits, items, device_head(cu),
                             device_pairs(cu));
     return BPX_OK;
 }
@@ -417,7 +417,7 @@ static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3
         return st;
     CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, s));
     if (!cu->user_boxes)
-        return upload(cu, lo, hi, n);
+        return upload(cu, s, lo, hi, n);
     float *dlo[3], *dhi[3];
     for (int a = 0; a < 3; a++) {
         dlo[a] = cu->boxes + (size_t)a * cu->box_capacity;
@@ -472,9 +472,9 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
             return s;
         if (bpx_status s = reserve_sort(cu); s != BPX_OK)
             return s;
-        if (bpx_status s = enqueue_tree(cu); s != BPX_OK)
+        if (bpx_status s = enqueue_tree(cu, cu->stream); s != BPX_OK)
             return s;
-        if (bpx_status s = enqueue_walk(cu); s != BPX_OK)
+        if (bpx_status s = enqueue_walk(cu, cu->stream); s != BPX_OK)
             return s;
         CU(cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
                            cudaMemcpyDeviceToHost, cu->stream));
@@ -485,10 +485,10 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
                 return s;
             if (bpx_status s = reserve_sort(cu); s != BPX_OK)
                 return s;
-            if (bpx_status s = enqueue_walk(cu); s != BPX_OK)
+            if (bpx_status s = enqueue_walk(cu, cu->stream); s != BPX_OK)
                 return s;
         }
-        if (bpx_status s = enqueue_sort(cu, found); s != BPX_OK)
+        if (bpx_status s = enqueue_sort(cu, cu->stream, found); s != BPX_OK)
             return s;
     }
     CU(cudaEventRecord(cu->events[event_device], cu->stream));
@@ -584,8 +584,6 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         return st;
     if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
         return st;
-    cudaStream_t own = cu->stream;
-    cu->stream = s; // the enqueue helpers work on cu->stream
     bpx_status status = boxes_in(cu, s, lo, hi, n);
     point_tree_at_boxes(cu, n);
     if (status != BPX_OK) {
@@ -602,15 +600,15 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         if (status == BPX_OK)
             status = reserve_sort(cu);
         if (status == BPX_OK)
-            status = enqueue_tree(cu);
+            status = enqueue_tree(cu, s);
         if (status == BPX_OK) {
             cudaError_t e = cudaMemsetAsync(cu->keys[0], 0xff, 8 * cu->pair_capacity, s);
             status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemsetAsync (keys)");
         }
         if (status == BPX_OK)
-            status = enqueue_walk(cu);
+            status = enqueue_walk(cu, s);
         if (status == BPX_OK)
-            status = enqueue_sort(cu, cu->pair_capacity);
+            status = enqueue_sort(cu, s, cu->pair_capacity);
     }
     if (status == BPX_OK) {
         cudaError_t e = cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
@@ -620,7 +618,6 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemcpyAsync (head)");
         cu->pending_head = status == BPX_OK;
     }
-    cu->stream = own;
     cu->timing.tree = cu->tree_path;
     return status;
 }

@@ -164,7 +164,7 @@ __global__ void traverse_kernel(const bpx_cuda_node *__restrict__ nodes,
     unsigned long long buffer[emit_buffer];
     int count = 0;
     if (t + 1 < n) {
-        walk(t, n, nodes, leaf_lo, leaf_hi, [&](uint32_t i, uint32_t j) {
+        walk(t, nodes, leaf_lo, leaf_hi, [&](uint32_t i, uint32_t j) {
             if (count == emit_buffer) {
                 emit_flush(buffer, count, keys, capacity, head);
                 count = 0;

@@ -185,7 +185,7 @@ BPX_HD void refit_leaf(uint32_t t, const float4 *leaf_lo, const float4 *leaf_hi,
 /// pair is emitted by exactly one walk, the one from its lower Morton position.
 #pragma nv_exec_check_disable
 template <class Emit>
-BPX_HD void walk(uint32_t t, uint32_t n, const bpx_cuda_node *nodes, const float4 *leaf_lo,
+BPX_HD void walk(uint32_t t, const bpx_cuda_node *nodes, const float4 *leaf_lo,
                  const float4 *leaf_hi, Emit emit)
 {
     enum { stack_depth = 64 }; // the tree's depth is at most 30 Morton bits + 32 index bits
@@ -196,7 +196,6 @@ BPX_HD void walk(uint32_t t, uint32_t n, const bpx_cuda_node *nodes, const float
     uint32_t stack[stack_depth];
     int top = 0;
     uint32_t node = 0;
-    (void)n;
     for (;;) {
         const bpx_cuda_node *nd = nodes + node;
 #ifdef __CUDA_ARCH__
