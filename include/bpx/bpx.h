@@ -25,6 +25,7 @@
 #include "base.h"
 #include "model.h"
 #include "overlap.h"
+#include "query.h"
 #include "types.h"
 
 #ifdef __cplusplus

@@ -212,6 +212,7 @@ bpx_status bpx_world_move_boxes(bpx_world *w, const uint32_t *ids, const bpx_box
             w->boxes.lo[a][ids[k]] = boxes[k].min[a];
             w->boxes.hi[a][ids[k]] = boxes[k].max[a];
         }
+    w->boxes_version++;
     return BPX_OK;
 }
 

@@ -168,6 +168,7 @@ bool bpx__boxes_resize(bpx_world *w, uint32_t n)
     pad_arrays(&w->boxes, n);
     w->stats.box_count = n;
     w->planned_n = UINT32_MAX;
+    w->boxes_version++;
     return true;
 }
 
@@ -177,6 +178,7 @@ void bpx__box_make_inert(bpx_world *w, uint32_t id)
         w->boxes.lo[a][id] = INFINITY;
         w->boxes.hi[a][id] = -INFINITY;
     }
+    w->boxes_version++;
 }
 
 // The spare set becomes current.
@@ -188,6 +190,8 @@ static void swap_in_spare(bpx_world *w, uint32_t n)
     w->n = n;
     pad_arrays(&w->boxes, n);
     w->stats.box_count = n;
+    w->boxes_version++;
+    w->boxes_on_device = false;
 }
 
 bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
@@ -245,6 +249,7 @@ void bpx_world_destroy(bpx_world *w)
         w->backend->destroy(w);
     bpx__emitter_free(w);
     bpx__objects_free(w);
+    bpx__query_free(w);
     free_boxes(w);
     bpx__free(w, sizeof *w);
 }

@@ -114,6 +114,12 @@ struct bpx_world {
     bpx_pair_list ended;
     bool events_valid;
 
+    // Queries (src/query/): their tree and results, made by the first query. boxes_version
+    // counts every change to the boxes, so the tree knows when it is stale.
+    struct bpx_query_state *query;
+    uint64_t boxes_version;
+    bool boxes_on_device; // the boxes live in a device buffer (opencl, cuda): no queries
+
     bpx_cycle_stats stats;
     bpx_error error;
 };
@@ -142,6 +148,10 @@ void bpx__filter_blocks(bpx_world *w);
 /// After a successful collide: events from the merged pairs, then pending ids become free.
 bpx_status bpx__objects_after_collide(bpx_world *w, const bpx_pair *pairs, size_t count);
 void bpx__objects_free(bpx_world *w);
+
+// Queries (src/query/query.c).
+typedef struct bpx_query_state bpx_query_state;
+void bpx__query_free(bpx_world *w);
 
 // Emitter (emitter.c).
 /// Makes room for `count` blocks (new ones zeroed), for comparators that lay out their own.

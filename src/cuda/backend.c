@@ -155,6 +155,7 @@ bpx_status bpx_cuda_set_boxes_device(bpx_world *w, const bpx_box *boxes, uint32_
                           "no memory for %u boxes", n);
     }
     bpx__cuda_use_device_boxes(cu, boxes, n);
+    w->boxes_on_device = true;
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }

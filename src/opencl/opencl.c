@@ -287,6 +287,7 @@ bpx_status bpx_opencl_set_boxes_buffer(bpx_world *w, void *buffer, uint32_t n)
         clReleaseMemObject(st->user_buffer);
     st->user_buffer = mem;
     st->source = SOURCE_BUFFER;
+    w->boxes_on_device = true;
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }

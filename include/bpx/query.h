@@ -1,0 +1,130 @@
+// bpx: broad-phase collision detection. SPDX-License-Identifier: MIT
+//
+// Queries on a world: which boxes overlap a region or a sphere, what a ray hits, what a box
+// moving along a segment hits. They see the world's current boxes (everything set, added,
+// moved or removed up to the call; removed ids are never returned) and honour filters.
+//
+// The first query after the boxes changed brings the world's tree up to date: a refit when the
+// same objects only moved, a rebuild (Morton order, O(n)) when objects came or went or the
+// refitted tree got loose. A world that is never queried never builds one.
+//
+// Exact definitions. Every query has one result, defined below, computed the same way by every
+// build, SIMD width and thread count; the tree only skips boxes that cannot be in it.
+//   box region     box b is a hit iff the closed intervals overlap on all three axes (the
+//                  predicate of the pairs: touching boxes are hits)
+//   sphere         b is a hit iff d2 <= radius * radius, in double precision, where
+//                  d2 = sum over axes of g*g, g = max(b.min - c, c - b.max, 0) per axis
+//   ray / sweep    a sweep moves box q along t * translation, t in [0, max_fraction]; a ray is
+//                  the sweep of the point box [origin, origin]. Per axis, with d the
+//                  translation's component (+0.0 and -0.0 are both zero):
+//                    d == 0: the axis admits every t iff b.min <= q.max and b.max >= q.min,
+//                            else no t;
+//                    d != 0: it admits t between t1 = (b.min - q.max) * inv and
+//                            t2 = (b.max - q.min) * inv (either order), inv = 1.0 / d,
+//                            each step in double precision.
+//                  enter = the largest lower end over the axes, exit = the smallest upper end;
+//                  b is hit iff max(enter, 0) <= min(exit, max_fraction), at fraction
+//                  max(enter, 0) rounded to float. A query that starts overlapping b hits it
+//                  at fraction 0. Closest: the hit with the least fraction, ties to the lowest
+//                  id. All: every hit, sorted by fraction then id.
+// Results of region and sphere queries are sorted by id (fraction 0).
+//
+// Bad queries are refused, naming the query (its position in a batch) and the axis:
+// NOT_FINITE (a NaN or infinite coordinate, centre, radius, origin, direction or translation;
+// NaN max_fraction), MIN_GREATER_THAN_MAX (a query box), INVALID_ARGUMENT (negative radius or
+// max_fraction; a zero translation with max_fraction > 0; an unknown kind). max_fraction may be
+// +infinity (an unbounded ray). Denormal components are ordinary non-zero values.
+#pragma once
+
+#include "types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct bpx_world bpx_world;
+
+/// Which boxes a query sees: box b is seen iff (category & mask_b) && (category_b & mask),
+/// the same rule as between two boxes. bpx_default_query_filter() sees every box whose mask
+/// is not zero.
+typedef struct bpx_query_filter {
+    uint32_t category;
+    uint32_t mask;
+} bpx_query_filter;
+
+typedef enum bpx_query_kind {
+    BPX_QUERY_BOX = 0, ///< boxes overlapping query.box
+    BPX_QUERY_SPHERE,  ///< boxes overlapping the sphere (centre, radius)
+    BPX_QUERY_RAY,     ///< boxes hit by the ray origin + t * direction, t in [0, max_fraction]
+    BPX_QUERY_SWEEP,   ///< boxes hit by box moving by t * direction, t in [0, max_fraction]
+    BPX_QUERY_KIND_COUNT
+} bpx_query_kind;
+
+/// One query. Fill kind and the fields it reads; bpx_query_box() and friends do that.
+typedef struct bpx_query {
+    bpx_query_kind kind;
+    /// RAY and SWEEP: true for the closest hit only, false for every hit.
+    bool closest;
+    bpx_query_filter filter;
+    bpx_box box;         ///< BOX: the region; SWEEP: the moving box at t = 0
+    float centre[3];     ///< SPHERE
+    float radius;        ///< SPHERE
+    float origin[3];     ///< RAY
+    float direction[3];  ///< RAY: direction; SWEEP: translation. Need not be unit length: a
+                         ///< unit direction makes fractions distances
+    float max_fraction;  ///< RAY, SWEEP: the largest t (1 with a segment's vector; +inf allowed)
+} bpx_query;
+
+/// One hit: the box's id and, for rays and sweeps, the fraction t of the first contact.
+typedef struct bpx_hit {
+    uint32_t id;
+    float fraction;
+} bpx_hit;
+
+/// Filter that sees every box (category and mask all ones).
+BPX_API bpx_query_filter bpx_default_query_filter(void);
+/// Queries with the default filter.
+BPX_API bpx_query bpx_query_box(bpx_box box);
+BPX_API bpx_query bpx_query_sphere(const float centre[3], float radius);
+BPX_API bpx_query bpx_query_ray(const float origin[3], const float direction[3],
+                                float max_fraction, bool closest);
+BPX_API bpx_query bpx_query_sweep(bpx_box box, const float translation[3], float max_fraction,
+                                  bool closest);
+
+/// Runs one query on the calling thread. *count receives the number of hits. If it exceeds
+/// capacity, returns CAPACITY and writes nothing to hits; the hits are still readable with
+/// bpx_world_query_hits() without running the query again. hits may be NULL with capacity 0.
+/// Errors: NULL_ARGUMENT, BAD_STATE (the boxes live in a device buffer: opencl/cuda device
+/// input), OUT_OF_MEMORY, and the query errors above. On error nothing is written.
+BPX_API bpx_status bpx_world_query(bpx_world *world, const bpx_query *query, bpx_hit *hits,
+                                   size_t capacity, size_t *count);
+
+/// Runs count queries on the world's workers. Results in CSR form: the hits of query k are
+/// hits[offsets[k] .. offsets[k+1]), offsets has count + 1 entries, *total = offsets[count].
+/// The same bytes for any worker count. On CAPACITY (total > capacity) offsets and *total are
+/// written, hits is not, and bpx_world_query_hits() reads them all. Errors as bpx_world_query,
+/// naming the first bad query by its index.
+BPX_API bpx_status bpx_world_query_batch(bpx_world *world, const bpx_query *queries,
+                                         uint32_t count, size_t *offsets, bpx_hit *hits,
+                                         size_t capacity, size_t *total);
+
+/// The hits of the last successful bpx_world_query / bpx_world_query_batch (including one that
+/// returned CAPACITY), owned by the world and valid until the next call that changes it or
+/// queries it. offsets (may be NULL) receives the CSR offsets (query_count + 1 entries).
+BPX_API const bpx_hit *bpx_world_query_hits(const bpx_world *world, const size_t **offsets,
+                                            uint32_t *query_count, size_t *total);
+
+/// The tree's state, for benchmarks and tests: builds from scratch, refits, nodes, and the
+/// nanoseconds of the last build or refit.
+typedef struct bpx_query_stats {
+    uint64_t builds;
+    uint64_t refits;
+    uint32_t nodes;
+    uint32_t boxes;
+    uint64_t last_update_ns;
+} bpx_query_stats;
+BPX_API bpx_query_stats bpx_world_query_stats(const bpx_world *world);
+
+#ifdef __cplusplus
+}
+#endif

@@ -1,0 +1,27 @@
+// One query against the tree, on the calling thread: the definitions of include/bpx/query.h.
+#pragma once
+
+#include "bpx/query.h"
+#include "bvh.h"
+
+/// A growable list of hits, kept between calls.
+typedef struct bpx_hit_list {
+    bpx_hit *hits;
+    size_t count;
+    size_t capacity;
+} bpx_hit_list;
+
+bool bpx__hits_reserve(bpx_hit_list *list, size_t extra);
+void bpx__hits_free(bpx_hit_list *list);
+
+/// Which boxes a query may see: the world's filters (NULL when never set) and removed ids are
+/// read through this.
+typedef struct bpx_query_view {
+    const bpx_bvh *tree;
+    const uint32_t *category; // per id, or NULL: every box category 1
+    const uint32_t *mask;     // per id, or NULL: every box mask all ones
+} bpx_query_view;
+
+/// Appends the query's hits, in their defined order, to out. False when memory ran out (out
+/// then holds what it held before).
+bool bpx__query_run(const bpx_query_view *view, const bpx_query *query, bpx_hit_list *out);

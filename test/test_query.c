@@ -1,0 +1,553 @@
+// Queries against an oracle that applies include/bpx/query.h's definitions to every box, on
+// every scene kind and on adversarial rays; batches at every worker count byte for byte;
+// filters, removed ids, moves (refits), bad queries, CAPACITY and allocation failure.
+#include <float.h>
+#include <math.h>
+
+#include "check.h"
+#include "scenes.h"
+
+// ---------------------------------------------------------------------------------------------
+// The oracle: the header's definitions, box by box, written without the library's code.
+
+typedef struct world_copy {
+    const bpx_box *boxes;
+    uint32_t n;
+    const uint8_t *live;       // NULL: every box
+    const uint32_t *category;  // NULL: 1
+    const uint32_t *mask;      // NULL: all ones
+} world_copy;
+
+static bool oracle_seen(const world_copy *w, const bpx_query *q, uint32_t id)
+{
+    if (w->live && !w->live[id])
+        return false;
+    uint32_t category = w->category ? w->category[id] : 1u;
+    uint32_t mask = w->mask ? w->mask[id] : 0xFFFFFFFFu;
+    return (q->filter.category & mask) && (category & q->filter.mask);
+}
+
+// Whether box b is hit, and at what fraction.
+static bool oracle_hit(const bpx_query *q, const bpx_box *b, float *fraction)
+{
+    *fraction = 0.0f;
+    if (q->kind == BPX_QUERY_BOX) {
+        for (int a = 0; a < 3; a++)
+            if (!(b->min[a] <= q->box.max[a] && b->max[a] >= q->box.min[a]))
+                return false;
+        return true;
+    }
+    if (q->kind == BPX_QUERY_SPHERE) {
+        double d2 = 0.0;
+        for (int a = 0; a < 3; a++) {
+            double g = fmax(fmax((double)b->min[a] - q->centre[a], q->centre[a] - (double)b->max[a]),
+                            0.0);
+            d2 += g * g;
+        }
+        return d2 <= (double)q->radius * (double)q->radius;
+    }
+    float qlo[3], qhi[3];
+    for (int a = 0; a < 3; a++) {
+        qlo[a] = q->kind == BPX_QUERY_RAY ? q->origin[a] : q->box.min[a];
+        qhi[a] = q->kind == BPX_QUERY_RAY ? q->origin[a] : q->box.max[a];
+    }
+    double enter = -INFINITY, exit = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        if (q->direction[a] == 0.0f) {
+            if (!(b->min[a] <= qhi[a] && b->max[a] >= qlo[a]))
+                return false;
+            continue;
+        }
+        double inv = 1.0 / (double)q->direction[a];
+        double t1 = ((double)b->min[a] - (double)qhi[a]) * inv;
+        double t2 = ((double)b->max[a] - (double)qlo[a]) * inv;
+        enter = fmax(enter, fmin(t1, t2));
+        exit = fmin(exit, fmax(t1, t2));
+    }
+    double from = fmax(enter, 0.0);
+    if (!(from <= fmin(exit, (double)q->max_fraction)))
+        return false;
+    *fraction = (float)from;
+    return true;
+}
+
+static int hit_by_id(const void *a, const void *b)
+{
+    uint32_t x = ((const bpx_hit *)a)->id, y = ((const bpx_hit *)b)->id;
+    return (x > y) - (x < y);
+}
+
+static int hit_by_fraction(const void *a, const void *b)
+{
+    const bpx_hit *x = a, *y = b;
+    if (x->fraction != y->fraction)
+        return x->fraction < y->fraction ? -1 : 1;
+    return hit_by_id(a, b);
+}
+
+// The query's hits into out (room for n), in the defined order; returns their number.
+static size_t oracle(const world_copy *w, const bpx_query *q, bpx_hit *out)
+{
+    size_t count = 0;
+    for (uint32_t i = 0; i < w->n; i++) {
+        float f;
+        if (oracle_seen(w, q, i) && oracle_hit(q, &w->boxes[i], &f))
+            out[count++] = (bpx_hit){i, f};
+    }
+    bool cast = q->kind == BPX_QUERY_RAY || q->kind == BPX_QUERY_SWEEP;
+    qsort(out, count, sizeof *out, cast ? hit_by_fraction : hit_by_id);
+    return cast && q->closest && count ? 1 : count;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Queries made from a scene: near its boxes, through their faces and corners, of every kind.
+
+static float pick(scene_rng *r, const bpx_box *boxes, uint32_t n, int a)
+{
+    const bpx_box *b = &boxes[scene_rng_below(r, n)];
+    switch (scene_rng_below(r, 4)) {
+    case 0: return b->min[a];
+    case 1: return b->max[a];
+    case 2: return scene_rng_range(r, b->min[a], b->max[a]);
+    default: return scene_rng_range(r, -4.0f, 4.0f) + b->min[a];
+    }
+}
+
+static float direction_component(scene_rng *r)
+{
+    switch (scene_rng_below(r, 8)) {
+    case 0: return 0.0f;
+    case 1: return -0.0f;
+    case 2: return 1.0e-42f; // denormal
+    case 3: return -1.0f;
+    case 4: return 1.0f;
+    default: return scene_rng_range(r, -10.0f, 10.0f);
+    }
+}
+
+static bpx_query random_query(scene_rng *r, const bpx_box *boxes, uint32_t n)
+{
+    bpx_query q = {.filter = bpx_default_query_filter()};
+    q.kind = (bpx_query_kind)scene_rng_below(r, BPX_QUERY_KIND_COUNT);
+    q.closest = scene_rng_below(r, 2);
+    for (int a = 0; a < 3; a++) {
+        float x = pick(r, boxes, n, a), y = pick(r, boxes, n, a);
+        q.box.min[a] = fminf(x, y);
+        q.box.max[a] = fmaxf(x, y);
+        q.centre[a] = pick(r, boxes, n, a);
+        q.origin[a] = pick(r, boxes, n, a);
+        q.direction[a] = direction_component(r);
+    }
+    q.radius = scene_rng_below(r, 4) ? scene_rng_range(r, 0.0f, 3.0f) : 0.0f;
+    switch (scene_rng_below(r, 4)) {
+    case 0: q.max_fraction = INFINITY; break;
+    case 1: q.max_fraction = 1.0f; break;
+    case 2: q.max_fraction = 0.0f; break;
+    default: q.max_fraction = scene_rng_range(r, 0.0f, 50.0f);
+    }
+    bool zero = q.direction[0] == 0.0f && q.direction[1] == 0.0f && q.direction[2] == 0.0f;
+    if (zero)
+        q.max_fraction = 0.0f;
+    return q;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+static bpx_world *make_world(int workers)
+{
+    bpx_world_def def = bpx_default_world_def();
+    def.worker_count = workers;
+    bpx_world *w = NULL;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    return w;
+}
+
+static bpx_hit *expect_buf, *got_buf;
+static size_t buf_cap;
+
+static void compare_one(bpx_world *w, const world_copy *copy, const bpx_query *q, int k)
+{
+    size_t want = oracle(copy, q, expect_buf), got = 0;
+    bpx_status s = bpx_world_query(w, q, got_buf, buf_cap, &got);
+    CHECK_MSG(s == BPX_OK, "query %d kind %d: %s", k, q->kind, bpx_world_error(w)->message);
+    CHECK_MSG(got == want && memcmp(got_buf, expect_buf, sizeof(bpx_hit) * want) == 0,
+              "query %d kind %d closest %d: %zu hits, oracle %zu (first %u@%g vs %u@%g)", k,
+              q->kind, q->closest, got, want, got ? got_buf[0].id : 0,
+              got ? (double)got_buf[0].fraction : 0.0, want ? expect_buf[0].id : 0,
+              want ? (double)expect_buf[0].fraction : 0.0);
+}
+
+// Every scene kind at several sizes: single queries against the oracle.
+static void test_scenes(void)
+{
+    const uint32_t sizes[] = {0, 1, 2, 5, 17, 100, 1000};
+    for (int kind = 0; kind < SCENE_KIND_COUNT; kind++)
+        for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
+            uint32_t n = sizes[s];
+            uint64_t seed = 1000u * (uint64_t)kind + s;
+            check_set_seed(seed);
+            check_set_context("scene %s n=%u", scene_kind_name((scene_kind)kind), n);
+            bpx_box *boxes = malloc(sizeof(bpx_box) * (n ? n : 1));
+            CHECK(scene_generate((scene_kind)kind, n, seed, boxes) == 0);
+            bpx_world *w = make_world(1);
+            CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+            world_copy copy = {boxes, n, NULL, NULL, NULL};
+            scene_rng r;
+            scene_rng_seed(&r, seed);
+            bpx_box origin_box = {{0, 0, 0}, {0, 0, 0}};
+            for (int k = 0; k < 300; k++) {
+                bpx_query q = random_query(&r, n ? boxes : &origin_box, n ? n : 1);
+                compare_one(w, &copy, &q, k);
+            }
+            bpx_world_destroy(w);
+            free(boxes);
+        }
+}
+
+// A lattice of unit boxes whose faces touch: rays along shared faces and edges, through
+// corners, from inside, parallel to faces, across -0.0 planes, of zero length.
+static void test_adversarial_rays(void)
+{
+    enum { SIDE = 6 };
+    bpx_box boxes[SIDE * SIDE * SIDE];
+    uint32_t n = 0;
+    for (int x = -SIDE / 2; x < SIDE / 2; x++)
+        for (int y = -SIDE / 2; y < SIDE / 2; y++)
+            for (int z = -SIDE / 2; z < SIDE / 2; z++)
+                boxes[n++] = (bpx_box){{(float)x, (float)y, (float)z},
+                                       {(float)x + 1, (float)y + 1, (float)z + 1}};
+    // Signed zeros on some of the boxes at the origin's planes.
+    for (uint32_t i = 0; i < n; i += 2)
+        for (int a = 0; a < 3; a++)
+            if (boxes[i].min[a] == 0.0f)
+                boxes[i].min[a] = -0.0f;
+    bpx_world *w = make_world(1);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+    world_copy copy = {boxes, n, NULL, NULL, NULL};
+    const float coords[] = {-3.0f, -1.0f, -0.5f, -0.0f, 0.0f, 0.5f, 1.0f, 3.0f, 2.999999f};
+    const float dirs[] = {0.0f, -0.0f, 1.0f, -1.0f, 1e-42f, -1e-42f, 0.5f};
+    const float fractions[] = {0.0f, 1.0f, 2.5f, INFINITY};
+    size_t nc = sizeof coords / sizeof coords[0], nd = sizeof dirs / sizeof dirs[0];
+    int k = 0;
+    check_set_context("lattice rays");
+    for (size_t ox = 0; ox < nc; ox++)
+        for (size_t oy = 0; oy < nc; oy += 2)
+            for (size_t oz = 0; oz < nc; oz += 3)
+                for (size_t d = 0; d < nd * nd; d++) {
+                    float o[3] = {coords[ox], coords[oy], coords[oz]};
+                    float dir[3] = {dirs[d % nd], dirs[d / nd], dirs[(d + ox) % nd]};
+                    float f = fractions[(d + oy) % 4];
+                    bool zero = dir[0] == 0.0f && dir[1] == 0.0f && dir[2] == 0.0f;
+                    bpx_query q = bpx_query_ray(o, dir, zero ? 0.0f : f, (d + oz) % 2 == 0);
+                    compare_one(w, &copy, &q, k++);
+                    bpx_box moving = {{o[0] - 0.5f, o[1], o[2]}, {o[0], o[1] + 0.25f, o[2]}};
+                    bpx_query s = bpx_query_sweep(moving, dir, zero ? 0.0f : f, (d + oz) % 2);
+                    compare_one(w, &copy, &s, k++);
+                }
+    // Spheres centred on corners with radii that just reach a neighbour's face.
+    for (size_t c = 0; c < nc; c++) {
+        float centre[3] = {coords[c], coords[(c + 3) % nc], coords[(c + 5) % nc]};
+        const float radii[] = {0.0f, 0.5f, 1.0f, nextafterf(1.0f, 0.0f)};
+        for (int r = 0; r < 4; r++) {
+            bpx_query q = bpx_query_sphere(centre, radii[r]);
+            compare_one(w, &copy, &q, k++);
+        }
+    }
+    bpx_world_destroy(w);
+}
+
+// Filters, removed and added boxes, moves: the tree refits or rebuilds, the oracle follows.
+static void test_objects_and_moves(void)
+{
+    enum { N = 2000, ROUNDS = 12 };
+    bpx_box *boxes = malloc(sizeof(bpx_box) * N);
+    uint8_t live[N];
+    uint32_t category[N], mask[N];
+    scene_uniform_density(N, 2.0f, 7, boxes);
+    bpx_world *w = make_world(2);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, N), BPX_OK);
+    memset(live, 1, sizeof live);
+    scene_rng r;
+    scene_rng_seed(&r, 99);
+    for (uint32_t i = 0; i < N; i++) {
+        category[i] = 1u << scene_rng_below(&r, 4);
+        mask[i] = scene_rng_below(&r, 8) ? 0xFFFFFFFFu : 0x5u;
+    }
+    CHECK_STATUS(bpx_world_set_filters(w, NULL, category, mask, N), BPX_OK);
+    world_copy copy = {boxes, N, live, category, mask};
+    for (int round = 0; round < ROUNDS; round++) {
+        check_set_context("objects round %d", round);
+        if (round % 3 == 1) { // remove a few, then add them back (ids come back after collide)
+            uint32_t ids[20];
+            for (int k = 0; k < 20; k++)
+                ids[k] = (uint32_t)(round * 37 + k * 11) % N;
+            CHECK_STATUS(bpx_world_remove_boxes(w, ids, 20), BPX_OK);
+            for (int k = 0; k < 20; k++)
+                live[ids[k]] = 0;
+        } else if (round % 3 == 2) {
+            CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+            uint32_t ids[20], dead[20], d = 0;
+            for (uint32_t i = 0; i < N && d < 20; i++)
+                if (!live[i])
+                    dead[d++] = i;
+            bpx_box added[20];
+            for (uint32_t k = 0; k < d; k++)
+                added[k] = boxes[dead[k]];
+            CHECK_STATUS(bpx_world_add_boxes(w, added, d, ids), BPX_OK);
+            for (uint32_t k = 0; k < d; k++) {
+                CHECK(ids[k] < N);
+                if (ids[k] < N) {
+                    boxes[ids[k]] = added[k];
+                    live[ids[k]] = 1;
+                    category[ids[k]] = 1; // added ids start unfiltered
+                    mask[ids[k]] = 0xFFFFFFFFu;
+                }
+            }
+        } else { // everything moves a little: a refit
+            scene_move(boxes, N, 0.3f, &r);
+            uint32_t ids[N];
+            uint32_t m = 0;
+            bpx_box moved[N];
+            for (uint32_t i = 0; i < N; i++)
+                if (live[i]) {
+                    ids[m] = i;
+                    moved[m++] = boxes[i];
+                }
+            CHECK_STATUS(bpx_world_move_boxes(w, ids, moved, m), BPX_OK);
+        }
+        for (int k = 0; k < 150; k++) {
+            bpx_query q = random_query(&r, boxes, N);
+            q.filter.category = scene_rng_below(&r, 3) ? 0xFFFFFFFFu : 1u << scene_rng_below(&r, 4);
+            q.filter.mask = scene_rng_below(&r, 3) ? 0xFFFFFFFFu : 0x6u;
+            compare_one(w, &copy, &q, k);
+        }
+    }
+    bpx_query_stats st = bpx_world_query_stats(w);
+    CHECK_MSG(st.refits > 0 && st.builds > 1, "builds %llu refits %llu",
+              (unsigned long long)st.builds, (unsigned long long)st.refits);
+    bpx_world_destroy(w);
+    free(boxes);
+}
+
+// The paper's two phases: centres move every cycle, the tree refits.
+static void test_centres(void)
+{
+    enum { N = 500 };
+    float minima[3 * N], centres[3 * N];
+    bpx_box boxes[N];
+    scene_rng r;
+    scene_rng_seed(&r, 5);
+    for (int i = 0; i < 3 * N; i++) {
+        minima[i] = -scene_rng_range(&r, 0.1f, 1.0f);
+        centres[i] = scene_rng_range(&r, -10.0f, 10.0f);
+    }
+    bpx_world *w = make_world(1);
+    CHECK_STATUS(bpx_world_load_extents(w, minima, N), BPX_OK);
+    world_copy copy = {boxes, N, NULL, NULL, NULL};
+    for (int cycle = 0; cycle < 5; cycle++) {
+        check_set_context("centres cycle %d", cycle);
+        for (int i = 0; i < 3 * N; i++)
+            centres[i] += scene_rng_range(&r, -0.2f, 0.2f);
+        CHECK_STATUS(bpx_world_update_centres(w, centres), BPX_OK);
+        for (int i = 0; i < N; i++)
+            for (int a = 0; a < 3; a++) {
+                boxes[i].min[a] = centres[3 * i + a] + minima[3 * i + a];
+                boxes[i].max[a] = centres[3 * i + a] - minima[3 * i + a];
+            }
+        for (int k = 0; k < 100; k++) {
+            bpx_query q = random_query(&r, boxes, N);
+            compare_one(w, &copy, &q, k);
+        }
+    }
+    CHECK(bpx_world_query_stats(w).refits >= 3);
+    bpx_world_destroy(w);
+}
+
+// Batches: the CSR result equals the single queries', byte for byte, at every worker count.
+static void test_batches(void)
+{
+    enum { N = 20000, Q = 3000 };
+    bpx_box *boxes = malloc(sizeof(bpx_box) * N);
+    scene_heavy_tailed_density(N, 3, boxes);
+    bpx_query *queries = malloc(sizeof(bpx_query) * Q);
+    scene_rng r;
+    scene_rng_seed(&r, 11);
+    for (int k = 0; k < Q; k++)
+        queries[k] = random_query(&r, boxes, N);
+    size_t *first_offsets = NULL;
+    bpx_hit *first_hits = NULL;
+    size_t first_total = 0;
+    for (int workers = 1; workers <= 4; workers++) {
+        check_set_context("batch workers=%d", workers);
+        bpx_world *w = make_world(workers);
+        CHECK_STATUS(bpx_world_set_boxes(w, boxes, N), BPX_OK);
+        size_t *offsets = malloc(sizeof(size_t) * (Q + 1));
+        size_t total = 0;
+        // Too small first: CAPACITY with the count, nothing lost.
+        bpx_hit probe = {12345u, 6.0f};
+        CHECK_STATUS(bpx_world_query_batch(w, queries, Q, offsets, &probe, 1, &total),
+                     BPX_ERR_CAPACITY);
+        CHECK(probe.id == 12345u && total > 1 && offsets[Q] == total);
+        const size_t *kept_offsets;
+        uint32_t kept_queries;
+        size_t kept_total;
+        const bpx_hit *kept = bpx_world_query_hits(w, &kept_offsets, &kept_queries, &kept_total);
+        CHECK(kept && kept_queries == Q && kept_total == total);
+        bpx_hit *hits = malloc(sizeof(bpx_hit) * (total ? total : 1));
+        CHECK_STATUS(bpx_world_query_batch(w, queries, Q, offsets, hits, total, &total), BPX_OK);
+        CHECK(kept && memcmp(kept, hits, sizeof(bpx_hit) * total) == 0);
+        if (!first_hits) {
+            first_offsets = offsets;
+            first_hits = hits;
+            first_total = total;
+            for (int k = 0; k < Q; k += 7) { // each query alone gives its slice
+                size_t got = 0;
+                CHECK_STATUS(bpx_world_query(w, &queries[k], got_buf, buf_cap, &got), BPX_OK);
+                CHECK(got == offsets[k + 1] - offsets[k] &&
+                      memcmp(got_buf, hits + offsets[k], sizeof(bpx_hit) * got) == 0);
+            }
+        } else {
+            CHECK(total == first_total &&
+                  memcmp(offsets, first_offsets, sizeof(size_t) * (Q + 1)) == 0 &&
+                  memcmp(hits, first_hits, sizeof(bpx_hit) * total) == 0);
+            free(offsets);
+            free(hits);
+        }
+        bpx_world_destroy(w);
+    }
+    free(first_offsets);
+    free(first_hits);
+    free(queries);
+    free(boxes);
+}
+
+// Bad queries: refused with a status naming the query and axis; nothing written.
+static void test_errors(void)
+{
+    check_set_context("errors");
+    bpx_box boxes[3] = {{{0, 0, 0}, {1, 1, 1}}, {{2, 0, 0}, {3, 1, 1}}, {{0, 2, 0}, {1, 3, 1}}};
+    bpx_world *w = make_world(1);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 3), BPX_OK);
+    float o[3] = {0.5f, 0.5f, -5.0f}, d[3] = {0, 0, 1}, zero[3] = {0, 0, 0};
+    struct {
+        bpx_query q;
+        bpx_status want;
+        uint32_t index;
+        int axis;
+    } bad[] = {
+        {bpx_query_ray((float[3]){NAN, 0, 0}, d, 1, true), BPX_ERR_NOT_FINITE, 0, 0},
+        {bpx_query_ray(o, (float[3]){0, INFINITY, 0}, 1, true), BPX_ERR_NOT_FINITE, 0, 1},
+        {bpx_query_ray(o, zero, 1.0f, true), BPX_ERR_INVALID_ARGUMENT, 0, -1},
+        {bpx_query_ray(o, d, -1.0f, true), BPX_ERR_INVALID_ARGUMENT, 0, -1},
+        {bpx_query_ray(o, d, NAN, false), BPX_ERR_NOT_FINITE, 0, -1},
+        {bpx_query_sphere(o, -1.0f), BPX_ERR_INVALID_ARGUMENT, 0, -1},
+        {bpx_query_sphere(o, NAN), BPX_ERR_NOT_FINITE, 0, -1},
+        {bpx_query_sphere((float[3]){0, 0, -INFINITY}, 1), BPX_ERR_NOT_FINITE, 0, 2},
+        {bpx_query_box((bpx_box){{0, 2, 0}, {1, 1, 1}}), BPX_ERR_MIN_GREATER_THAN_MAX, 0, 1},
+        {bpx_query_box((bpx_box){{0, 0, 0}, {1, 1, NAN}}), BPX_ERR_NOT_FINITE, 0, 2},
+        {bpx_query_sweep((bpx_box){{1, 0, 0}, {0, 1, 1}}, d, 1, true),
+         BPX_ERR_MIN_GREATER_THAN_MAX, 0, 0},
+        {bpx_query_sweep(boxes[0], zero, 2.0f, true), BPX_ERR_INVALID_ARGUMENT, 0, -1},
+    };
+    bpx_query unknown = bpx_query_box(boxes[0]);
+    unknown.kind = BPX_QUERY_KIND_COUNT;
+    size_t count = 77;
+    bpx_hit hit = {999, 9.0f};
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+        check_set_context("errors case %zu", k);
+        CHECK_STATUS(bpx_world_query(w, &bad[k].q, &hit, 1, &count), bad[k].want);
+        CHECK(count == 77 && hit.id == 999);
+        const bpx_error *e = bpx_world_error(w);
+        CHECK(e->index == bad[k].index && e->axis == bad[k].axis && strstr(e->message, "query 0"));
+    }
+    CHECK_STATUS(bpx_world_query(w, &unknown, &hit, 1, &count), BPX_ERR_INVALID_ARGUMENT);
+    // In a batch the error names the bad query's position.
+    bpx_query batch[3] = {bpx_query_box(boxes[0]), bpx_query_box(boxes[1]), bad[0].q};
+    size_t offsets[4] = {5, 5, 5, 5}, total = 0;
+    CHECK_STATUS(bpx_world_query_batch(w, batch, 3, offsets, &hit, 1, &total), BPX_ERR_NOT_FINITE);
+    CHECK(bpx_world_error(w)->index == 2 && offsets[0] == 5 && strstr(bpx_world_error(w)->message,
+                                                                       "query 2"));
+    CHECK_STATUS(bpx_world_query(NULL, &batch[0], &hit, 1, &count), BPX_ERR_NULL_ARGUMENT);
+    CHECK_STATUS(bpx_world_query(w, NULL, &hit, 1, &count), BPX_ERR_NULL_ARGUMENT);
+    CHECK_STATUS(bpx_world_query(w, &batch[0], NULL, 1, &count), BPX_ERR_NULL_ARGUMENT);
+    // A zero-length ray with a zero direction is a point query; a closest ray from inside box 0
+    // hits it at 0.
+    CHECK_STATUS(bpx_world_query(w, &(bpx_query){.kind = BPX_QUERY_RAY,
+                                                 .filter = bpx_default_query_filter(),
+                                                 .origin = {0.5f, 0.5f, 0.5f}},
+                                 &hit, 1, &count),
+                 BPX_OK);
+    CHECK(count == 1 && hit.id == 0 && hit.fraction == 0.0f);
+    bpx_query ray = bpx_query_ray(o, d, INFINITY, true);
+    CHECK_STATUS(bpx_world_query(w, &ray, &hit, 1, &count), BPX_OK);
+    CHECK(count == 1 && hit.id == 0 && hit.fraction == 5.0f);
+    bpx_world_destroy(w);
+}
+
+// Allocation failure: OUT_OF_MEMORY, nothing leaked, and the next query works.
+static int64_t fail_after = -1;
+static void *failing_alloc(size_t size, size_t alignment, void *user)
+{
+    (void)user;
+    if (fail_after == 0)
+        return NULL;
+    if (fail_after > 0)
+        fail_after--;
+    return aligned_alloc(alignment, size);
+}
+static void plain_free(void *memory, void *user)
+{
+    (void)user;
+    free(memory);
+}
+
+static void test_out_of_memory(void)
+{
+    check_set_context("out of memory");
+    bpx_set_allocator(failing_alloc, plain_free, NULL);
+    enum { N = 3000 };
+    bpx_box *boxes = malloc(sizeof(bpx_box) * N);
+    scene_uniform_density(N, 1.0f, 3, boxes);
+    world_copy copy = {boxes, N, NULL, NULL, NULL};
+    bpx_query q = bpx_query_box((bpx_box){{-1e9f, -1e9f, -1e9f}, {1e9f, 1e9f, 1e9f}});
+    int failures = 0;
+    for (int64_t after = 0; after < 40; after++) {
+        fail_after = -1;
+        bpx_world *w = make_world(1);
+        CHECK_STATUS(bpx_world_set_boxes(w, boxes, N), BPX_OK);
+        int64_t before = bpx_allocated_bytes();
+        fail_after = after;
+        size_t count = 0;
+        bpx_status s = bpx_world_query(w, &q, got_buf, buf_cap, &count);
+        fail_after = -1;
+        if (s != BPX_OK) {
+            failures++;
+            CHECK_STATUS(s, BPX_ERR_OUT_OF_MEMORY);
+        }
+        CHECK(bpx_allocated_bytes() >= before);
+        compare_one(w, &copy, &q, (int)after);
+        bpx_world_destroy(w);
+    }
+    CHECK(failures > 0);
+    bpx_set_allocator(NULL, NULL, NULL);
+    free(boxes);
+}
+
+int main(void)
+{
+    buf_cap = 1u << 20;
+    expect_buf = malloc(sizeof(bpx_hit) * buf_cap);
+    got_buf = malloc(sizeof(bpx_hit) * buf_cap);
+    int64_t start = bpx_allocated_bytes();
+    test_scenes();
+    test_adversarial_rays();
+    test_objects_and_moves();
+    test_centres();
+    test_batches();
+    test_errors();
+    test_out_of_memory();
+    CHECK_EQ_U64((uint64_t)bpx_allocated_bytes(), (uint64_t)start);
+    free(expect_buf);
+    free(got_buf);
+    return check_finish("test_query", 1);
+}
