@@ -158,7 +158,8 @@ static bool region(const bpx_query_view *v, const bpx_query *q, const prepared *
                 out->hits[out->count++] = (bpx_hit){t->ids[k], 0.0f};
         }
     }
-    qsort(out->hits + first, out->count - first, sizeof(bpx_hit), by_id);
+    if (out->count - first > 1)
+        qsort(out->hits + first, out->count - first, sizeof(bpx_hit), by_id);
     return true;
 }
 
@@ -189,7 +190,8 @@ static bool cast_all(const bpx_query_view *v, const prepared *p, bpx_hit_list *o
             if (sweep_hits(p, t->items[k].min, t->items[k].max, &enter) && seen(v, p, t->ids[k]))
                 out->hits[out->count++] = (bpx_hit){t->ids[k], (float)enter};
     }
-    qsort(out->hits + first, out->count - first, sizeof(bpx_hit), by_fraction);
+    if (out->count - first > 1)
+        qsort(out->hits + first, out->count - first, sizeof(bpx_hit), by_fraction);
     return true;
 }
 

@@ -258,7 +258,8 @@ static bpx_status run_batch(bpx_world *w, const bpx_query *queries, uint32_t cou
                           "no memory for %zu hits", total);
     for (uint32_t c = 0; c < chunks; c++) {
         const bpx_hit_list *h = &q->chunks[c].hits;
-        memcpy(q->results.hits + q->results.count, h->hits, sizeof(bpx_hit) * h->count);
+        if (h->count)
+            memcpy(q->results.hits + q->results.count, h->hits, sizeof(bpx_hit) * h->count);
         q->results.count += h->count;
     }
     q->query_count = count;
