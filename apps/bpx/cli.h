@@ -18,6 +18,7 @@ enum {
 typedef int cli_command_fn(int argc, char **argv);
 
 cli_command_fn cmd_pairs;
+cli_command_fn cmd_query;
 cli_command_fn cmd_backends;
 cli_command_fn cmd_bench;
 cli_command_fn cmd_model;

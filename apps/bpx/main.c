@@ -19,6 +19,7 @@ typedef struct cli_command {
 // Adding a command is one line here plus its declaration in cli.h.
 static const cli_command commands[] = {
     {"pairs", cmd_pairs, "print the overlapping pairs of boxes read from a CSV file"},
+    {"query", cmd_query, "ray casts, region, sphere and swept-box queries on boxes from a CSV file"},
     {"backends", cmd_backends, "list the backends and SIMD widths usable on this machine"},
     {"devices", cmd_devices, "list the OpenCL devices (P:D for --device) of the opencl backend"},
     {"bench", cmd_bench, "time every backend side by side on the same scenes"},

@@ -508,6 +508,83 @@ run bench --scene round
 expect_error 2 "scene"
 
 # ---------------------------------------------------------------------------------------------
+# bpx query: four boxes, rays along faces, regions that touch.
+printf '%s\n' '0,0,0,1,1,1' '2,0,0,3,1,1' '0,2,0,1,3,1' '1,1,1,2,2,2' >"$tmp/q.csv"
+
+begin "query: closest ray"
+run query "$tmp/q.csv" --ray 0.5,0.5,-5,0,0,1
+printf '%s\n' '0 5' >"$tmp/q.expected"
+expect_ok "$tmp/q.expected"
+
+begin "query: every hit of a ray along the x axis, by fraction"
+run query "$tmp/q.csv" --ray=-1,0.5,0.5,1,0,0 --all
+printf '%s\n' '0 1' '1 3' >"$tmp/q.expected"
+expect_ok "$tmp/q.expected"
+
+begin "query: a region touching every box"
+run query "$tmp/q.csv" --box 0.5,0.5,0.5,2,2,2
+printf '%s\n' 0 1 2 3 >"$tmp/q.expected"
+expect_ok "$tmp/q.expected"
+
+begin "query: a sphere, --count"
+run query "$tmp/q.csv" --sphere 1.5,1.5,1.5,0.1 --count
+echo 1 >"$tmp/q.expected"
+expect_ok "$tmp/q.expected"
+
+begin "query: a swept box, every hit"
+run query "$tmp/q.csv" --sweep -3,0,0,-2,1,1,10,0,0 --all
+printf '%s\n' '0 0.200000003' '3 0.300000012' '1 0.400000006' >"$tmp/q.expected"
+expect_ok "$tmp/q.expected"
+
+begin "query: a batch, standard input boxes"
+printf '%s\n' '# kind,numbers' 'ray,0.5,0.5,-5,0,0,1' 'box, 0,0,0,1,1,1' '' >"$tmp/batch.csv"
+run_in "$tmp/q.csv" query - --batch "$tmp/batch.csv" --threads 2
+printf '%s\n' '0 0 5' '1 0 0' '1 3 0' >"$tmp/q.expected"
+expect_ok "$tmp/q.expected"
+
+begin "query: NaN origin"
+run query "$tmp/q.csv" --ray nan,0,0,1,0,0
+expect_error 1 "origin x"
+
+begin "query: zero direction with a length"
+run query "$tmp/q.csv" --ray 0,0,0,0,0,0,1
+expect_error 1 "zero direction"
+
+begin "query: too few numbers"
+run query "$tmp/q.csv" --ray 0,0
+expect_error 2 "6 or 7 numbers"
+
+begin "query: negative radius"
+run query "$tmp/q.csv" --sphere 0,0,0,-1
+expect_error 1 "negative"
+
+begin "query: min > max"
+run query "$tmp/q.csv" --box 1,0,0,0,1,1
+expect_error 1 "min x"
+
+begin "query: bad batch line"
+printf '%s\n' 'box,0,0,0,1,1,1' 'cone,1,2' >"$tmp/batch.csv"
+run query "$tmp/q.csv" --batch "$tmp/batch.csv"
+expect_error 1 "batch.csv:2" "unknown query kind"
+
+begin "query: --all without a ray"
+run query "$tmp/q.csv" --box 0,0,0,1,1,1 --all
+expect_error 2 "--all"
+
+begin "query: no query"
+run query "$tmp/q.csv"
+expect_error 2 "give one of"
+
+begin "query: bad box file"
+printf '%s\n' '0,0,0,1,1' >"$tmp/bad.csv"
+run query "$tmp/bad.csv" --box 0,0,0,1,1,1
+expect_error 1 "bad.csv:1"
+
+begin "query --help"
+run query --help
+expect_help
+
+# ---------------------------------------------------------------------------------------------
 if [[ $failures -ne 0 ]]; then
     echo "test_cli.sh: $failures of $cases cases FAILED" >&2
     exit 1
