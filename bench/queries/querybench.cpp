@@ -36,6 +36,9 @@ extern "C" {
 #ifdef BPX_QB_HAVE_BOX2D
 #include <box2d/b2_dynamic_tree.h>
 #endif
+#ifdef BPX_QB_HAVE_EMBREE
+#include <embree3/rtcore.h>
+#endif
 
 namespace
 {
@@ -344,6 +347,79 @@ struct Box2D {
 };
 #endif
 
+// ---------------------------------------------------------------------------------------------
+// Embree 3: the boxes as user geometry (bounds and a slab test in a callback), rays only.
+
+#ifdef BPX_QB_HAVE_EMBREE
+void embree_bounds(const RTCBoundsFunctionArguments *args)
+{
+    const bpx_box &b = static_cast<const bpx_box *>(args->geometryUserPtr)[args->primID];
+    *args->bounds_o = RTCBounds{b.min[0], b.min[1], b.min[2], 0.0f,
+                                b.max[0], b.max[1], b.max[2], 0.0f};
+}
+
+void embree_intersect(const RTCIntersectFunctionNArguments *args)
+{
+    if (!args->valid[0])
+        return;
+    const bpx_box &b = static_cast<const bpx_box *>(args->geometryUserPtr)[args->primID];
+    RTCRayHit *rh = reinterpret_cast<RTCRayHit *>(args->rayhit);
+    float o[3] = {rh->ray.org_x, rh->ray.org_y, rh->ray.org_z};
+    float d[3] = {rh->ray.dir_x, rh->ray.dir_y, rh->ray.dir_z}, grow[3] = {0, 0, 0};
+    double t = enter(o, d, b.min, b.max, grow, rh->ray.tfar);
+    if (t >= 0.0 && t < rh->ray.tfar) {
+        rh->ray.tfar = (float)t;
+        rh->hit.primID = args->primID;
+        rh->hit.geomID = args->geomID;
+    }
+}
+
+struct Embree {
+    RTCDevice device;
+    RTCScene scene;
+    double build_s;
+    explicit Embree(const std::vector<bpx_box> &boxes)
+    {
+        device = rtcNewDevice("threads=1");
+        scene = rtcNewScene(device);
+        RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+        rtcSetGeometryUserPrimitiveCount(geometry, (unsigned)boxes.size());
+        rtcSetGeometryUserData(geometry, const_cast<bpx_box *>(boxes.data()));
+        rtcSetGeometryBoundsFunction(geometry, embree_bounds, nullptr);
+        rtcSetGeometryIntersectFunction(geometry, embree_intersect);
+        rtcCommitGeometry(geometry);
+        rtcAttachGeometry(scene, geometry);
+        rtcReleaseGeometry(geometry);
+        double t0 = now_s();
+        rtcCommitScene(scene);
+        build_s = now_s() - t0;
+    }
+    ~Embree()
+    {
+        rtcReleaseScene(scene);
+        rtcReleaseDevice(device);
+    }
+    uint64_t cast(const bpx_query &q)
+    {
+        RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        RTCRayHit rh{};
+        rh.ray.org_x = q.origin[0];
+        rh.ray.org_y = q.origin[1];
+        rh.ray.org_z = q.origin[2];
+        rh.ray.dir_x = q.direction[0];
+        rh.ray.dir_y = q.direction[1];
+        rh.ray.dir_z = q.direction[2];
+        rh.ray.tnear = 0.0f;
+        rh.ray.tfar = q.max_fraction;
+        rh.ray.mask = ~0u;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene, &context, &rh);
+        return rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    }
+};
+#endif
+
 template <class F> double time_each(const std::vector<bpx_query> &qs, F f, uint64_t *hits)
 {
     double t0 = now_s();
@@ -392,9 +468,10 @@ int main(int argc, char **argv)
                 "batch on %d workers\n\n",
                 workers, workers);
     std::printf("| scene | boxes | query | bpx 1t | bpx %dt | bullet-dbvt | box2d-tree (2D) | "
-                "bullet / bpx 1t | box2d / bpx 1t | hits per query |\n",
+                "embree (rays) | bullet / bpx 1t | box2d / bpx 1t | embree / bpx 1t | "
+                "hits per query |\n",
                 workers);
-    std::printf("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    std::printf("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     std::vector<std::string> first_rows;
     for (int heavy = 0; heavy < 2; heavy++)
         for (uint32_t n : sizes) {
@@ -434,6 +511,9 @@ int main(int argc, char **argv)
 #ifdef BPX_QB_HAVE_BOX2D
             Box2D box2d(w.boxes);
 #endif
+#ifdef BPX_QB_HAVE_EMBREE
+            Embree embree(w.boxes);
+#endif
             const std::vector<bpx_query> *sets[3] = {&w.rays, &w.regions, &w.sweeps};
             const char *names[3] = {"ray closest", "region", "swept box closest"};
             for (int k = 0; k < 3; k++) {
@@ -441,7 +521,7 @@ int main(int argc, char **argv)
                 if (qs_k.empty())
                     continue;
                 BpxResult b1 = run_bpx(one, qs_k), bm = run_bpx(many, qs_k);
-                double bullet_ns = NAN, box2d_ns = NAN;
+                double bullet_ns = NAN, box2d_ns = NAN, embree_ns = NAN;
                 uint64_t hits = 0;
 #ifdef BPX_QB_HAVE_BULLET
                 bullet_ns = time_each(
@@ -461,10 +541,21 @@ int main(int argc, char **argv)
                     [&](const bpx_query &q) { return k == 1 ? box2d.region(q) : box2d.cast(q); },
                     &hits);
 #endif
-                std::printf("| %s | %u | %s | %.0f | %.0f | %.0f | %.0f | %.1f× | %.1f× | %.2f "
-                            "|\n",
+#ifdef BPX_QB_HAVE_EMBREE
+                if (k == 0) {
+                    embree_ns = time_each(
+                        qs_k, [&](const bpx_query &q) { return embree.cast(q); }, &hits);
+                    if (hits != b1.hits)
+                        std::fprintf(stderr, "note: %s rays n=%u: embree %llu hits, bpx %llu\n",
+                                     scene, n, (unsigned long long)hits,
+                                     (unsigned long long)b1.hits);
+                }
+#endif
+                std::printf("| %s | %u | %s | %.0f | %.0f | %.0f | %.0f | %.0f | %.1f× | %.1f× | "
+                            "%.2f× | %.2f |\n",
                             scene, n, names[k], b1.ns_per_query, bm.ns_per_query, bullet_ns,
-                            box2d_ns, bullet_ns / b1.ns_per_query, box2d_ns / b1.ns_per_query,
+                            box2d_ns, embree_ns, bullet_ns / b1.ns_per_query,
+                            box2d_ns / b1.ns_per_query, embree_ns / b1.ns_per_query,
                             (double)b1.hits / (double)qs_k.size());
                 std::fflush(stdout);
             }
