@@ -55,11 +55,28 @@ static uint32_t spread(uint32_t v)
     return v;
 }
 
+/// Boxes whose largest side passes this many times the mean one go to a subtree of their own
+/// (bit 30 of their key): among small boxes a large one would inflate every node above it, the
+/// heavy-tailed case (the grid backend keeps its biggest boxes apart for the same reason).
+#define BPX_BVH_LARGE_FACTOR 4.0
+
+static double largest_side(const bpx_soa *s, uint32_t i)
+{
+    double side = 0.0;
+    for (int a = 0; a < 3; a++) {
+        double e = (double)s->hi[a][i] - (double)s->lo[a][i];
+        side = e > side ? e : side;
+    }
+    return side;
+}
+
 // Morton keys of the live boxes' centres in t->keys, their ids in t->ids; returns how many.
 // The keys only order the boxes: any rounding here changes the tree's shape, never a result.
 static uint32_t morton_keys(bpx_bvh *t, const bpx_soa *s)
 {
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double side_sum = 0.0;
+    uint32_t live_count = 0;
     for (uint32_t i = 0; i < s->n; i++) {
         if (!live(s, i))
             continue;
@@ -68,7 +85,10 @@ static uint32_t morton_keys(bpx_bvh *t, const bpx_soa *s)
             lo[a] = c < lo[a] ? c : lo[a];
             hi[a] = c > hi[a] ? c : hi[a];
         }
+        side_sum += largest_side(s, i);
+        live_count++;
     }
+    double large = live_count ? BPX_BVH_LARGE_FACTOR * side_sum / live_count : INFINITY;
     double scale[3];
     for (int a = 0; a < 3; a++)
         scale[a] = hi[a] > lo[a] ? 1023.0 / (hi[a] - lo[a]) : 0.0;
@@ -76,7 +96,7 @@ static uint32_t morton_keys(bpx_bvh *t, const bpx_soa *s)
     for (uint32_t i = 0; i < s->n; i++) {
         if (!live(s, i))
             continue;
-        uint32_t key = 0;
+        uint32_t key = largest_side(s, i) > large ? 1u << 30 : 0u;
         for (int a = 0; a < 3; a++) {
             double c = 0.5 * ((double)s->lo[a][i] + (double)s->hi[a][i]);
             key |= spread((uint32_t)((c - lo[a]) * scale[a])) << (2 - a);

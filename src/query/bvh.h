@@ -6,7 +6,7 @@
 
 /// Boxes per leaf at most: a leaf's boxes are tested one after another from contiguous memory.
 #define BPX_BVH_LEAF 4
-/// Deepest tree: 30 Morton bits split by bit, then equal codes halved (2^30 boxes at most).
+/// Deepest tree: 31 key bits (30 Morton, 1 large) split by bit, then equal keys halved.
 #define BPX_BVH_MAX_DEPTH 64
 
 /// A node, 32 bytes, in depth-first order: an inner node's first child is the next node.
