@@ -462,6 +462,13 @@ static PyObject *world_float_call(WorldObject *self, PyObject *obj, enum float_c
         return NULL;
     }
     if (call == UPDATE_CENTRES && n != bpx_world_box_count(self->world)) {
+        // bpx reads as many centres as it has objects: a shorter buffer never gets there. A
+        // world not in the two-phase mode says so first, as bpx would.
+        if (bpx_world_update_centres(self->world, NULL) == BPX_ERR_BAD_STATE) {
+            PyBuffer_Release(&view);
+            world_leave(self);
+            return raise_error(where, bpx_world_error(self->world));
+        }
         char message[96];
         snprintf(message, sizeof message, "%u centres for %u objects", n,
                  bpx_world_box_count(self->world));
@@ -668,8 +675,14 @@ static PyObject *World_events(WorldObject *self, PyObject *unused)
         return NULL;
     bpx_pair_events events;
     PyObject *result = NULL;
-    if (bpx_world_pair_events(self->world, &events) != BPX_OK) {
-        raise_error(where, bpx_world_error(self->world));
+    bpx_status status = bpx_world_pair_events(self->world, &events);
+    if (status != BPX_OK) {
+        // pair_events leaves the (const) world's error as it was: say here why there are none.
+        raise_status(where, status,
+                     status == BPX_ERR_BAD_STATE
+                         ? "no events: the world was made without track_events, or its last "
+                           "collide failed or has not run"
+                         : bpx_status_string(status));
     } else {
         PyObject *began = pairs_to_bytes(events.began, events.began_count);
         PyObject *ended = began ? pairs_to_bytes(events.ended, events.ended_count) : NULL;

@@ -37,7 +37,10 @@ def _check_real(array: np.ndarray, what: str, expected: str) -> None:
 
 def as_float32(array: np.ndarray) -> Tuple[np.ndarray, bool]:
     """The array as C-contiguous native float32, and whether that took a conversion."""
-    out = np.ascontiguousarray(array, dtype=np.float32)
+    # A float64 beyond float32's range becomes an infinity, which bpx then reports naming the
+    # box and axis: NumPy's overflow warning would only say it twice, without where.
+    with np.errstate(over="ignore"):
+        out = np.ascontiguousarray(array, dtype=np.float32)
     return out, out is not array
 
 
