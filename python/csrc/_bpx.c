@@ -287,6 +287,13 @@ static PyObject *py_last_input_address(PyObject *module, PyObject *unused)
     return PyLong_FromSize_t((size_t)last_input_address);
 }
 
+static PyObject *py_allocated_bytes(PyObject *module, PyObject *unused)
+{
+    (void)module;
+    (void)unused;
+    return PyLong_FromLongLong((long long)bpx_allocated_bytes());
+}
+
 static PyObject *py_backends(PyObject *module, PyObject *unused)
 {
     (void)module;
@@ -771,6 +778,8 @@ static PyMethodDef module_methods[] = {
     {"simd_widths", py_simd_widths, METH_NOARGS, "[(name, supported, lanes)]"},
     {"_last_input_address", py_last_input_address, METH_NOARGS,
      "Address of the last float buffer handed to bpx (for zero-copy tests)."},
+    {"_allocated_bytes", py_allocated_bytes, METH_NOARGS,
+     "Bytes bpx holds over all worlds (bpx_allocated_bytes; for leak tests)."},
     {"_time_c_find_pairs", py_time_c_find_pairs, METH_VARARGS,
      "_time_c_find_pairs(boxes, backend, repeats) -> ns: fastest bpx_find_pairs call in C."},
     {NULL, NULL, 0, NULL}};
