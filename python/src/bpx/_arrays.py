@@ -1,0 +1,115 @@
+"""NumPy arrays in and out of the extension module.
+
+Everything the C layer receives is a C-contiguous float32 or uint32 array. An array that
+already is one is passed on as it is: bpx reads the caller's memory, nothing is copied. Any
+other real dtype (float64, float16, integers) or layout (Fortran order, strides, a byte-swapped
+dtype, a list) is converted once, with ``np.ascontiguousarray``. Rounding to float32 is
+monotone, so a float64 overlap (``min_i <= max_j``) is never lost; boxes closer than float32's
+resolution may pair as touching.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Optional, Tuple
+
+import numpy as np
+
+from ._errors import DTypeError, InvalidArgumentError
+
+UINT32_MAX = 0xFFFFFFFF
+
+
+def _asarray(value: Any, what: str) -> np.ndarray:
+    try:
+        array = np.asarray(value)
+    except (ValueError, TypeError) as exc:  # ragged lists and the like
+        raise InvalidArgumentError(f"{what}: not an array: {exc}") from None
+    return array
+
+
+def _check_real(array: np.ndarray, what: str, expected: str) -> None:
+    if array.dtype.kind not in "fiu":
+        raise DTypeError(
+            f"{what}: dtype {array.dtype} cannot hold {expected}; "
+            "expected float32 (other real dtypes are converted)"
+        )
+
+
+def as_float32(array: np.ndarray) -> Tuple[np.ndarray, bool]:
+    """The array as C-contiguous native float32, and whether that took a conversion."""
+    # A float64 beyond float32's range becomes an infinity, which bpx then reports naming the
+    # box and axis: NumPy's overflow warning would only say it twice, without where.
+    with np.errstate(over="ignore"):
+        out = np.ascontiguousarray(array, dtype=np.float32)
+    return out, out is not array
+
+
+def boxes_array(
+    boxes: Any, what: str = "boxes", mins: Any = None, maxs: Any = None
+) -> Tuple[np.ndarray, bool]:
+    """Boxes as an (n, 6) C-contiguous float32 array [min x, y, z, max x, y, z] (bpx_box's
+    layout), and whether it is a converted copy.
+
+    Takes (n, 6), (n, 2, 3) (row 0 the minimum corner), or separate (n, 3) ``mins`` and
+    ``maxs`` (always one copy: the two are interleaved).
+    """
+    if mins is not None or maxs is not None:
+        if boxes is not None:
+            raise InvalidArgumentError(f"{what}: give boxes, or mins and maxs, not both")
+        if mins is None or maxs is None:
+            raise InvalidArgumentError(f"{what}: mins and maxs go together")
+        lo = vec3_array(mins, "mins")[0]
+        hi = vec3_array(maxs, "maxs")[0]
+        if lo.shape != hi.shape:
+            raise InvalidArgumentError(
+                f"{what}: mins has shape {lo.shape} but maxs has shape {hi.shape}"
+            )
+        return np.concatenate([lo, hi], axis=1), True
+    if boxes is None:
+        raise InvalidArgumentError(f"{what}: no boxes given")
+    array = _asarray(boxes, what)
+    _check_real(array, what, "coordinates")
+    if array.ndim == 3 and array.shape[1:] == (2, 3):
+        # Made contiguous first, so that the reshape is a view and the conversion one copy.
+        out, converted = as_float32(array)
+        return out.reshape(out.shape[0], 6), converted
+    if array.ndim != 2 or array.shape[1] != 6:
+        raise InvalidArgumentError(
+            f"{what}: expected shape (n, 6) or (n, 2, 3), got {array.shape}"
+        )
+    return as_float32(array)
+
+
+def vec3_array(values: Any, what: str) -> Tuple[np.ndarray, bool]:
+    """Three floats per object (extents, centres) as (n, 3) C-contiguous float32."""
+    array = _asarray(values, what)
+    _check_real(array, what, "coordinates")
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise InvalidArgumentError(f"{what}: expected shape (n, 3), got {array.shape}")
+    return as_float32(array)
+
+
+def uint32_array(values: Any, what: str, count: Optional[int] = None) -> np.ndarray:
+    """Ids, categories or masks as a 1-D C-contiguous uint32 array, every value checked to fit
+    (a negative id is an error naming its position, never a wrapped-around huge id). A scalar
+    stands for one value, or for ``count`` copies of it when count is given."""
+    array = _asarray(values, what)
+    if array.dtype.kind not in "iu":
+        raise DTypeError(f"{what}: dtype {array.dtype} is not an integer dtype")
+    if array.ndim == 0:
+        array = np.broadcast_to(array, (1 if count is None else count,))
+    if array.ndim != 1:
+        raise InvalidArgumentError(f"{what}: expected a 1-D array, got shape {array.shape}")
+    if array.size and array.dtype != np.uint32:
+        if int(array.min()) < 0:
+            k = int(np.argmax(array < 0))
+            raise InvalidArgumentError(f"{what}[{k}] is {array[k]}: negative", index=k)
+        if int(array.max()) > UINT32_MAX:
+            k = int(np.argmax(array > UINT32_MAX))
+            raise InvalidArgumentError(f"{what}[{k}] is {array[k]}: above 2**32 - 1", index=k)
+    return np.ascontiguousarray(array, dtype=np.uint32)
+
+
+def pairs_from_bytes(data: bytearray) -> np.ndarray:
+    """(k, 2) uint32 pairs over the bytearray the C layer filled: a view, no copy."""
+    return np.frombuffer(data, dtype=np.uint32).reshape(-1, 2)

@@ -1,0 +1,25 @@
+import os
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))  # scenes.py
+
+import bpx  # noqa: E402
+
+# Backends that run on this machine, auto first; model (the FPGA clock by clock) and opencl
+# (PoCL on a CPU) are slow per box, so their tests use smaller sets.
+BACKENDS = bpx.available_backends()
+SLOW_BACKENDS = {"model", "opencl", "cuda", "reference"}
+
+
+def pytest_report_header(config):
+    rows = [f"{b.name}{'' if b.available else ' (unavailable: ' + b.reason + ')'}"
+            for b in bpx.backends()]
+    return [f"bpx {bpx.__version__} from {os.path.dirname(bpx.__file__)}",
+            "backends: " + ", ".join(rows)]
+
+
+@pytest.fixture(params=BACKENDS)
+def backend(request):
+    return request.param
