@@ -131,8 +131,8 @@ def make_queries(boxes, k, seed):
     d = directions(rng, k)
     aim = rng.uniform(0, 1, k) < 0.3  # segments from a point to another: max_fraction 1
     with np.errstate(over="ignore", invalid="ignore"):
-        target = pick(rng, boxes, k).astype(np.float64) - origins.astype(np.float64)
-        d[aim] = np.where(np.isfinite(target[aim]), target[aim], 1.0).astype(np.float32)
+        target = (pick(rng, boxes, k).astype(np.float64) - origins).astype(np.float32)
+        d[aim] = np.where(np.isfinite(target[aim]), target[aim], np.float32(1.0))
     m = max_fractions(rng, k, d)
     m[aim & np.any(d != 0, axis=1)] = 1.0
     m = np.where(np.all(d == 0, axis=1), np.float32(0.0), m).astype(np.float32)
@@ -142,6 +142,8 @@ def make_queries(boxes, k, seed):
         hi = np.minimum(lo.astype(np.float64) + size, 3.4e38).astype(np.float32)
     hi = np.maximum(hi, lo)
     radii = rng.choice(np.array([0.0, 0.5, 1.0, 2.5], np.float32), k)
+    drawn = rng.uniform(0, 1, k) < 0.3
+    radii[drawn] = rng.uniform(0, 3, int(drawn.sum()))
     return {
         "origins": origins,
         "directions": d,
