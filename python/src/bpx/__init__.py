@@ -19,6 +19,12 @@ A simulation's loop::
             pairs = world.collide()
             began, ended = world.events
 
+Queries on a world's boxes::
+
+    world.query_box([0, 0, 0, 1, 1, 1])    # ids overlapping a region, sorted
+    world.ray_cast(origin, direction)      # Hit(id, fraction) of the closest hit, or None
+    world.ray_cast_batch(origins, directions, all=True)   # CSR: (offsets, ids, fractions)
+
 Errors are ``bpx.Error`` subclasses (``ValueError`` for bad input, ``MemoryError`` for memory)
 whose message names the box and the axis.
 """
@@ -47,6 +53,7 @@ from ._errors import (
     TooManyBoxesError,
     UnknownBackendError,
 )
+from ._query import BatchHits, BatchIds, Hit, Hits, QueryStats
 from ._world import PairEvents, Stats, World
 
 __version__ = _c_version
@@ -55,6 +62,11 @@ __all__ = [
     "World",
     "Stats",
     "PairEvents",
+    "Hit",
+    "Hits",
+    "BatchIds",
+    "BatchHits",
+    "QueryStats",
     "Backend",
     "backends",
     "available_backends",

@@ -7,6 +7,10 @@ import numpy as np
 
 version: str
 MAX_BOXES: int
+QUERY_BOX: int
+QUERY_SPHERE: int
+QUERY_RAY: int
+QUERY_SWEEP: int
 
 def find_pairs(boxes: NDArray[np.float32], backend: str, threads: int) -> bytearray: ...
 def backends() -> List[Tuple[str, bool, str, str]]: ...
@@ -44,3 +48,16 @@ class World:
     def events(self) -> Tuple[bytearray, bytearray]: ...
     def stats(self) -> Dict[str, Any]: ...
     def box_count(self) -> int: ...
+    # params: (k, 6 | 4 | 7 | 10) float32 rows by kind (csrc/_bpx.c); categories and masks
+    # uint32, 1 or k each. Returns (ids, fractions or None), or with batch
+    # (offsets as size_t, ids, fractions or None).
+    def query(
+        self,
+        kind: int,
+        closest: bool,
+        params: NDArray[np.float32],
+        categories: NDArray[np.uint32],
+        masks: NDArray[np.uint32],
+        batch: bool,
+    ) -> Tuple[bytearray, ...]: ...
+    def query_stats(self) -> Dict[str, int]: ...

@@ -30,7 +30,8 @@ class Error(Exception):
 
     Attributes:
         status: the C status name, e.g. ``"BPX_ERR_NOT_FINITE"``.
-        index: the first offending box (or the position in an ids list), or None.
+        index: the first offending box (or the position in an ids list, or the query's
+            position in a batch), or None.
         axis: 0, 1 or 2 for x, y, z where an axis is involved, else None.
     """
 
@@ -52,7 +53,8 @@ class InvalidArgumentError(Error, ValueError):
 
 
 class InvalidBoxError(InvalidArgumentError):
-    """A box, extent or centre that bpx refuses; ``index`` and ``axis`` say which."""
+    """A box, extent or centre, or a query's box, centre, origin or direction, that bpx
+    refuses; ``index`` and ``axis`` say which."""
 
 
 class NotFiniteError(InvalidBoxError):

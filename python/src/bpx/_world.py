@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, NamedTuple, Optional
+import math
+from typing import Any, NamedTuple, Optional, Union
 
 import numpy as np
 
@@ -11,6 +12,22 @@ from . import _bpx
 from ._arrays import boxes_array, pairs_from_bytes, uint32_array, vec3_array
 from ._core import check_backend, check_threads, converted_note
 from ._errors import InvalidArgumentError
+from ._query import (
+    ALL,
+    BatchHits,
+    BatchIds,
+    Hit,
+    Hits,
+    Params,
+    QueryStats,
+    filter_arrays,
+    many_boxes,
+    many_scalars,
+    many_vec3,
+    one_box,
+    one_scalar,
+    one_vec3,
+)
 
 
 @dataclass(frozen=True)
@@ -58,6 +75,12 @@ class World:
 
     Filters: ``set_filters(ids, categories, masks)``; a and b pair only if
     ``(category_a & mask_b) and (category_b & mask_a)``.
+
+    Queries, over the current boxes (removed ids never come back), with a filter of their own:
+    ``query_box`` and ``query_sphere`` (sorted uint32 ids), ``ray_cast`` and ``sweep`` (the
+    closest ``Hit(id, fraction)`` or None, or with ``all=True`` every hit as
+    ``Hits(ids, fractions)``), and each ``*_batch`` form for many queries at once on the
+    world's threads, in CSR form. The answers are exact, as include/bpx/query.h defines them.
 
     Events: with ``track_events=True``, ``events`` holds the pairs that began and ended with
     the last collide.
@@ -215,9 +238,256 @@ class World:
         return self._track_events
 
     # -- queries ------------------------------------------------------------------------------
-    # Ray casts and region queries over the world's boxes come here when the C API has them
-    # (bpx_world_query_* in include/bpx/bpx.h): each as a method taking NumPy arrays and
-    # returning sorted uint32 ids, through the same conversions and error mapping as above.
+    # bpx_world_query and bpx_world_query_batch (include/bpx/query.h, docs/queries.md). Each
+    # method shapes its arguments into float32 rows (bpx/_query.py) and one C call runs the
+    # queries with the GIL released and returns ids, fractions and CSR offsets as buffers that
+    # NumPy wraps without a copy.
+
+    def _query(
+        self,
+        kind: int,
+        closest: bool,
+        params: Params,
+        category: np.ndarray,
+        mask: np.ndarray,
+        batch: bool,
+    ) -> tuple:
+        with converted_note(params.overflowed):
+            return self._c.query(kind, closest, params.rows, category, mask, batch)
+
+    def query_box(self, box: Any, *, category: Any = ALL, mask: Any = ALL) -> np.ndarray:
+        """Ids of the boxes that overlap a box region, sorted: (k,) uint32.
+
+        Box b is a hit iff the closed intervals overlap on x, y and z (the pairs' predicate:
+        touching counts).
+
+        Args:
+            box: (6,) [min x, y, z, max x, y, z] or (2, 3) [[min], [max]].
+            category, mask: the query's filter; it sees box b iff
+                ``(category & mask_b) and (category_b & mask)``, the rule between two boxes.
+                The default (all ones) sees every box whose mask is not 0.
+
+        Raises:
+            NotFiniteError, MinGreaterThanMaxError: a bad box (``.axis`` names the axis);
+            InvalidArgumentError: a wrong shape, a category or mask out of 0 .. 2**32 - 1;
+            StateError: a closed world, or boxes in a device buffer.
+        """
+        what = "World.query_box"
+        params = Params(1, 6)
+        params.put(one_box(box, f"{what}: box"))
+        cat, msk = filter_arrays(category, mask, what, None)
+        ids, _ = self._query(_bpx.QUERY_BOX, False, params, cat, msk, False)
+        return np.frombuffer(ids, np.uint32)
+
+    def query_sphere(
+        self, centre: Any, radius: Any, *, category: Any = ALL, mask: Any = ALL
+    ) -> np.ndarray:
+        """Ids of the boxes that overlap a sphere, sorted: (k,) uint32.
+
+        Box b is a hit iff ``d2 <= radius * radius`` in double precision, where d2 sums over
+        the axes ``g * g``, ``g = max(b.min - c, c - b.max, 0)`` (centre and radius as
+        float32): a box the sphere touches is a hit; radius 0 is a point query.
+
+        Args:
+            centre: (3,). radius: a number >= 0.
+            category, mask: the query's filter, as in ``query_box``.
+
+        Raises:
+            NotFiniteError: a NaN or infinite centre (``.axis``) or radius;
+            InvalidArgumentError: a negative radius, a wrong shape, a bad category or mask.
+        """
+        what = "World.query_sphere"
+        params = Params(1, 4)
+        params.put(one_vec3(centre, f"{what}: centre"))
+        params.put(one_scalar(radius, f"{what}: radius"))
+        cat, msk = filter_arrays(category, mask, what, None)
+        ids, _ = self._query(_bpx.QUERY_SPHERE, False, params, cat, msk, False)
+        return np.frombuffer(ids, np.uint32)
+
+    def ray_cast(
+        self,
+        origin: Any,
+        direction: Any,
+        max_fraction: Any = math.inf,
+        *,
+        all: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
+    ) -> Union[Optional[Hit], Hits]:
+        """What the ray ``origin + t * direction``, t in [0, max_fraction], hits.
+
+        The ray is the sweep of the point box [origin, origin]; see ``sweep`` for the exact
+        test. A ray that starts inside or on a box hits it at fraction 0; a ray along a face or
+        an edge hits the boxes that share it. direction need not be unit length (a unit one
+        makes fractions distances); a zero direction needs max_fraction 0 (a point query).
+
+        Args:
+            origin, direction: (3,) each.
+            max_fraction: the largest t, >= 0; +inf (the default) for an unbounded ray, 1 for
+                the segment from origin to origin + direction.
+            all: False (the default): the closest hit only; True: every hit.
+            category, mask: the query's filter, as in ``query_box``.
+
+        Returns:
+            all=False: ``Hit(id, fraction)`` with the least fraction (ties to the lowest id), or
+            None when the ray hits nothing. all=True: ``Hits(ids, fractions)``, (k,) uint32 and
+            (k,) float32, sorted by fraction, then id.
+
+        Raises:
+            NotFiniteError: a NaN or infinite origin or direction (``.axis``), a NaN
+            max_fraction; InvalidArgumentError: a negative max_fraction, a zero direction with
+            max_fraction > 0, a wrong shape, a bad category or mask.
+        """
+        what = "World.ray_cast"
+        params = Params(1, 7)
+        params.put(one_vec3(origin, f"{what}: origin"))
+        params.put(one_vec3(direction, f"{what}: direction"))
+        params.put(one_scalar(max_fraction, f"{what}: max_fraction"))
+        cat, msk = filter_arrays(category, mask, what, None)
+        ids, fractions = self._query(_bpx.QUERY_RAY, not all, params, cat, msk, False)
+        return _hits(ids, fractions, bool(all))
+
+    def sweep(
+        self,
+        box: Any,
+        translation: Any,
+        max_fraction: Any = 1.0,
+        *,
+        all: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
+    ) -> Union[Optional[Hit], Hits]:
+        """What a box q moving by ``t * translation``, t in [0, max_fraction], hits.
+
+        Exactly (include/bpx/query.h): per axis, with d the translation's component, d == 0
+        admits every t if ``b.min <= q.max and b.max >= q.min`` and no t otherwise; d != 0
+        admits t between ``(b.min - q.max) * inv`` and ``(b.max - q.min) * inv``,
+        ``inv = 1.0 / d``, each step in double precision. With enter the largest lower end over
+        the axes and exit the smallest upper end, b is hit iff
+        ``max(enter, 0) <= min(exit, max_fraction)``, at fraction ``max(enter, 0)`` rounded to
+        float32. A box that starts touching b hits it at fraction 0.
+
+        Args:
+            box: the box at t = 0, (6,) or (2, 3) as in ``query_box``.
+            translation: (3,); zero needs max_fraction 0.
+            max_fraction: the largest t, >= 0 (default 1: the whole translation; +inf allowed).
+            all, category, mask: as in ``ray_cast``.
+
+        Returns:
+            As ``ray_cast``: ``Hit(id, fraction)`` or None, or with all=True ``Hits``.
+
+        Raises:
+            As ``ray_cast``, and MinGreaterThanMaxError for a box with min > max.
+        """
+        what = "World.sweep"
+        params = Params(1, 10)
+        params.put(one_box(box, f"{what}: box"))
+        params.put(one_vec3(translation, f"{what}: translation"))
+        params.put(one_scalar(max_fraction, f"{what}: max_fraction"))
+        cat, msk = filter_arrays(category, mask, what, None)
+        ids, fractions = self._query(_bpx.QUERY_SWEEP, not all, params, cat, msk, False)
+        return _hits(ids, fractions, bool(all))
+
+    # Batches: many queries of one kind in one call, on the world's threads
+    # (bpx_world_query_batch). Results are CSR: query k's hits are [offsets[k], offsets[k + 1])
+    # of ids (and fractions), the same as k single queries would give. A bad query raises
+    # naming its position in the batch (``.index``) and nothing runs.
+
+    def query_box_batch(
+        self, boxes: Any, *, category: Any = ALL, mask: Any = ALL
+    ) -> BatchIds:
+        """``query_box`` for each of k boxes ((k, 6) or (k, 2, 3)) at once.
+
+        category and mask: a number for every query or (k,) arrays.
+
+        Returns:
+            ``BatchIds(offsets, ids)``: query j's ids, sorted, are
+            ``ids[offsets[j]:offsets[j + 1]]`` (also ``.query(j)``, ``.split()``, ``.counts``).
+        """
+        what = "World.query_box_batch"
+        array = many_boxes(boxes, f"{what}: boxes")
+        params = Params(array.shape[0], 6)
+        params.put(array)
+        cat, msk = filter_arrays(category, mask, what, array.shape[0])
+        offsets, ids, _ = self._query(_bpx.QUERY_BOX, False, params, cat, msk, True)
+        return BatchIds(np.frombuffer(offsets, np.intp), np.frombuffer(ids, np.uint32))
+
+    def query_sphere_batch(
+        self, centres: Any, radii: Any, *, category: Any = ALL, mask: Any = ALL
+    ) -> BatchIds:
+        """``query_sphere`` for k spheres at once: centres (k, 3), radii a number or (k,);
+        category and mask a number or (k,). Returns ``BatchIds(offsets, ids)`` as
+        ``query_box_batch``."""
+        what = "World.query_sphere_batch"
+        centre_array = many_vec3(centres, f"{what}: centres")
+        count = centre_array.shape[0]
+        params = Params(count, 4)
+        params.put(centre_array)
+        params.put(many_scalars(radii, f"{what}: radii", count))
+        cat, msk = filter_arrays(category, mask, what, count)
+        offsets, ids, _ = self._query(_bpx.QUERY_SPHERE, False, params, cat, msk, True)
+        return BatchIds(np.frombuffer(offsets, np.intp), np.frombuffer(ids, np.uint32))
+
+    def ray_cast_batch(
+        self,
+        origins: Any,
+        directions: Any,
+        max_fractions: Any = math.inf,
+        *,
+        all: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
+    ) -> BatchHits:
+        """``ray_cast`` for k rays at once: origins and directions (k, 3), max_fractions a
+        number or (k,), category and mask a number or (k,).
+
+        Returns:
+            ``BatchHits(offsets, ids, fractions)``: ray j's hits are
+            ``ids[offsets[j]:offsets[j + 1]]`` and the same slice of fractions (also
+            ``.query(j)``, ``.split()``, ``.counts``). With all=False each ray has 0 or 1 hit
+            (its closest); with all=True every hit, sorted by fraction, then id.
+        """
+        what = "World.ray_cast_batch"
+        origin_array = many_vec3(origins, f"{what}: origins")
+        count = origin_array.shape[0]
+        params = Params(count, 7)
+        params.put(origin_array)
+        params.put(many_vec3(directions, f"{what}: directions", count))
+        params.put(many_scalars(max_fractions, f"{what}: max_fractions", count))
+        cat, msk = filter_arrays(category, mask, what, count)
+        offsets, ids, fractions = self._query(_bpx.QUERY_RAY, not all, params, cat, msk, True)
+        return _batch_hits(offsets, ids, fractions)
+
+    def sweep_batch(
+        self,
+        boxes: Any,
+        translations: Any,
+        max_fractions: Any = 1.0,
+        *,
+        all: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
+    ) -> BatchHits:
+        """``sweep`` for k boxes at once: boxes (k, 6) or (k, 2, 3), translations (k, 3),
+        max_fractions a number or (k,), category and mask a number or (k,). Returns
+        ``BatchHits(offsets, ids, fractions)`` as ``ray_cast_batch``."""
+        what = "World.sweep_batch"
+        box_array = many_boxes(boxes, f"{what}: boxes")
+        count = box_array.shape[0]
+        params = Params(count, 10)
+        params.put(box_array)
+        params.put(many_vec3(translations, f"{what}: translations", count))
+        params.put(many_scalars(max_fractions, f"{what}: max_fractions", count))
+        cat, msk = filter_arrays(category, mask, what, count)
+        offsets, ids, fractions = self._query(_bpx.QUERY_SWEEP, not all, params, cat, msk, True)
+        return _batch_hits(offsets, ids, fractions)
+
+    @property
+    def query_stats(self) -> QueryStats:
+        """The query tree's builds, refits, nodes, boxes and last update's ns
+        (``bpx_world_query_stats``). The first query after the boxes changed refits the tree
+        when the same ids only moved and rebuilds it when ids came or went."""
+        return QueryStats(**self._c.query_stats())
 
     # -- life -----------------------------------------------------------------------------------
 
@@ -247,3 +517,21 @@ class World:
             f"<bpx.World backend={self._requested!r} threads={self._threads} "
             f"boxes={len(self)} track_events={self._track_events}>"
         )
+
+
+def _hits(ids: bytearray, fractions: bytearray, every: bool) -> Union[Optional[Hit], Hits]:
+    id_array = np.frombuffer(ids, np.uint32)
+    fraction_array = np.frombuffer(fractions, np.float32)
+    if every:
+        return Hits(id_array, fraction_array)
+    if id_array.shape[0] == 0:
+        return None
+    return Hit(int(id_array[0]), float(fraction_array[0]))
+
+
+def _batch_hits(offsets: bytearray, ids: bytearray, fractions: bytearray) -> BatchHits:
+    return BatchHits(
+        np.frombuffer(offsets, np.intp),
+        np.frombuffer(ids, np.uint32),
+        np.frombuffer(fractions, np.float32),
+    )
