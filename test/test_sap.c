@@ -11,7 +11,7 @@
 #include <stdatomic.h>
 #include <time.h>
 
-#include "cpu/kernels.h"
+#include "cpu/backends.h"
 #include "pairs_util.h"
 #include "scenes.h"
 
