@@ -2,20 +2,12 @@
 // schedule against Table 1 and its clock count per first address, the peak read bandwidth the
 // paper quotes, pairs equal to the reference for m = 1, 2, 4, 8, 16 on every scene kind (on chip,
 // tiled from the SSRAM, streamed beyond the on-chip RAMs, FIFOs small enough to overflow), the
-// paper's two phases, clock counts, the trace hook, the 512-box limit, errors and allocation
-// failure.
+// paper's two phases, clock counts, the trace hook and the model backend. The 512-box limit,
+// errors and allocation failure: test_model_errors.c.
 #include <math.h>
-#include <time.h>
 
-#include "pairs_util.h"
+#include "model_util.h"
 #include "scenes.h"
-
-static double now_s(void)
-{
-    struct timespec ts;
-    timespec_get(&ts, TIME_UTC);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 #define D BPX_MODEL_DISCARDED
 
@@ -122,13 +114,6 @@ static void test_schedule_clocks(void)
 // ---------------------------------------------------------------------------------------------
 // Reports
 
-static bpx_model *new_model(const bpx_model_config *config)
-{
-    bpx_model *model = NULL;
-    CHECK_STATUS(bpx_model_create(config, &model), BPX_OK);
-    return model;
-}
-
 static void test_bandwidth(void)
 {
     check_set_context("peak read bandwidth");
@@ -207,26 +192,6 @@ static void test_clock_counts(void)
 
 // ---------------------------------------------------------------------------------------------
 // Pairs against the reference
-
-// The reference backend's pairs, through a world kept by the caller.
-static void reference_pairs(bpx_world *reference, const bpx_box *boxes, uint32_t n, pair_list *out)
-{
-    out->count = 0;
-    CHECK_STATUS(bpx_world_set_boxes(reference, boxes, n), BPX_OK);
-    CHECK_STATUS(bpx_world_collide(reference), BPX_OK);
-    size_t count = 0;
-    const bpx_pair *pairs = bpx_world_pairs(reference, &count);
-    pair_list_set(out, pairs, count);
-}
-
-static bpx_world *reference_world(void)
-{
-    bpx_world_def def = bpx_default_world_def();
-    def.backend = BPX_BACKEND_REFERENCE;
-    bpx_world *world = NULL;
-    CHECK_STATUS(bpx_world_create(&def, &world), BPX_OK);
-    return world;
-}
 
 // A hash of a multiset of pairs: equal for any order of the same pairs.
 static uint64_t multiset_hash(const bpx_pair *pairs, size_t count)
@@ -618,289 +583,11 @@ static void test_backend(void)
     bpx_world_destroy(reference);
     bpx_world_destroy(world);
 }
-
-// ---------------------------------------------------------------------------------------------
-// Limits and errors
-
-static void test_limits(void)
-{
-    check_set_context("the paper's 512-box limit");
-    bpx_model_config config = bpx_model_default_config();
-    CHECK(config.m == 4 && config.clock_hz == 108e6 && config.ram_depth == 512 &&
-          config.store == BPX_MODEL_STORE_ON_CHIP && config.ssram_depth == 524288);
-    bpx_model *model = new_model(&config);
-    if (!model)
-        return;
-    enum { n = 513 };
-    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
-    float *minima = check_alloc(sizeof(float) * 3 * n);
-    CHECK(scene_generate(SCENE_SPARSE, n, 9, boxes) == 0);
-    for (int k = 0; k < 3 * n; k++)
-        minima[k] = -1.0f;
-    CHECK_STATUS(bpx_model_run_boxes(model, boxes, 512, NULL), BPX_OK);
-    size_t before = 0;
-    bpx_model_pairs(model, &before);
-    CHECK_STATUS(bpx_model_run_boxes(model, boxes, n, NULL), BPX_ERR_TOO_MANY_BOXES);
-    const bpx_error *e = bpx_model_error(model);
-    CHECK(e->status == BPX_ERR_TOO_MANY_BOXES);
-    CHECK_MSG(strstr(e->message, "512") && strstr(e->message, "513"), "message: %s", e->message);
-    size_t after = 0;
-    bpx_model_pairs(model, &after);
-    CHECK_EQ_U64(after, before); // the last result stays
-    CHECK_STATUS(bpx_model_load_extents(model, minima, n, NULL), BPX_ERR_TOO_MANY_BOXES);
-    CHECK_STATUS(bpx_model_load_extents(model, minima, 512, NULL), BPX_OK);
-    bpx_model_destroy(model);
-
-    check_set_context("SSRAM limit");
-    config.store = BPX_MODEL_STORE_SSRAM;
-    config.ssram_depth = 600;
-    model = new_model(&config);
-    if (model) {
-        CHECK_STATUS(bpx_model_run_boxes(model, boxes, n, NULL), BPX_OK);
-        bpx_box *more = check_alloc(sizeof(bpx_box) * 601);
-        CHECK(scene_generate(SCENE_SPARSE, 601, 9, more) == 0);
-        CHECK_STATUS(bpx_model_run_boxes(model, more, 601, NULL), BPX_ERR_TOO_MANY_BOXES);
-        free(more);
-        bpx_model_destroy(model);
-    }
-    free(boxes);
-    free(minima);
-}
-
-static void test_errors(void)
-{
-    check_set_context("config errors");
-    bpx_model *model = (bpx_model *)&model;
-    CHECK_STATUS(bpx_model_create(NULL, &model), BPX_ERR_NULL_ARGUMENT);
-    CHECK(model == NULL);
-    bpx_model_config good = bpx_model_default_config();
-    CHECK_STATUS(bpx_model_create(&good, NULL), BPX_ERR_NULL_ARGUMENT);
-    CHECK_STATUS(bpx_model_check_config(&good, NULL), BPX_OK);
-    for (int k = 0; k < 14; k++) {
-        bpx_model_config c = good;
-        switch (k) {
-        case 0:
-            c.m = 0;
-            break;
-        case 1:
-            c.m = BPX_MODEL_MAX_M + 1;
-            break;
-        case 2:
-            c.clock_hz = 0;
-            break;
-        case 3:
-            c.clock_hz = NAN;
-            break;
-        case 4:
-            c.ram_depth = 15;
-            break; // below 4m
-        case 5:
-            c.ram_depth = 101;
-            break; // odd
-        case 6:
-            c.fifo_depth = 0;
-            break;
-        case 7:
-            c.ssram_latency = 0;
-            break;
-        case 8:
-            c.ssram_latency = 9;
-            break;
-        case 9:
-            c.link.bytes_per_s = 0;
-            break;
-        case 10:
-            c.link.setup_ns = -1;
-            break;
-        case 11:
-            c.link.register_ns = INFINITY;
-            break;
-        case 12:
-            c.store = BPX_MODEL_STORE_COUNT;
-            break;
-        default:
-            c.ssram_depth = 0;
-            break;
-        }
-        check_set_context("config error %d", k);
-        bpx_error err;
-        CHECK_STATUS(bpx_model_check_config(&c, &err), BPX_ERR_INVALID_ARGUMENT);
-        CHECK(err.message[0] != '\0');
-        model = (bpx_model *)&model;
-        CHECK_STATUS(bpx_model_create(&c, &model), BPX_ERR_INVALID_ARGUMENT);
-        CHECK(model == NULL);
-    }
-
-    check_set_context("call errors");
-    CHECK(bpx_model_error(NULL)->status == BPX_ERR_NULL_ARGUMENT);
-    CHECK(bpx_model_pairs(NULL, NULL) == NULL);
-    bpx_model_destroy(NULL);
-    model = new_model(&good);
-    if (!model)
-        return;
-    size_t count = 7;
-    CHECK(bpx_model_pairs(model, &count) == NULL && count == 0);
-    float centres[6] = {0, 0, 0, 1, 1, 1};
-    float minima[6] = {-1, -1, -1, -1, -1, -1};
-    CHECK_STATUS(bpx_model_run_centres(model, centres, NULL), BPX_ERR_BAD_STATE);
-    CHECK_STATUS(bpx_model_run_centres(NULL, centres, NULL), BPX_ERR_NULL_ARGUMENT);
-    CHECK_STATUS(bpx_model_load_extents(model, NULL, 2, NULL), BPX_ERR_NULL_ARGUMENT);
-    minima[4] = 0.5f;
-    CHECK_STATUS(bpx_model_load_extents(model, minima, 2, NULL), BPX_ERR_MIN_GREATER_THAN_MAX);
-    CHECK(bpx_model_error(model)->index == 1 && bpx_model_error(model)->axis == 1);
-    minima[4] = NAN;
-    CHECK_STATUS(bpx_model_load_extents(model, minima, 2, NULL), BPX_ERR_NOT_FINITE);
-    minima[4] = -1;
-    CHECK_STATUS(bpx_model_load_extents(model, minima, 2, NULL), BPX_OK);
-    CHECK_STATUS(bpx_model_run_centres(model, NULL, NULL), BPX_ERR_NULL_ARGUMENT);
-    centres[5] = INFINITY;
-    CHECK_STATUS(bpx_model_run_centres(model, centres, NULL), BPX_ERR_NOT_FINITE);
-    centres[5] = 1;
-    CHECK_STATUS(bpx_model_run_centres(model, centres, NULL), BPX_OK);
-    const bpx_pair *pairs = bpx_model_pairs(model, &count);
-    CHECK(count == 1 && pairs && pairs[0].i == 0 && pairs[0].j == 1);
-    bpx_box bad[2] = {{{0, 0, 0}, {1, 1, 1}}, {{2, 0, 0}, {1, 1, 1}}};
-    CHECK_STATUS(bpx_model_run_boxes(model, bad, 2, NULL), BPX_ERR_MIN_GREATER_THAN_MAX);
-    CHECK_STATUS(bpx_model_run_boxes(model, NULL, 2, NULL), BPX_ERR_NULL_ARGUMENT);
-    CHECK_STATUS(bpx_model_run_boxes(model, NULL, 0, NULL), BPX_OK);
-    CHECK(bpx_model_pairs(model, &count) != NULL || count == 0);
-    CHECK_EQ_U64(count, 0);
-    bpx_model_destroy(model);
-}
-
-// ---------------------------------------------------------------------------------------------
-// Allocation failure: every allocation of the model and of a world on the model backend may
-// fail; each call then returns OK or OUT_OF_MEMORY, and nothing leaks.
-
-static long long fa_budget = -1; // successful allocations left; negative: unlimited
-static long long fa_live;
-
-static void *fa_alloc(size_t size, size_t alignment, void *user)
-{
-    (void)user;
-    if (fa_budget >= 0 && fa_budget-- == 0)
-        return NULL;
-    size_t rounded = (size + alignment - 1) / alignment * alignment;
-    void *p = aligned_alloc(alignment, rounded ? rounded : alignment);
-    fa_live += p != NULL;
-    return p;
-}
-
-static void fa_free(void *memory, void *user)
-{
-    (void)user;
-    fa_live -= memory != NULL;
-    free(memory);
-}
-
-static bool ok_or_oom(bpx_status s)
-{
-    return s == BPX_OK || s == BPX_ERR_OUT_OF_MEMORY;
-}
-
-static bool alloc_run(long long budget, const bpx_box *boxes, const float *minima,
-                      const float *centres, uint32_t n, const pair_list *want)
-{
-    fa_budget = budget;
-    bool all_ok = true;
-    bpx_model_config config = bpx_model_default_config();
-    config.store = BPX_MODEL_STORE_STREAM;
-    config.ram_depth = 64;
-    bpx_model *model = NULL;
-    bpx_status s = bpx_model_create(&config, &model);
-    CHECK_MSG(ok_or_oom(s), "create: %s", check_status_name(s));
-    all_ok &= s == BPX_OK;
-    if (s == BPX_OK) {
-        s = bpx_model_load_extents(model, minima, n, NULL);
-        CHECK_MSG(ok_or_oom(s), "load_extents: %s", check_status_name(s));
-        all_ok &= s == BPX_OK;
-        if (s == BPX_OK) {
-            s = bpx_model_run_centres(model, centres, NULL);
-            CHECK_MSG(ok_or_oom(s), "run_centres: %s", check_status_name(s));
-            all_ok &= s == BPX_OK;
-        }
-        s = bpx_model_run_boxes(model, boxes, n, NULL);
-        CHECK_MSG(ok_or_oom(s), "run_boxes: %s", check_status_name(s));
-        all_ok &= s == BPX_OK;
-        if (s == BPX_OK) {
-            size_t count = 0;
-            const bpx_pair *pairs = bpx_model_pairs(model, &count);
-            CHECK_PAIRS_EQ(want->pairs, want->count, pairs, count);
-        }
-        bpx_model_destroy(model);
-    }
-    bpx_world_def def = bpx_default_world_def();
-    def.backend = BPX_BACKEND_MODEL;
-    bpx_world *world = NULL;
-    s = bpx_world_create(&def, &world);
-    CHECK_MSG(ok_or_oom(s), "world create: %s", check_status_name(s));
-    all_ok &= s == BPX_OK;
-    if (s == BPX_OK) {
-        s = bpx_world_set_boxes(world, boxes, n);
-        all_ok &= s == BPX_OK;
-        if (s == BPX_OK) {
-            s = bpx_world_collide(world);
-            CHECK_MSG(ok_or_oom(s), "collide: %s", check_status_name(s));
-            all_ok &= s == BPX_OK;
-        }
-        fa_budget = -1; // memory back: the world recovers
-        CHECK_STATUS(bpx_world_set_boxes(world, boxes, n), BPX_OK);
-        CHECK_STATUS(bpx_world_collide(world), BPX_OK);
-        size_t count = 0;
-        const bpx_pair *pairs = bpx_world_pairs(world, &count);
-        CHECK_PAIRS_EQ(want->pairs, want->count, pairs, count);
-        bpx_world_destroy(world);
-    }
-    fa_budget = -1;
-    return all_ok;
-}
-
-static void test_allocation_failure(void)
-{
-    enum { n = 300 };
-    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
-    float *minima = check_alloc(sizeof(float) * 3 * n);
-    float *centres = check_alloc(sizeof(float) * 3 * n);
-    CHECK(scene_generate(SCENE_DENSE, n, 31, boxes) == 0);
-    for (uint32_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
-            minima[3 * i + a] = -half;
-            centres[3 * i + a] = boxes[i].min[a] + half;
-        }
-    pair_list want = {0};
-    bpx_world *reference = reference_world();
-    if (reference)
-        reference_pairs(reference, boxes, n, &want);
-    bpx_world_destroy(reference);
-    int64_t start = bpx_allocated_bytes();
-    bpx_set_allocator(fa_alloc, fa_free, NULL);
-    long long budget = 0;
-    for (; budget < 10000; budget++) {
-        check_set_context("model: allocation failure after %lld allocations", budget);
-        bool done = alloc_run(budget, boxes, minima, centres, n, &want);
-        CHECK_MSG(bpx_allocated_bytes() == start, "allocated %lld bytes, started at %lld",
-                  (long long)bpx_allocated_bytes(), (long long)start);
-        CHECK_EQ_U64(fa_live, 0);
-        if (done)
-            break;
-    }
-    bpx_set_allocator(NULL, NULL, NULL);
-    printf("  allocation failure: a full run needs %lld allocations; every shorter budget "
-           "failed cleanly\n",
-           budget);
-    CHECK(budget > 3 && budget < 10000);
-    pair_list_free(&want);
-    free(boxes);
-    free(minima);
-    free(centres);
-}
-
 int main(void)
 {
     double t0 = now_s();
     printf("test_model: Table 1, schedules, clocks, reports, differential (m = 1, 2, 4, 8, 16), "
-           "two phases, trace, backend, limits, errors, allocation failure\n");
+           "two phases, trace, backend\n");
     test_table1();
     test_schedule_clocks();
     test_bandwidth();
@@ -910,9 +597,6 @@ int main(void)
     test_trace();
     test_quiet_clocks();
     test_backend();
-    test_limits();
-    test_errors();
-    test_allocation_failure();
     printf("  %.2f s\n", now_s() - t0);
     return check_finish("test_model", 1);
 }

@@ -1,9 +1,11 @@
 // Objects added and removed between cycles, collision filters, and begin/end pair events.
+#include "objects.h"
+
 #include <string.h>
 
 #include "alloc.h"
+#include "boxes.h"
 #include "validate.h"
-#include "world.h"
 
 // ---------------------------------------------------------------------------------------------
 // Per-id arrays
@@ -137,10 +139,7 @@ bpx_status bpx_world_add_boxes(bpx_world *w, const bpx_box *boxes, uint32_t coun
         w->dead[id] = 0;
         if (w->category)
             w->category[id] = 1, w->mask[id] = UINT32_MAX;
-        for (int a = 0; a < 3; a++) {
-            w->boxes.lo[a][id] = boxes[k].min[a];
-            w->boxes.hi[a][id] = boxes[k].max[a];
-        }
+        bpx__box_set(w, id, &boxes[k]);
         out_ids[k] = id;
     }
     return BPX_OK;
@@ -208,11 +207,7 @@ bpx_status bpx_world_move_boxes(bpx_world *w, const uint32_t *ids, const bpx_box
     if (status != BPX_OK)
         return status;
     for (uint32_t k = 0; k < count; k++)
-        for (int a = 0; a < 3; a++) {
-            w->boxes.lo[a][ids[k]] = boxes[k].min[a];
-            w->boxes.hi[a][ids[k]] = boxes[k].max[a];
-        }
-    w->boxes_version++;
+        bpx__box_set(w, ids[k], &boxes[k]);
     return BPX_OK;
 }
 

@@ -2,12 +2,13 @@
 #include "world.h"
 
 #include <float.h>
-#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "alloc.h"
+#include "boxes.h"
 #include "clock.h"
+#include "objects.h"
 #include "transpose.h"
 #include "validate.h"
 
@@ -92,106 +93,15 @@ bpx_backend_info bpx_backend_query(bpx_backend backend)
 // ---------------------------------------------------------------------------------------------
 // Lifetime
 
-static void free_arrays(bpx_box_arrays *b)
-{
-    for (int a = 0; a < 3; a++) {
-        bpx__free(b->lo[a], sizeof(float) * b->capacity);
-        bpx__free(b->hi[a], sizeof(float) * b->capacity);
-    }
-    *b = (bpx_box_arrays){0};
-}
-
 static void free_boxes(bpx_world *w)
 {
-    free_arrays(&w->boxes);
-    free_arrays(&w->spare);
+    bpx__box_arrays_free(&w->boxes);
+    bpx__box_arrays_free(&w->spare);
     for (int a = 0; a < 3; a++) {
         bpx__free(w->minima[a], sizeof(float) * w->extent_capacity);
         w->minima[a] = NULL;
     }
     w->extent_capacity = 0;
-}
-
-// Boxes plus padding: n rounded up to whole groups, plus one more group, because a row's
-// first group starts at the vector holding i + 1 and may run past the rounded end.
-static uint32_t padded(uint32_t n)
-{
-    return (n + BPX_PAD_LANES - 1) / BPX_PAD_LANES * BPX_PAD_LANES + BPX_PAD_LANES;
-}
-
-// Makes b hold n boxes plus padding; contents are not kept.
-static bool reserve_arrays(bpx_box_arrays *b, uint32_t n)
-{
-    uint32_t capacity = padded(n);
-    if (capacity <= b->capacity)
-        return true;
-    bpx_box_arrays grown = {.capacity = capacity};
-    for (int a = 0; a < 3; a++) {
-        grown.lo[a] = bpx__alloc(sizeof(float) * capacity);
-        grown.hi[a] = bpx__alloc(sizeof(float) * capacity);
-        if (!grown.lo[a] || !grown.hi[a]) {
-            free_arrays(&grown); // frees what was allocated (NULL is fine)
-            return false;
-        }
-    }
-    free_arrays(b);
-    *b = grown;
-    return true;
-}
-
-// Padding boxes can never overlap anything: min = +inf fails every `min_j <= max_i`.
-static void pad_arrays(bpx_box_arrays *b, uint32_t n)
-{
-    for (uint32_t i = n; i < padded(n); i++)
-        for (int a = 0; a < 3; a++) {
-            b->lo[a][i] = INFINITY;
-            b->hi[a][i] = -INFINITY;
-        }
-}
-
-bool bpx__boxes_resize(bpx_world *w, uint32_t n)
-{
-    if (padded(n) > w->boxes.capacity) {
-        if (!reserve_arrays(&w->spare, n))
-            return false;
-        for (int a = 0; a < 3; a++) {
-            memcpy(w->spare.lo[a], w->boxes.lo[a], sizeof(float) * w->n);
-            memcpy(w->spare.hi[a], w->boxes.hi[a], sizeof(float) * w->n);
-        }
-        bpx_box_arrays current = w->boxes;
-        w->boxes = w->spare;
-        w->spare = current;
-    }
-    for (uint32_t i = w->n; i < n; i++)
-        bpx__box_make_inert(w, i);
-    w->n = n;
-    pad_arrays(&w->boxes, n);
-    w->stats.box_count = n;
-    w->planned_n = UINT32_MAX;
-    w->boxes_version++;
-    return true;
-}
-
-void bpx__box_make_inert(bpx_world *w, uint32_t id)
-{
-    for (int a = 0; a < 3; a++) {
-        w->boxes.lo[a][id] = INFINITY;
-        w->boxes.hi[a][id] = -INFINITY;
-    }
-    w->boxes_version++;
-}
-
-// The spare set becomes current.
-static void swap_in_spare(bpx_world *w, uint32_t n)
-{
-    bpx_box_arrays current = w->boxes;
-    w->boxes = w->spare;
-    w->spare = current;
-    w->n = n;
-    pad_arrays(&w->boxes, n);
-    w->stats.box_count = n;
-    w->boxes_version++;
-    w->boxes_on_device = false;
 }
 
 bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
@@ -227,15 +137,15 @@ bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
         .finish_task = def->finish_task,
         .user_task_context = def->user_task_context,
     };
-    bool ok = reserve_arrays(&w->boxes, def->capacity_hint) &&
-              reserve_arrays(&w->spare, def->capacity_hint);
+    bool ok = bpx__box_arrays_reserve(&w->boxes, def->capacity_hint) &&
+              bpx__box_arrays_reserve(&w->spare, def->capacity_hint);
     if (ok && !def->enqueue_task && w->def.worker_count > 1)
         ok = (w->executor.pool = bpx__pool_create(w->def.worker_count - 1, w->def.spin_us));
     if (!ok) {
         bpx_world_destroy(w);
         return BPX_ERR_OUT_OF_MEMORY;
     }
-    pad_arrays(&w->boxes, 0);
+    bpx__box_arrays_pad(&w->boxes, 0);
     *out_world = w;
     return BPX_OK;
 }
@@ -402,7 +312,7 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
                           "%u boxes exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
     if (!boxes && n > 0)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "boxes is NULL");
-    if (!reserve_arrays(&w->spare, n))
+    if (!bpx__box_arrays_reserve(&w->spare, n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u boxes", n);
     // One pass: transpose into the spare set and check every box, without branching on data,
@@ -415,7 +325,7 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
     if (!bpx__objects_reset(w, n)) // the last step that can fail: it changes nothing on failure
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
-    swap_in_spare(w, n);
+    bpx__boxes_swap_in_spare(w, n);
     // The boxes no longer come from the loaded extents: centres would rebuild stale boxes.
     w->extents_loaded = false;
     if (w->backend->boxes_set)
@@ -446,14 +356,14 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
     bool ok = true;
     for (int a = 0; a < 3 && grow_minima && ok; a++)
         ok = (arrays[a] = bpx__alloc(sizeof(float) * n)) != NULL;
-    ok = ok && reserve_arrays(&w->spare, n);
-    if (ok && padded(n) > w->boxes.capacity)
-        ok = reserve_arrays(&grown, n);
+    ok = ok && bpx__box_arrays_reserve(&w->spare, n);
+    if (ok && bpx__boxes_padded(n) > w->boxes.capacity)
+        ok = bpx__box_arrays_reserve(&grown, n);
     ok = ok && bpx__objects_reset(w, n); // the last step that can fail; it commits on success
     if (!ok) {
         for (int a = 0; a < 3; a++)
             bpx__free(arrays[a], sizeof(float) * n);
-        free_arrays(&grown);
+        bpx__box_arrays_free(&grown);
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
     }
@@ -465,7 +375,7 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
         w->extent_capacity = n;
     }
     if (grown.capacity) {
-        free_arrays(&w->boxes);
+        bpx__box_arrays_free(&w->boxes);
         w->boxes = grown;
     }
     // Until the first centres arrive, every object sits at the origin (the paper's n register
@@ -479,7 +389,7 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
         }
     w->extent_count = n;
     w->extents_loaded = true;
-    swap_in_spare(w, n);
+    bpx__boxes_swap_in_spare(w, n);
     if (w->backend->boxes_set)
         w->backend->boxes_set(w, NULL);
     return BPX_OK;
@@ -508,7 +418,7 @@ bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
         const float *const minima[3] = {w->minima[0], w->minima[1], w->minima[2]};
         return bpx__check_centres(centres, minima, n, &w->error); // names the first bad one
     }
-    swap_in_spare(w, n);
+    bpx__boxes_swap_in_spare(w, n);
     bpx__objects_reinert(w); // removed objects stay out of the broad phase
     if (w->backend->boxes_set)
         w->backend->boxes_set(w, centres);

@@ -130,25 +130,6 @@ static inline bpx_soa bpx__world_soa(const bpx_world *w)
     return (bpx_soa){{b->lo[0], b->lo[1], b->lo[2]}, {b->hi[0], b->hi[1], b->hi[2]}, w->n};
 }
 
-// Box storage (world.c).
-/// Resizes the current boxes to n, keeping boxes below min(n, old n); new slots are inert.
-bool bpx__boxes_resize(bpx_world *w, uint32_t n);
-/// Makes box id inert (never overlaps anything).
-void bpx__box_make_inert(bpx_world *w, uint32_t id);
-
-// Objects, filters and events (objects.c).
-/// Every id below n live, none pending or free; filters kept for the ids in use below both the
-/// old n (w->n, so call before the boxes change) and the new, else reset (set_boxes, load).
-/// All or nothing: on false (no memory) nothing changed.
-bool bpx__objects_reset(bpx_world *w, uint32_t n);
-/// Re-inerts removed ids after the updater rewrote every box.
-void bpx__objects_reinert(bpx_world *w);
-/// Drops filtered-out hits from the blocks (no-op without filters).
-void bpx__filter_blocks(bpx_world *w);
-/// After a successful collide: events from the merged pairs, then pending ids become free.
-bpx_status bpx__objects_after_collide(bpx_world *w, const bpx_pair *pairs, size_t count);
-void bpx__objects_free(bpx_world *w);
-
 // Queries (src/query/query.c).
 typedef struct bpx_query_state bpx_query_state;
 void bpx__query_free(bpx_world *w);

@@ -22,9 +22,9 @@
 #include <emmintrin.h>
 #endif
 
+#include "backends.h"
 #include "core/alloc.h"
 #include "core/world.h"
-#include "kernels.h"
 
 enum {
     // Brute and prune cross between 100 and 150 boxes on Table 2's scenario (mean us per cycle:

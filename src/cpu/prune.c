@@ -8,10 +8,11 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "backends.h"
 #include "core/alloc.h"
 #include "core/clock.h"
 #include "core/world.h"
-#include "kernels.h"
+#include "cpu_features.h"
 #include "sort.h"
 
 enum {

@@ -4,6 +4,7 @@
 
 #include <stdio.h>
 
+#include "core/boxes.h"
 #include "core/clock.h"
 #include "core/validate.h"
 #include "core/world.h"

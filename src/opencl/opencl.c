@@ -12,6 +12,7 @@
 
 #include <string.h>
 
+#include "core/boxes.h"
 #include "core/clock.h"
 #include "core/log.h"
 #include "core/validate.h"

@@ -8,7 +8,7 @@
 
 #include "core/alloc.h"
 #include "core/world.h"
-#include "cpu/kernels.h"
+#include "cpu/backends.h"
 #include "cpu/sort.h"
 #include "grid.h"
 

@@ -31,7 +31,7 @@
 #include "core/alloc.h"
 #include "core/transpose.h"
 #include "core/world.h"
-#include "cpu/kernels.h"
+#include "cpu/backends.h"
 #include "cpu/sort.h"
 
 enum {

@@ -14,6 +14,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "cpu/cpu_features.h"
 #include "sap_internal.h"
 
 // The scan mend: the fat boxes in SoA (a->lo, a->hi, slot 0 the swept axis; a->sorted_ids),

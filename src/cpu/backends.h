@@ -1,25 +1,10 @@
-// The comparator kernels, compiled once per instruction set (kernels_<isa>.c) and picked at run
-// time by SIMD width (brute.c holds the table).
+// What the CPU backends lend one another: prune's sweep (sap's rebuild), the grid as a pair
+// finder (sap's rebuild on dense scenes), the sweep's limit (auto, sap) and sap's counters
+// (for the tests). The kernels themselves, and the choice of one per SIMD width, are in
+// cpu_features.h.
 #pragma once
 
 #include "core/world.h"
-
-/// Rows [row_begin, row_end) of the triangle i < j (brute_kernel.h), hits in (i, j) order.
-typedef void bpx_brute_rows_fn(const bpx_soa *s, uint32_t row_begin, uint32_t row_end,
-                               bpx_block *out);
-/// Sorted positions [row_begin, row_end) swept forward (prune_kernel.h), hits unordered.
-typedef void bpx_prune_rows_fn(const bpx_sorted *s, uint32_t row_begin, uint32_t row_end,
-                               bpx_block *out);
-
-/// Positions [k0, k1) of s whose box overlaps exactly one of boxes a and b (min then max per
-/// slot, in s's slot order), ascending into out; returns the count (scan_kernel.h, sap's mend).
-typedef uint32_t bpx_scan_differs_fn(const bpx_sorted *s, uint32_t k0, uint32_t k1,
-                                     const float a[6], const float b[6], uint32_t *out);
-
-/// The kernels for a supported width (AUTO: the widest); the scalar ones otherwise.
-bpx_brute_rows_fn *bpx__brute_rows_for(bpx_simd simd);
-bpx_prune_rows_fn *bpx__prune_rows_for(bpx_simd simd);
-bpx_scan_differs_fn *bpx__scan_differs_for(bpx_simd simd);
 
 /// Sweeps the world's first `blocks` blocks (their row ranges of `sorted`) on its workers with the
 /// prune kernel of its SIMD width; hits land in each block (prune.c; sap's rebuild uses it too).

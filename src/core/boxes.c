@@ -1,0 +1,98 @@
+// The world's box storage (boxes.h): two sets of six padded arrays, the current boxes and the
+// spare set the updater writes and checks before swapping it in, so bad input leaves the world
+// unchanged.
+#include "boxes.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "alloc.h"
+
+void bpx__box_arrays_free(bpx_box_arrays *b)
+{
+    for (int a = 0; a < 3; a++) {
+        bpx__free(b->lo[a], sizeof(float) * b->capacity);
+        bpx__free(b->hi[a], sizeof(float) * b->capacity);
+    }
+    *b = (bpx_box_arrays){0};
+}
+
+// Boxes plus padding: n rounded up to whole groups, plus one more group, because a row's
+// first group starts at the vector holding i + 1 and may run past the rounded end.
+uint32_t bpx__boxes_padded(uint32_t n)
+{
+    return (n + BPX_PAD_LANES - 1) / BPX_PAD_LANES * BPX_PAD_LANES + BPX_PAD_LANES;
+}
+
+bool bpx__box_arrays_reserve(bpx_box_arrays *b, uint32_t n)
+{
+    uint32_t capacity = bpx__boxes_padded(n);
+    if (capacity <= b->capacity)
+        return true;
+    bpx_box_arrays grown = {.capacity = capacity};
+    for (int a = 0; a < 3; a++) {
+        grown.lo[a] = bpx__alloc(sizeof(float) * capacity);
+        grown.hi[a] = bpx__alloc(sizeof(float) * capacity);
+        if (!grown.lo[a] || !grown.hi[a]) {
+            bpx__box_arrays_free(&grown); // frees what was allocated (NULL is fine)
+            return false;
+        }
+    }
+    bpx__box_arrays_free(b);
+    *b = grown;
+    return true;
+}
+
+// Padding boxes can never overlap anything: min = +inf fails every `min_j <= max_i`.
+void bpx__box_arrays_pad(bpx_box_arrays *b, uint32_t n)
+{
+    for (uint32_t i = n; i < bpx__boxes_padded(n); i++)
+        for (int a = 0; a < 3; a++) {
+            b->lo[a][i] = INFINITY;
+            b->hi[a][i] = -INFINITY;
+        }
+}
+
+bool bpx__boxes_resize(bpx_world *w, uint32_t n)
+{
+    if (bpx__boxes_padded(n) > w->boxes.capacity) {
+        if (!bpx__box_arrays_reserve(&w->spare, n))
+            return false;
+        for (int a = 0; a < 3; a++) {
+            memcpy(w->spare.lo[a], w->boxes.lo[a], sizeof(float) * w->n);
+            memcpy(w->spare.hi[a], w->boxes.hi[a], sizeof(float) * w->n);
+        }
+        bpx_box_arrays current = w->boxes;
+        w->boxes = w->spare;
+        w->spare = current;
+    }
+    for (uint32_t i = w->n; i < n; i++)
+        bpx__box_make_inert(w, i);
+    w->n = n;
+    bpx__box_arrays_pad(&w->boxes, n);
+    w->stats.box_count = n;
+    w->planned_n = UINT32_MAX;
+    w->boxes_version++;
+    return true;
+}
+
+void bpx__box_make_inert(bpx_world *w, uint32_t id)
+{
+    for (int a = 0; a < 3; a++) {
+        w->boxes.lo[a][id] = INFINITY;
+        w->boxes.hi[a][id] = -INFINITY;
+    }
+    w->boxes_version++;
+}
+
+void bpx__boxes_swap_in_spare(bpx_world *w, uint32_t n)
+{
+    bpx_box_arrays current = w->boxes;
+    w->boxes = w->spare;
+    w->spare = current;
+    w->n = n;
+    bpx__box_arrays_pad(&w->boxes, n);
+    w->stats.box_count = n;
+    w->boxes_version++;
+    w->boxes_on_device = false;
+}

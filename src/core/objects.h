@@ -1,0 +1,19 @@
+// The object layer's side of the world (objects.c): what the world's interface and updater call
+// when boxes are replaced, rewritten and collided. The object layer's own state is the per-id
+// part of struct bpx_world (world.h); it changes boxes only through the box storage (boxes.h),
+// never through the world's interface, so calls go one way: world.c -> objects.c -> boxes.c.
+#pragma once
+
+#include "world.h"
+
+/// Every id below n live, none pending or free; filters kept for the ids in use below both the
+/// old n (w->n, so call before the boxes change) and the new, else reset (set_boxes, load).
+/// All or nothing: on false (no memory) nothing changed.
+bool bpx__objects_reset(bpx_world *w, uint32_t n);
+/// Re-inerts removed ids after the updater rewrote every box.
+void bpx__objects_reinert(bpx_world *w);
+/// Drops filtered-out hits from the blocks (no-op without filters).
+void bpx__filter_blocks(bpx_world *w);
+/// After a successful collide: events from the merged pairs, then pending ids become free.
+bpx_status bpx__objects_after_collide(bpx_world *w, const bpx_pair *pairs, size_t count);
+void bpx__objects_free(bpx_world *w);

@@ -1,0 +1,401 @@
+// Allocation failure through the public API: every allocation of each entry point fails in
+// turn, with no crash and no leak, and the call that fails for memory leaves the world as it was
+// (a twin that never saw the call answers every later call the same).
+#include <stdalign.h>
+#include <stdatomic.h>
+
+#include "error_util.h"
+#include "pairs_util.h"
+#include "scenes.h"
+
+// ---------------------------------------------------------------------------------------------
+// Allocation failure
+
+static atomic_llong fa_budget; // successful allocations left; negative: unlimited
+static atomic_llong fa_live;   // allocations not yet freed
+static atomic_int fa_misuse;   // bad alignment, foreign pointer or wrong user pointer
+static atomic_llong fa_failed;
+static int fa_tag;
+
+typedef struct fa_header {
+    alignas(64) size_t magic;
+} fa_header;
+
+static void *fa_alloc(size_t size, size_t alignment, void *user)
+{
+    if (user != &fa_tag || alignment == 0 || (alignment & (alignment - 1)) != 0 ||
+        alignment > 4096) {
+        atomic_fetch_add(&fa_misuse, 1);
+        return NULL;
+    }
+    if (atomic_load(&fa_budget) >= 0 && atomic_fetch_sub(&fa_budget, 1) <= 0) {
+        atomic_fetch_add(&fa_failed, 1);
+        return NULL;
+    }
+    // A header before the block marks our pointers, so a foreign free is caught.
+    size_t align = alignment < sizeof(fa_header) ? sizeof(fa_header) : alignment;
+    size_t total = (align + size + align - 1) / align * align;
+    unsigned char *base = aligned_alloc(align, total);
+    if (!base) {
+        return NULL;
+    }
+    unsigned char *p = base + align;
+    fa_header h = {.magic = 0xfa11ed00u ^ (size_t)align};
+    memcpy(p - sizeof h, &h, sizeof h);
+    atomic_fetch_add(&fa_live, 1);
+    return p;
+}
+
+static void fa_free(void *memory, void *user)
+{
+    if (user != &fa_tag) {
+        atomic_fetch_add(&fa_misuse, 1);
+    }
+    if (!memory) {
+        return;
+    }
+    unsigned char *p = memory;
+    fa_header h;
+    memcpy(&h, p - sizeof h, sizeof h);
+    size_t align = h.magic ^ 0xfa11ed00u;
+    if (align < sizeof(fa_header) || align > 4096 || (align & (align - 1)) != 0) {
+        atomic_fetch_add(&fa_misuse, 1);
+        return;
+    }
+    atomic_fetch_sub(&fa_live, 1);
+    free(p - align);
+}
+
+static bool ok_or_oom(bpx_status s)
+{
+    return s == BPX_OK || s == BPX_ERR_OUT_OF_MEMORY;
+}
+
+// One full run with the first `budget` allocations succeeding; returns whether every call
+// succeeded (the run needed no more than `budget` allocations).
+static bool alloc_run(long long budget, int workers, const bpx_box *boxes, uint32_t n,
+                      const float *minima, const float *centres, const pair_list *want)
+{
+    atomic_store(&fa_budget, budget);
+    bool all_ok = true;
+    bpx_world_def def = bpx_default_world_def();
+    def.worker_count = workers;
+    bpx_world *w = (bpx_world *)&w;
+    bpx_status s = bpx_world_create(&def, &w);
+    CHECK_MSG(ok_or_oom(s), "create: %s", check_status_name(s));
+    if (s != BPX_OK) {
+        CHECK(w == NULL);
+        return false;
+    }
+    s = bpx_world_set_boxes(w, boxes, n);
+    CHECK_MSG(ok_or_oom(s), "set_boxes: %s", check_status_name(s));
+    all_ok &= s == BPX_OK;
+    bool have_boxes = s == BPX_OK;
+    s = bpx_world_collide(w);
+    CHECK_MSG(ok_or_oom(s), "collide: %s", check_status_name(s));
+    all_ok &= s == BPX_OK;
+    if (s == BPX_OK && have_boxes) {
+        size_t count = 0;
+        const bpx_pair *pairs = bpx_world_pairs(w, &count);
+        CHECK_PAIRS_EQ(want->pairs, want->count, pairs, count);
+    }
+    bpx_pair small[4];
+    size_t count = 0;
+    s = bpx_world_collide_into(w, small, 4, &count);
+    CHECK_MSG(s == BPX_ERR_CAPACITY || ok_or_oom(s), "collide_into: %s", check_status_name(s));
+    all_ok &= s == BPX_ERR_CAPACITY || (s == BPX_OK && !have_boxes);
+    s = bpx_world_load_extents(w, minima, n);
+    CHECK_MSG(ok_or_oom(s), "load_extents: %s", check_status_name(s));
+    all_ok &= s == BPX_OK;
+    if (s == BPX_OK) {
+        s = bpx_world_update_centres(w, centres);
+        CHECK_MSG(ok_or_oom(s), "update_centres: %s", check_status_name(s));
+        all_ok &= s == BPX_OK;
+        s = bpx_world_collide(w);
+        CHECK_MSG(ok_or_oom(s), "collide after update: %s", check_status_name(s));
+        all_ok &= s == BPX_OK;
+    }
+    // With memory back, a world that saw failures recovers.
+    atomic_store(&fa_budget, -1);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    size_t got = 0;
+    const bpx_pair *pairs = bpx_world_pairs(w, &got);
+    CHECK_PAIRS_EQ(want->pairs, want->count, pairs, got);
+    bpx_world_destroy(w);
+    return all_ok;
+}
+
+static void test_allocation_failure(void)
+{
+    enum { n = 400 };
+    const uint64_t seed = 4242;
+    check_set_seed(seed);
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    CHECK(scene_generate(SCENE_DENSE, n, seed, boxes) == 0);
+    float *minima = check_alloc(sizeof(float) * 3 * n);
+    float *centres = check_alloc(sizeof(float) * 3 * n);
+    for (uint32_t i = 0; i < n; i++) {
+        for (int a = 0; a < 3; a++) {
+            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
+            minima[3 * i + a] = -half;
+            centres[3 * i + a] = boxes[i].min[a] + half;
+        }
+    }
+    pair_list want = {0};
+    pair_list_brute(&want, boxes, n);
+
+    int64_t start = bpx_allocated_bytes();
+    atomic_store(&fa_budget, -1);
+    bpx_set_allocator(fa_alloc, fa_free, &fa_tag);
+    static const int worker_counts[] = {1, 2, 3, 8};
+    for (size_t wi = 0; wi < sizeof worker_counts / sizeof worker_counts[0]; wi++) {
+        int workers = worker_counts[wi];
+        long long budget = 0;
+        for (; budget < 100000; budget++) {
+            check_set_context("allocation failure after %lld allocations, %d workers", budget,
+                              workers);
+            bool done = alloc_run(budget, workers, boxes, n, minima, centres, &want);
+            CHECK_MSG(bpx_allocated_bytes() == start, "allocated %lld bytes, started at %lld",
+                      (long long)bpx_allocated_bytes(), (long long)start);
+            CHECK_EQ_U64(atomic_load(&fa_live), 0);
+            if (done) {
+                break;
+            }
+        }
+        printf("  %d workers: a full run needs %lld allocations; every shorter budget failed "
+               "cleanly\n",
+               workers, budget);
+        CHECK(budget > 0);
+    }
+    check_set_context("allocator hooks");
+    CHECK_EQ_U64(atomic_load(&fa_misuse), 0);
+    CHECK(atomic_load(&fa_failed) > 0);
+    bpx_set_allocator(NULL, NULL, NULL);
+
+    // The default allocator is back: a world works and frees everything.
+    bpx_world *w = new_world(2);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    bpx_world_destroy(w);
+    CHECK(bpx_allocated_bytes() == start);
+    pair_list_free(&want);
+    free(boxes);
+    free(minima);
+    free(centres);
+}
+
+// ---------------------------------------------------------------------------------------------
+// A call that fails for memory leaves the world as it was: a twin world that never saw the call
+// answers every later call the same (statuses, ids handed out, pairs, events).
+
+enum { keep_n = 300, keep_small = 50 };
+
+static struct {
+    bpx_box dense[keep_n];
+    bpx_box apart[keep_n]; // the same boxes far apart: no pairs
+    bpx_box pile[keep_n];  // every pair overlaps
+    float minima[3 * keep_n];
+    float tiny[3 * keep_n];
+    float centres[3 * keep_n]; // with minima, neighbours overlap on x
+    bpx_pair out[keep_n * keep_n / 2];
+    uint32_t ids[keep_n];
+} keep;
+
+static void setup_two_phase(bpx_world *w)
+{
+    CHECK_STATUS(bpx_world_load_extents(w, keep.minima, 2), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(w, keep.centres), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+}
+
+static void setup_plain(bpx_world *w)
+{
+    CHECK_STATUS(bpx_world_set_boxes(w, keep.dense, keep_small), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+}
+
+// Filters, removed ids free for reuse and one removed id still pending.
+static void setup_objects(bpx_world *w)
+{
+    setup_plain(w);
+    const uint32_t filtered[2] = {5, 9}, cats[2] = {2, 2}, masks[2] = {0, 1};
+    CHECK_STATUS(bpx_world_set_filters(w, filtered, cats, masks, 2), BPX_OK);
+    const uint32_t removed[3] = {3, 7, 11};
+    CHECK_STATUS(bpx_world_remove_boxes(w, removed, 2), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK_STATUS(bpx_world_remove_boxes(w, removed + 2, 1), BPX_OK);
+}
+
+// One pair last cycle, every pair now: the events' lists must grow, and the next events must
+// still be reported against that one pair.
+static void setup_events(bpx_world *w)
+{
+    bpx_box one_pair[keep_small];
+    memcpy(one_pair, keep.apart, sizeof one_pair);
+    one_pair[1] = one_pair[0];
+    CHECK_STATUS(bpx_world_set_boxes(w, one_pair, keep_small), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes(w, keep.pile, keep_small), BPX_OK);
+}
+
+static void setup_events_pending(bpx_world *w)
+{
+    setup_events(w);
+    const uint32_t removed[2] = {3, 11};
+    CHECK_STATUS(bpx_world_remove_boxes(w, removed, 2), BPX_OK);
+}
+
+static bpx_status call_load(bpx_world *w)
+{
+    return bpx_world_load_extents(w, keep.tiny, keep_n);
+}
+static bpx_status call_set(bpx_world *w)
+{
+    return bpx_world_set_boxes(w, keep.dense, keep_n);
+}
+static bpx_status call_add(bpx_world *w)
+{
+    return bpx_world_add_boxes(w, keep.dense, keep_n, keep.ids);
+}
+static const uint32_t some_ids[3] = {1, 2, 4};
+static bpx_status call_remove(bpx_world *w)
+{
+    return bpx_world_remove_boxes(w, some_ids, 3);
+}
+static bpx_status call_move(bpx_world *w)
+{
+    return bpx_world_move_boxes(w, some_ids, keep.apart + keep_n - 3, 3);
+}
+static bpx_status call_filters(bpx_world *w)
+{
+    const uint32_t cats[3] = {2, 2, 2}, masks[3] = {0, 0, 0};
+    return bpx_world_set_filters(w, some_ids, cats, masks, 3);
+}
+static bpx_status call_collide(bpx_world *w)
+{
+    return bpx_world_collide(w);
+}
+static bpx_status call_collide_into(bpx_world *w)
+{
+    size_t count = 0;
+    return bpx_world_collide_into(w, keep.out, sizeof keep.out / sizeof keep.out[0], &count);
+}
+
+typedef struct keep_case {
+    const char *name;
+    void (*setup)(bpx_world *w);
+    bpx_status (*call)(bpx_world *w);
+} keep_case;
+
+static void check_same_cycle(bpx_world *w, bpx_world *twin)
+{
+    CHECK_EQ_U64(bpx_world_box_count(w), bpx_world_box_count(twin));
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(twin), BPX_OK);
+    size_t count = 0, want_count = 0;
+    const bpx_pair *got = bpx_world_pairs(w, &count);
+    const bpx_pair *want = bpx_world_pairs(twin, &want_count);
+    CHECK_PAIRS_EQ(want, want_count, got, count);
+    bpx_pair_events ev, want_ev;
+    CHECK_STATUS(bpx_world_pair_events(w, &ev), BPX_OK);
+    CHECK_STATUS(bpx_world_pair_events(twin, &want_ev), BPX_OK);
+    CHECK_PAIRS_EQ(want_ev.began, want_ev.began_count, ev.began, ev.began_count);
+    CHECK_PAIRS_EQ(want_ev.ended, want_ev.ended_count, ev.ended, ev.ended_count);
+}
+
+// Adds a box to both (before a collide: pending ids must still be held back), then cycles.
+static void check_same_world(bpx_world *w, bpx_world *twin)
+{
+    uint32_t id = UINT32_MAX, want_id = UINT32_MAX;
+    CHECK_STATUS(bpx_world_add_boxes(w, keep.dense, 1, &id),
+                 bpx_world_add_boxes(twin, keep.dense, 1, &want_id));
+    CHECK_EQ_U64(id, want_id);
+    check_same_cycle(w, twin);
+    CHECK_STATUS(bpx_world_update_centres(w, keep.centres),
+                 bpx_world_update_centres(twin, keep.centres));
+    check_same_cycle(w, twin);
+    CHECK_STATUS(bpx_world_add_boxes(w, keep.dense, 2, keep.ids),
+                 bpx_world_add_boxes(twin, keep.dense, 2, keep.ids + 2));
+    CHECK(keep.ids[0] == keep.ids[2] && keep.ids[1] == keep.ids[3]);
+    check_same_cycle(w, twin);
+}
+
+static void test_failure_keeps_world(void)
+{
+    CHECK(scene_generate(SCENE_DENSE, keep_n, 2222, keep.dense) == 0);
+    for (uint32_t i = 0; i < keep_n; i++) {
+        keep.apart[i] = keep.dense[i];
+        keep.apart[i].min[0] += 1000.0f * (float)i;
+        keep.apart[i].max[0] += 1000.0f * (float)i;
+        keep.pile[i] = (bpx_box){{0, 0, 0}, {1 + 0.01f * (float)i, 1, 1}};
+        for (int a = 0; a < 3; a++) {
+            keep.minima[3 * i + a] = -0.5f;
+            keep.tiny[3 * i + a] = -0.01f;
+            keep.centres[3 * i + a] = a == 0 ? 0.75f * (float)i : 0.0f;
+        }
+    }
+    static const keep_case cases[] = {
+        {"load_extents over two-phase", setup_two_phase, call_load},
+        {"load_extents over objects", setup_objects, call_load},
+        {"set_boxes over two-phase", setup_two_phase, call_set},
+        {"set_boxes over objects", setup_objects, call_set},
+        {"add_boxes", setup_plain, call_add},
+        {"add_boxes over objects", setup_objects, call_add},
+        {"remove_boxes, first", setup_plain, call_remove},
+        {"move_boxes, first", setup_plain, call_move},
+        {"set_filters, first", setup_plain, call_filters},
+        {"collide with events", setup_events, call_collide},
+        {"collide_into with events", setup_events, call_collide_into},
+        {"collide with pending ids", setup_events_pending, call_collide},
+    };
+    int64_t start = bpx_allocated_bytes();
+    atomic_store(&fa_budget, -1);
+    bpx_set_allocator(fa_alloc, fa_free, &fa_tag);
+    bpx_world_def def = bpx_default_world_def();
+    def.track_events = true;
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        int failures = 0;
+        for (long long budget = 0; budget < 1000; budget++) {
+            check_set_context("%s, failing after %lld allocations", cases[c].name, budget);
+            bpx_world *w = NULL, *twin = NULL;
+            CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+            CHECK_STATUS(bpx_world_create(&def, &twin), BPX_OK);
+            if (!w || !twin) {
+                bpx_world_destroy(w);
+                bpx_world_destroy(twin);
+                break;
+            }
+            cases[c].setup(w);
+            cases[c].setup(twin);
+            atomic_store(&fa_budget, budget);
+            bpx_status s = cases[c].call(w);
+            atomic_store(&fa_budget, -1);
+            bool done = s == BPX_OK;
+            if (!done) {
+                failures++;
+                check_world_error(w, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1);
+                check_same_world(w, twin);
+            }
+            bpx_world_destroy(w);
+            bpx_world_destroy(twin);
+            CHECK_EQ_U64(atomic_load(&fa_live), 0);
+            if (done)
+                break;
+        }
+        check_set_context("%s", cases[c].name);
+        CHECK_MSG(failures > 0, "no allocation of the call failed: the case tests nothing");
+    }
+    bpx_set_allocator(NULL, NULL, NULL);
+    CHECK(bpx_allocated_bytes() == start);
+}
+
+int main(void)
+{
+    printf("test_out_of_memory: allocation scene dense n=400 seed 4242, twin scenes dense n=%d "
+           "seed 2222\n",
+           keep_n);
+    test_allocation_failure();
+    test_failure_keeps_world();
+    return check_finish("test_out_of_memory", 1);
+}
