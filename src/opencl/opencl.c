@@ -5,7 +5,9 @@
 // and writes keys (twin.h); the comparator (brute.cl: tiles in local memory, or sweep.cl: a radix
 // sort on min x and a sweep, for large n) counts each row's hits; a scan turns the counts into
 // places and the collision count (the paper's register), which the host reads; the emitter
-// kernel writes the pairs in (i, j) order and the host reads them into the world's block.
+// kernel writes the pairs in (i, j) order and the host reads them into the world's block. For
+// the largest sets a tree (tree.cl: a linear BVH built every cycle) finds the pairs instead, as
+// 64-bit keys that a radix sort puts in (i, j) order.
 // Buffers live as long as the world and only grow. Boxes beyond the memory limit are streamed in
 // blocks; pairs beyond it are read out in windows. Every command gets an event, and the events'
 // device times give the cycle's transfer and compute times (bpx_cycle_stats).
@@ -45,12 +47,16 @@ static uint32_t block_capacity(const cl_state *st, uint64_t bytes_per_box)
     return boxes > BPX_MAX_BOXES ? BPX_MAX_BOXES : (uint32_t)boxes;
 }
 
-// The sort and sweep's own buffers (a whole-set cycle keeps them for the next).
+// The sort and sweep's and the tree's own buffers (a whole-set cycle keeps them for the next).
 static void release_sweep_buffers(cl_state *st)
 {
-    dbuf *sweep_set[] = {&st->keys[0],   &st->keys[1],   &st->values[0], &st->values[1],
-                         &st->sorted_lo, &st->sorted_hi, &st->counts,    &st->offsets,
-                         &st->pi[0],     &st->pi[1],     &st->pj[0],     &st->pj[1]};
+    dbuf *sweep_set[] = {&st->keys[0],       &st->keys[1],       &st->values[0],
+                         &st->values[1],     &st->sorted_lo,     &st->sorted_hi,
+                         &st->counts,        &st->offsets,       &st->pi[0],
+                         &st->pi[1],         &st->pj[0],         &st->pj[1],
+                         &st->leaf_parent,   &st->node_parent,   &st->node_lo,
+                         &st->node_hi,       &st->flags,         &st->walk_tests,
+                         &st->pair_keys[0],  &st->pair_keys[1]};
     for (size_t k = 0; k < sizeof sweep_set / sizeof sweep_set[0]; k++)
         bpx__cl_dbuf_release(st, sweep_set[k]);
 }
@@ -73,16 +79,23 @@ static bpx_status run_cycle(cl_state *st, bpx_world *w, bpx_block *block)
     uint32_t fit_all = block_capacity(st, BYTES_PER_BOX);
     bool whole = (forced == 0 || forced >= n) && fit_all >= n;
     if (whole) {
-        bool sweep = w->def.opencl_method == BPX_OPENCL_SWEEP ||
-                     (w->def.opencl_method == BPX_OPENCL_AUTO && n >= SWEEP_MIN_N &&
-                      st->last_pairs <= (uint64_t)DENSE_PAIRS_PER_BOX * n);
-        if (sweep) {
-            bpx_status status = bpx__cl_sweep_all(st, w, block);
+        int method = w->def.opencl_method;
+        if (method == BPX_OPENCL_AUTO)
+            method = n < SWEEP_MIN_N || st->last_pairs > (uint64_t)DENSE_PAIRS_PER_BOX * n
+                         ? BPX_OPENCL_BRUTE
+                     : n < TREE_MIN_N ? BPX_OPENCL_SWEEP
+                                      : BPX_OPENCL_TREE;
+        if (method != BPX_OPENCL_BRUTE) {
+            bpx_status status = method == BPX_OPENCL_TREE ? bpx__cl_tree_all(st, w, block)
+                                                          : bpx__cl_sweep_all(st, w, block);
             if (status != BPX_ERR_DEVICE_MEMORY)
                 return status;
-            // Pairs beyond the limit: brute force reads them out in windows.
+            // Beyond the limit: brute force reads the pairs out in windows.
             block->hits.count = 0;
-            st->counters.sweep_fallbacks++;
+            if (method == BPX_OPENCL_TREE)
+                st->counters.tree_fallbacks++;
+            else
+                st->counters.sweep_fallbacks++;
             clFinish(st->queue);
             release_sweep_buffers(st); // brute force may need the room
         }

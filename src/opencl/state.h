@@ -1,6 +1,6 @@
 // The opencl backend's state (one per world) and the calls its files share: buffers.c (device
-// memory, events, launches, transfers), update.c (the updater), brute.c and sweep.c (the
-// comparator's two paths), opencl.c (the cycle and the public calls).
+// memory, events, launches, transfers), update.c (the updater), brute.c, sweep.c and tree.c (the
+// comparator's three paths), sort.c (scans and sorts), opencl.c (the cycle and the public calls).
 
 #pragma once
 
@@ -28,6 +28,15 @@ enum kernel_id {
     K_SWEEP_WRITE,
     K_SWEEP_INTERLEAVE,
     K_BRUTE_SMALL,
+    K_RADIX_COUNT64,
+    K_RADIX_SCATTER64,
+    K_TREE_RESET,
+    K_TREE_BOUNDS,
+    K_TREE_CODES,
+    K_TREE_BUILD,
+    K_TREE_REFIT,
+    K_TREE_WALK,
+    K_TREE_UNPACK,
     K_COUNT
 };
 
@@ -43,7 +52,10 @@ enum {
     BYTES_PER_BOX = 2 * 16 + 4 + 4 * BPX_CL_STASH + 24,
     // Streaming keeps two blocks of keys and of input.
     BYTES_PER_STREAMED_BOX = BYTES_PER_BOX + 2 * 16 + 24,
-    REGISTER_SLOTS = 4, // 0: brute count, 1: sweep count, 2: scratch scans
+    // Auto method: the tree from this many boxes on (the sweep's candidates grow like n^(5/3),
+    // the tree's work like n). Measured on PoCL: docs/opencl.md.
+    TREE_MIN_N = 16384,
+    REGISTER_SLOTS = 4, // 0: brute count, 1: sweep count, 2: scratch scans, 3: tree tests
 };
 
 enum { EV_IN, EV_OUT, EV_DEVICE, EV_CLASSES };
@@ -91,6 +103,8 @@ typedef struct cl_state {
     // Sort and sweep.
     dbuf keys[2], values[2], sorted_lo, sorted_hi, counts, offsets, sums, hist, hist_offsets;
     dbuf pi[2], pj[2];
+    // The tree (Morton codes and ids use keys[] and values[] above).
+    dbuf leaf_parent, node_parent, node_lo, node_hi, flags, tree_small, walk_tests, pair_keys[2];
 
     cl_event events[EVENTS_MAX];
     unsigned char event_class[EVENTS_MAX];
@@ -159,5 +173,15 @@ bpx_status bpx__cl_brute_all(cl_state *st, bpx_world *w, bpx_block *block);
 bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block);
 bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
                                   uint32_t block_boxes);
+// sort.c: scans and radix sorts.
+unsigned bpx__cl_bits_for(uint32_t max_value);
+bpx_status bpx__cl_sum(cl_state *st, cl_mem in, uint32_t count, cl_uint slot);
+bpx_status bpx__cl_scan(cl_state *st, cl_mem in, uint32_t count, cl_mem out, cl_uint slot);
+bpx_status bpx__cl_radix_sort(cl_state *st, dbuf *keys, dbuf *values, uint32_t count,
+                              unsigned bits, int *result);
+bpx_status bpx__cl_radix_sort64(cl_state *st, dbuf *keys, uint32_t count, unsigned bits,
+                                int *result);
 // sweep.c: sort and sweep.
 bpx_status bpx__cl_sweep_all(cl_state *st, bpx_world *w, bpx_block *block);
+// tree.c: the linear BVH.
+bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block);
