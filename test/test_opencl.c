@@ -175,8 +175,8 @@ static void test_paths(void)
                 CHECK(rewalks == (half && want.count > 1 ? 1 : 0));
             }
             if (want.count > 0) {
-                CHECK_STATUS(bpx__opencl_twin_tree_pairs(boxes, n, want.count, twin,
-                                                         want.count - 1, &count, NULL, NULL),
+                CHECK_STATUS(bpx__opencl_twin_tree_pairs(boxes, n, want.count, twin, want.count - 1,
+                                                         &count, NULL, NULL),
                              BPX_ERR_CAPACITY);
                 CHECK_EQ_U64(count, want.count);
             }

@@ -80,8 +80,8 @@ static bpx_status radix_passes(cl_state *st, dbuf *keys, dbuf *values, uint32_t 
     return BPX_OK;
 }
 
-bpx_status bpx__cl_radix_sort(cl_state *st, dbuf *keys, dbuf *values, uint32_t count,
-                              unsigned bits, int *result)
+bpx_status bpx__cl_radix_sort(cl_state *st, dbuf *keys, dbuf *values, uint32_t count, unsigned bits,
+                              int *result)
 {
     return radix_passes(st, keys, values, count, bits, result);
 }

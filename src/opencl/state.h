@@ -177,8 +177,8 @@ bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
 unsigned bpx__cl_bits_for(uint32_t max_value);
 bpx_status bpx__cl_sum(cl_state *st, cl_mem in, uint32_t count, cl_uint slot);
 bpx_status bpx__cl_scan(cl_state *st, cl_mem in, uint32_t count, cl_mem out, cl_uint slot);
-bpx_status bpx__cl_radix_sort(cl_state *st, dbuf *keys, dbuf *values, uint32_t count,
-                              unsigned bits, int *result);
+bpx_status bpx__cl_radix_sort(cl_state *st, dbuf *keys, dbuf *values, uint32_t count, unsigned bits,
+                              int *result);
 bpx_status bpx__cl_radix_sort64(cl_state *st, dbuf *keys, uint32_t count, unsigned bits,
                                 int *result);
 // sweep.c: sort and sweep.

@@ -38,11 +38,16 @@ static bpx_status reset(cl_state *st)
 static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids)
 {
     cl_ulong capacity = st->pair_keys[0].size / sizeof(cl_ulong);
-    const kernel_arg args[] = {ARG(st->lo.mem),          ARG(st->hi.mem),
-                               ARG(n),                   ARG(ids),
-                               ARG(st->node_lo.mem),     ARG(st->node_hi.mem),
-                               ARG(bits),                ARG(st->pair_keys[0].mem),
-                               ARG(capacity),            ARG(st->tree_small.mem),
+    const kernel_arg args[] = {ARG(st->lo.mem),
+                               ARG(st->hi.mem),
+                               ARG(n),
+                               ARG(ids),
+                               ARG(st->node_lo.mem),
+                               ARG(st->node_hi.mem),
+                               ARG(bits),
+                               ARG(st->pair_keys[0].mem),
+                               ARG(capacity),
+                               ARG(st->tree_small.mem),
                                ARG(st->walk_tests.mem)};
     return bpx__cl_launch(st, K_TREE_WALK, n - 1, 0, 11, args);
 }
@@ -80,8 +85,8 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     size_t groups = (n + per_group - 1) / per_group;
     const kernel_arg bounds_args[] = {ARG(st->lo.mem), ARG(st->hi.mem), ARG(n_arg), ARG(small)};
     TRY(bpx__cl_launch(st, K_TREE_BOUNDS, groups * wg, wg, 4, bounds_args));
-    const kernel_arg code_args[] = {ARG(st->lo.mem),      ARG(st->hi.mem),        ARG(n_arg),
-                                    ARG(small),           ARG(st->keys[0].mem),   ARG(st->values[0].mem)};
+    const kernel_arg code_args[] = {ARG(st->lo.mem), ARG(st->hi.mem),      ARG(n_arg),
+                                    ARG(small),      ARG(st->keys[0].mem), ARG(st->values[0].mem)};
     TRY(bpx__cl_launch(st, K_TREE_CODES, n, 0, 6, code_args));
     int sorted;
     TRY(bpx__cl_radix_sort(st, st->keys, st->values, n, 32, &sorted));
@@ -89,10 +94,14 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     const kernel_arg build_args[] = {ARG(codes), ARG(n_arg), ARG(st->leaf_parent.mem),
                                      ARG(st->node_parent.mem), ARG(st->flags.mem)};
     TRY(bpx__cl_launch(st, K_TREE_BUILD, nodes, 0, 5, build_args));
-    const kernel_arg refit_args[] = {ARG(st->lo.mem),          ARG(st->hi.mem),
-                                     ARG(n_arg),               ARG(ids),
-                                     ARG(st->leaf_parent.mem), ARG(st->node_parent.mem),
-                                     ARG(st->node_lo.mem),     ARG(st->node_hi.mem),
+    const kernel_arg refit_args[] = {ARG(st->lo.mem),
+                                     ARG(st->hi.mem),
+                                     ARG(n_arg),
+                                     ARG(ids),
+                                     ARG(st->leaf_parent.mem),
+                                     ARG(st->node_parent.mem),
+                                     ARG(st->node_lo.mem),
+                                     ARG(st->node_hi.mem),
                                      ARG(st->flags.mem)};
     TRY(bpx__cl_launch(st, K_TREE_REFIT, n, 0, 9, refit_args));
     cl_uint bits = bpx__cl_bits_for(n - 1);

@@ -4,8 +4,8 @@
 #include <stdlib.h>
 
 #include "core/alloc.h"
-#include "kernels/twin.h"
 #include "kernels/lbvh.h"
+#include "kernels/twin.h"
 #include "opencl_internal.h"
 
 typedef struct keyed {

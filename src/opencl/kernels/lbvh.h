@@ -15,6 +15,10 @@
 #ifndef BPX_OPENCL_LBVH_H
 #define BPX_OPENCL_LBVH_H
 
+#ifndef __OPENCL_VERSION__
+#include "twin.h" // the device program has it just before this file
+#endif
+
 #ifdef __OPENCL_VERSION__
 #pragma OPENCL FP_CONTRACT OFF
 #define BPX_LBVH_CLZ(x) ((int)clz(x))
@@ -117,8 +121,8 @@ BPX_FN bpx_u32 bpx_lbvh_morton(const float c[3], const BPX_G bpx_u32 *scene)
 {
     bpx_u32 code = 0;
     for (int a = 0; a < 3; a++) {
-        bpx_u32 cell = bpx_lbvh_cell(c[a], bpx_lbvh_key_value(scene[a]),
-                                     bpx_lbvh_key_value(scene[3 + a]));
+        bpx_u32 cell =
+            bpx_lbvh_cell(c[a], bpx_lbvh_key_value(scene[a]), bpx_lbvh_key_value(scene[3 + a]));
         code |= bpx_lbvh_spread10(cell) << (2 - a);
     }
     return code;
@@ -139,8 +143,8 @@ BPX_FN int bpx_lbvh_prefix(const BPX_G bpx_u32 *codes, int n, int a, int b)
 /// end and its split, independently of every other node, and tells its two children that it is
 /// their parent, as (i << 1) | side. The node's left child's range ends at the split, its right
 /// child's where the node's does: the walk relies on it.
-BPX_FN void bpx_lbvh_build_node(const BPX_G bpx_u32 *codes, int n, int i, BPX_G bpx_u32 *leaf_parent,
-                                BPX_G bpx_u32 *node_parent)
+BPX_FN void bpx_lbvh_build_node(const BPX_G bpx_u32 *codes, int n, int i,
+                                BPX_G bpx_u32 *leaf_parent, BPX_G bpx_u32 *node_parent)
 {
     int d = bpx_lbvh_prefix(codes, n, i, i + 1) - bpx_lbvh_prefix(codes, n, i, i - 1) > 0 ? 1 : -1;
     int least = bpx_lbvh_prefix(codes, n, i, i - d);
