@@ -237,15 +237,15 @@ void bpx__cl_state_free(cl_state *st)
     pinned *pins[] = {&st->up, &st->up_centres, &st->down, &st->reg};
     for (size_t k = 0; k < sizeof pins / sizeof pins[0]; k++)
         pinned_release(st, pins[k]);
-    dbuf *bufs[] = {
-        &st->registers,    &st->check,       &st->input,     &st->minima,       &st->lo,
-        &st->hi,           &st->lo_b,        &st->hi_b,      &st->row_count,    &st->stash,
-        &st->group_sum,    &st->group_long,  &st->pairs,     &st->keys[0],      &st->keys[1],
-        &st->values[0],    &st->values[1],   &st->sorted_lo, &st->sorted_hi,    &st->counts,
-        &st->offsets,      &st->sums,        &st->hist,      &st->hist_offsets, &st->pi[0],
-        &st->pi[1],        &st->pj[0],       &st->pj[1],     &st->leaf_parent,  &st->node_parent,
-        &st->node_lo,      &st->node_hi,     &st->flags,     &st->tree_small,   &st->walk_tests,
-        &st->pair_keys[0], &st->pair_keys[1]};
+    dbuf *bufs[] = {&st->registers,   &st->check,       &st->input,        &st->minima,
+                    &st->lo,          &st->hi,          &st->lo_b,         &st->hi_b,
+                    &st->row_count,   &st->stash,       &st->group_sum,    &st->group_long,
+                    &st->pairs,       &st->keys[0],     &st->keys[1],      &st->values[0],
+                    &st->values[1],   &st->sorted_lo,   &st->sorted_hi,    &st->counts,
+                    &st->offsets,     &st->sums,        &st->hist,         &st->hist_offsets,
+                    &st->pi[0],       &st->pi[1],       &st->pj[0],        &st->pj[1],
+                    &st->leaf_parent, &st->node_parent, &st->nodes,        &st->flags,
+                    &st->tree_small,  &st->walk_tests,  &st->pair_keys[0], &st->pair_keys[1]};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; k++)
         bpx__cl_dbuf_release(st, bufs[k]);
     if (st->user_buffer)

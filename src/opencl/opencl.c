@@ -50,11 +50,11 @@ static uint32_t block_capacity(const cl_state *st, uint64_t bytes_per_box)
 // The sort and sweep's and the tree's own buffers (a whole-set cycle keeps them for the next).
 static void release_sweep_buffers(cl_state *st)
 {
-    dbuf *sweep_set[] = {&st->keys[0],     &st->keys[1],     &st->values[0],    &st->values[1],
-                         &st->sorted_lo,   &st->sorted_hi,   &st->counts,       &st->offsets,
-                         &st->pi[0],       &st->pi[1],       &st->pj[0],        &st->pj[1],
-                         &st->leaf_parent, &st->node_parent, &st->node_lo,      &st->node_hi,
-                         &st->flags,       &st->walk_tests,  &st->pair_keys[0], &st->pair_keys[1]};
+    dbuf *sweep_set[] = {&st->keys[0],     &st->keys[1],      &st->values[0],   &st->values[1],
+                         &st->sorted_lo,   &st->sorted_hi,    &st->counts,      &st->offsets,
+                         &st->pi[0],       &st->pi[1],        &st->pj[0],       &st->pj[1],
+                         &st->leaf_parent, &st->node_parent,  &st->nodes,       &st->flags,
+                         &st->walk_tests,  &st->pair_keys[0], &st->pair_keys[1]};
     for (size_t k = 0; k < sizeof sweep_set / sizeof sweep_set[0]; k++)
         bpx__cl_dbuf_release(st, sweep_set[k]);
 }

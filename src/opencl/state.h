@@ -104,7 +104,7 @@ typedef struct cl_state {
     dbuf keys[2], values[2], sorted_lo, sorted_hi, counts, offsets, sums, hist, hist_offsets;
     dbuf pi[2], pj[2];
     // The tree (Morton codes and ids use keys[] and values[] above).
-    dbuf leaf_parent, node_parent, node_lo, node_hi, flags, tree_small, walk_tests, pair_keys[2];
+    dbuf leaf_parent, node_parent, nodes, flags, tree_small, walk_tests, pair_keys[2];
 
     cl_event events[EVENTS_MAX];
     unsigned char event_class[EVENTS_MAX];

@@ -38,18 +38,17 @@ static bpx_status reset(cl_state *st)
 static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids)
 {
     cl_ulong capacity = st->pair_keys[0].size / sizeof(cl_ulong);
-    const kernel_arg args[] = {ARG(st->lo.mem),
-                               ARG(st->hi.mem),
+    const kernel_arg args[] = {ARG(st->sorted_lo.mem),
+                               ARG(st->sorted_hi.mem),
                                ARG(n),
                                ARG(ids),
-                               ARG(st->node_lo.mem),
-                               ARG(st->node_hi.mem),
+                               ARG(st->nodes.mem),
                                ARG(bits),
                                ARG(st->pair_keys[0].mem),
                                ARG(capacity),
                                ARG(st->tree_small.mem),
                                ARG(st->walk_tests.mem)};
-    return bpx__cl_launch(st, K_TREE_WALK, n - 1, 0, 11, args);
+    return bpx__cl_launch(st, K_TREE_WALK, n - 1, 0, 10, args);
 }
 
 bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
@@ -69,9 +68,8 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     TRY(bpx__cl_dbuf_reserve(st, &st->leaf_parent, (size_t)n * sizeof(cl_uint)));
     TRY(bpx__cl_dbuf_reserve(st, &st->node_parent, nodes * sizeof(cl_uint)));
     TRY(bpx__cl_dbuf_reserve(st, &st->flags, nodes * sizeof(cl_uint)));
-    // Two child slots per node, four keys each, for each side.
-    TRY(bpx__cl_dbuf_reserve(st, &st->node_lo, nodes * 2 * 4 * sizeof(cl_uint)));
-    TRY(bpx__cl_dbuf_reserve(st, &st->node_hi, nodes * 2 * 4 * sizeof(cl_uint)));
+    // Two child slots per node, eight keys each (kernels/lbvh.h, BPX_LBVH_SLOT).
+    TRY(bpx__cl_dbuf_reserve(st, &st->nodes, nodes * 2 * 8 * sizeof(cl_uint)));
     TRY(bpx__cl_dbuf_reserve(st, &st->tree_small, 8 * sizeof(cl_uint)));
     TRY(bpx__cl_dbuf_reserve(st, &st->walk_tests, nodes * sizeof(cl_uint)));
     if (st->pair_keys[0].size == 0)
@@ -91,19 +89,22 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     int sorted;
     TRY(bpx__cl_radix_sort(st, st->keys, st->values, n, 32, &sorted));
     cl_mem codes = st->keys[sorted].mem, ids = st->values[sorted].mem;
+    // The keys in Morton order: the refit and the walks then read neighbouring boxes.
+    TRY(bpx__cl_dbuf_reserve(st, &st->sorted_lo, (size_t)padded * 16));
+    TRY(bpx__cl_dbuf_reserve(st, &st->sorted_hi, (size_t)padded * 16));
+    cl_uint padded_arg = padded;
+    const kernel_arg gather_args[] = {
+        ARG(st->lo.mem),        ARG(st->hi.mem),       ARG(ids), ARG(n_arg), ARG(padded_arg),
+        ARG(st->sorted_lo.mem), ARG(st->sorted_hi.mem)};
+    TRY(bpx__cl_launch(st, K_SWEEP_GATHER, padded, 0, 7, gather_args));
     const kernel_arg build_args[] = {ARG(codes), ARG(n_arg), ARG(st->leaf_parent.mem),
                                      ARG(st->node_parent.mem), ARG(st->flags.mem)};
     TRY(bpx__cl_launch(st, K_TREE_BUILD, nodes, 0, 5, build_args));
-    const kernel_arg refit_args[] = {ARG(st->lo.mem),
-                                     ARG(st->hi.mem),
-                                     ARG(n_arg),
-                                     ARG(ids),
-                                     ARG(st->leaf_parent.mem),
-                                     ARG(st->node_parent.mem),
-                                     ARG(st->node_lo.mem),
-                                     ARG(st->node_hi.mem),
-                                     ARG(st->flags.mem)};
-    TRY(bpx__cl_launch(st, K_TREE_REFIT, n, 0, 9, refit_args));
+    const kernel_arg refit_args[] = {
+        ARG(st->sorted_lo.mem),   ARG(st->sorted_hi.mem),   ARG(n_arg),
+        ARG(st->leaf_parent.mem), ARG(st->node_parent.mem), ARG(st->nodes.mem),
+        ARG(st->flags.mem)};
+    TRY(bpx__cl_launch(st, K_TREE_REFIT, n, 0, 7, refit_args));
     cl_uint bits = bpx__cl_bits_for(n - 1);
     TRY(walk(st, n, bits, ids));
     // The count, read once: room for every pair, or more room and the walks again.

@@ -95,7 +95,7 @@ static int by_u64(const void *a, const void *b)
 
 // The twin's arrays, one allocation each, freed together.
 typedef struct tree_arrays {
-    uint32_t *lo, *hi, *codes, *ids, *leaf_parent, *node_parent, *flags, *node_lo, *node_hi;
+    uint32_t *lo, *hi, *slo, *shi, *codes, *ids, *leaf_parent, *node_parent, *flags, *nodes;
     keyed *order;
     uint64_t *keys;
     size_t n, key_capacity;
@@ -106,13 +106,14 @@ static void tree_arrays_free(tree_arrays *t)
     size_t n = t->n, nodes = n - 1, lanes = BPX_KEY_LANES * sizeof(uint32_t);
     bpx__free(t->lo, n * lanes);
     bpx__free(t->hi, n * lanes);
+    bpx__free(t->slo, n * lanes);
+    bpx__free(t->shi, n * lanes);
     bpx__free(t->codes, n * sizeof(uint32_t));
     bpx__free(t->ids, n * sizeof(uint32_t));
     bpx__free(t->leaf_parent, n * sizeof(uint32_t));
     bpx__free(t->node_parent, nodes * sizeof(uint32_t));
     bpx__free(t->flags, nodes * sizeof(uint32_t));
-    bpx__free(t->node_lo, 2 * nodes * lanes);
-    bpx__free(t->node_hi, 2 * nodes * lanes);
+    bpx__free(t->nodes, 2 * nodes * BPX_LBVH_SLOT * sizeof(uint32_t));
     bpx__free(t->order, n * sizeof(keyed));
     bpx__free(t->keys, t->key_capacity * sizeof(uint64_t));
 }
@@ -133,18 +134,19 @@ bpx_status bpx__opencl_twin_tree_pairs(const bpx_box *boxes, uint32_t n, size_t 
     tree_arrays t = {.n = n, .key_capacity = key_capacity};
     t.lo = bpx__alloc(n * lanes);
     t.hi = bpx__alloc(n * lanes);
+    t.slo = bpx__alloc(n * lanes);
+    t.shi = bpx__alloc(n * lanes);
     t.codes = bpx__alloc(n * sizeof(uint32_t));
     t.ids = bpx__alloc(n * sizeof(uint32_t));
     t.leaf_parent = bpx__alloc(n * sizeof(uint32_t));
     t.node_parent = bpx__alloc(nodes * sizeof(uint32_t));
     t.flags = bpx__alloc(nodes * sizeof(uint32_t));
-    t.node_lo = bpx__alloc(2 * nodes * lanes);
-    t.node_hi = bpx__alloc(2 * nodes * lanes);
+    t.nodes = bpx__alloc(2 * nodes * BPX_LBVH_SLOT * sizeof(uint32_t));
     t.order = bpx__alloc(n * sizeof(keyed));
     t.keys = bpx__alloc(key_capacity * sizeof(uint64_t));
     bpx_status status = BPX_ERR_OUT_OF_MEMORY;
-    if (!t.lo || !t.hi || !t.codes || !t.ids || !t.leaf_parent || !t.node_parent || !t.flags ||
-        !t.node_lo || !t.node_hi || !t.order || !t.keys)
+    if (!t.lo || !t.hi || !t.slo || !t.shi || !t.codes || !t.ids || !t.leaf_parent ||
+        !t.node_parent || !t.flags || !t.nodes || !t.order || !t.keys)
         goto done;
     // bpx_tree_bounds and bpx_tree_codes.
     uint32_t scene[6] = {0xFFFFFFFFu, 0xFFFFFFFFu, 0xFFFFFFFFu, 0u, 0u, 0u};
@@ -175,6 +177,10 @@ bpx_status bpx__opencl_twin_tree_pairs(const bpx_box *boxes, uint32_t n, size_t 
     for (uint32_t p = 0; p < n; p++) {
         t.codes[p] = t.order[p].key;
         t.ids[p] = t.order[p].index;
+        for (int a = 0; a < BPX_KEY_LANES; a++) { // = bpx_sweep_gather
+            t.slo[(size_t)p * BPX_KEY_LANES + a] = t.lo[(size_t)t.ids[p] * BPX_KEY_LANES + a];
+            t.shi[(size_t)p * BPX_KEY_LANES + a] = t.hi[(size_t)t.ids[p] * BPX_KEY_LANES + a];
+        }
     }
     // bpx_tree_build, bpx_tree_refit, bpx_tree_walk: every item in turn.
     for (uint32_t i = 0; i < nodes; i++) {
@@ -182,8 +188,7 @@ bpx_status bpx__opencl_twin_tree_pairs(const bpx_box *boxes, uint32_t n, size_t 
         t.flags[i] = 0;
     }
     for (uint32_t p = 0; p < n; p++)
-        bpx_lbvh_refit_leaf(p, t.lo, t.hi, t.ids, t.leaf_parent, t.node_parent, t.node_lo,
-                            t.node_hi, t.flags);
+        bpx_lbvh_refit_leaf(p, t.slo, t.shi, t.leaf_parent, t.node_parent, t.nodes, t.flags);
     uint32_t bits = 1;
     while (bits < 32 && ((n - 1) >> bits) != 0)
         bits++;
@@ -192,8 +197,8 @@ bpx_status bpx__opencl_twin_tree_pairs(const bpx_box *boxes, uint32_t n, size_t 
         counter[0] = counter[1] = 0;
         uint64_t walked = 0;
         for (uint32_t p = 0; p + 1 < n; p++)
-            walked += bpx_lbvh_walk(p, t.lo, t.hi, t.ids, t.node_lo, t.node_hi, bits, t.keys,
-                                    t.key_capacity, counter);
+            walked += bpx_lbvh_walk(p, t.slo, t.shi, t.ids, t.nodes, bits, t.keys, t.key_capacity,
+                                    counter);
         if (tests)
             *tests = walked;
         if (counter[0] <= t.key_capacity || pass > 0)

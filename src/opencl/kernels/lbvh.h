@@ -178,20 +178,23 @@ BPX_FN void bpx_lbvh_build_node(const BPX_G bpx_u32 *codes, int n, int i,
         node_parent[gamma + 1] = up | 1u;
 }
 
-// A node's two children's bounds are slots 2p and 2p + 1 of node_lo / node_hi, four keys each:
-// x, y, z and, in node_lo's fourth lane, the child's code (BPX_LBVH_LEAF | position, or node).
+/// Keys per child slot: min x, y, z, the child's code (BPX_LBVH_LEAF | position, or a node),
+/// max x, y, z, 0. Node p's two children are slots 2p and 2p + 1: one 64-byte record, so that a
+/// walk's visit to a node reads one cache line.
+#define BPX_LBVH_SLOT 8
 
-/// The refit from the leaf at position t (its box is box ids[t]): it writes its box into its
-/// parent's slot; the second child to arrive at a node writes the node's union into the node's
-/// parent, and so on to the root. flags[] (one per node, zero before) count the arrivals.
-/// Unions are minima and maxima of keys: exact. Inert boxes' empty bounds (min key > max key)
-/// never widen a union, so a node holding only inert boxes stays empty.
+/// The refit from the leaf at position t: its box's keys are at lo / hi position t (the boxes are
+/// gathered into Morton order first, so that neighbouring items read neighbouring boxes rather
+/// than chase box numbers across memory). It writes its box into its parent's slot; the second
+/// child to arrive at a node writes the node's union into the node's parent, and so on to the root.
+/// flags[] (one per node, zero before) count the arrivals. Unions are minima and maxima of keys:
+/// exact. Inert boxes' empty bounds (min key > max key) never widen a union, so a node holding only
+/// inert boxes stays empty.
 BPX_FN void bpx_lbvh_refit_leaf(bpx_u32 t, const BPX_G bpx_u32 *lo, const BPX_G bpx_u32 *hi,
-                                const BPX_G bpx_u32 *ids, const BPX_G bpx_u32 *leaf_parent,
-                                const BPX_G bpx_u32 *node_parent, BPX_LBVH_SLOTS bpx_u32 *node_lo,
-                                BPX_LBVH_SLOTS bpx_u32 *node_hi, BPX_G bpx_u32 *flags)
+                                const BPX_G bpx_u32 *leaf_parent, const BPX_G bpx_u32 *node_parent,
+                                BPX_LBVH_SLOTS bpx_u32 *nodes, BPX_G bpx_u32 *flags)
 {
-    bpx_u64 box = (bpx_u64)ids[t] * BPX_KEY_LANES;
+    bpx_u64 box = (bpx_u64)t * BPX_KEY_LANES;
     bpx_u32 l[3], h[3];
     for (int a = 0; a < 3; a++) {
         l[a] = lo[box + (bpx_u32)a];
@@ -201,18 +204,18 @@ BPX_FN void bpx_lbvh_refit_leaf(bpx_u32 t, const BPX_G bpx_u32 *lo, const BPX_G 
     bpx_u32 up = leaf_parent[t];
     for (;;) {
         bpx_u32 p = up >> 1;
-        bpx_u64 slot = (bpx_u64)up * BPX_KEY_LANES; // = (2p + side) * 4
+        bpx_u64 slot = (bpx_u64)up * BPX_LBVH_SLOT; // up = 2p + side
         for (int a = 0; a < 3; a++) {
-            node_lo[slot + (bpx_u32)a] = l[a];
-            node_hi[slot + (bpx_u32)a] = h[a];
+            nodes[slot + (bpx_u32)a] = l[a];
+            nodes[slot + 4 + (bpx_u32)a] = h[a];
         }
-        node_lo[slot + 3] = code;
-        node_hi[slot + 3] = 0u;
+        nodes[slot + 3] = code;
+        nodes[slot + 7] = 0u;
         if (BPX_LBVH_ARRIVE(flags, p) == 0 || p == 0)
             return; // the sibling is not there yet (its item carries on), or this was the root
-        bpx_u64 other = (bpx_u64)(up ^ 1u) * BPX_KEY_LANES;
+        bpx_u64 other = (bpx_u64)(up ^ 1u) * BPX_LBVH_SLOT;
         for (int a = 0; a < 3; a++) {
-            bpx_u32 ol = node_lo[other + (bpx_u32)a], oh = node_hi[other + (bpx_u32)a];
+            bpx_u32 ol = nodes[other + (bpx_u32)a], oh = nodes[other + 4 + (bpx_u32)a];
             l[a] = ol < l[a] ? ol : l[a];
             h[a] = oh > h[a] ? oh : h[a];
         }
@@ -221,10 +224,10 @@ BPX_FN void bpx_lbvh_refit_leaf(bpx_u32 t, const BPX_G bpx_u32 *lo, const BPX_G 
     }
 }
 
-/// Algorithm 1 on keys: box a (private) against bounds b (a node slot).
-BPX_FN int bpx_lbvh_overlap(const bpx_u32 *alo, const bpx_u32 *ahi, const BPX_G bpx_u32 *blo,
-                            const BPX_G bpx_u32 *bhi)
+/// Algorithm 1 on keys: box a (private) against the bounds of a child slot.
+BPX_FN int bpx_lbvh_overlap(const bpx_u32 *alo, const bpx_u32 *ahi, const BPX_G bpx_u32 *slot)
 {
+    const BPX_G bpx_u32 *blo = slot, *bhi = slot + 4;
     return (alo[0] <= bhi[0]) & (blo[0] <= ahi[0]) & (alo[1] <= bhi[1]) & (blo[1] <= ahi[1]) &
            (alo[2] <= bhi[2]) & (blo[2] <= ahi[2]);
 }
@@ -247,14 +250,14 @@ BPX_FN void bpx_lbvh_flush(const bpx_u64 *batch, bpx_u32 count, BPX_G bpx_u64 *o
 /// pair is found once, by the walk from its lower position. A left child's range ends at its
 /// own index (the split), a right child's at its parent's end, which is > t from the root
 /// (n - 1) down: so a left child whose index is <= t is skipped whole, and no other test is
-/// needed. Each hit leaves as the key (min id << bits) | max id. Returns the bounds tests made.
+/// needed. Boxes are in Morton order (lo / hi position t), ids[t] the box number at position t.
+/// Each hit leaves as the key (min id << bits) | max id. Returns the bounds tests made.
 BPX_FN bpx_u32 bpx_lbvh_walk(bpx_u32 t, const BPX_G bpx_u32 *lo, const BPX_G bpx_u32 *hi,
-                             const BPX_G bpx_u32 *ids, const BPX_G bpx_u32 *node_lo,
-                             const BPX_G bpx_u32 *node_hi, bpx_u32 bits, BPX_G bpx_u64 *out,
-                             bpx_u64 capacity, BPX_G bpx_u32 *counter)
+                             const BPX_G bpx_u32 *ids, const BPX_G bpx_u32 *nodes, bpx_u32 bits,
+                             BPX_G bpx_u64 *out, bpx_u64 capacity, BPX_G bpx_u32 *counter)
 {
     bpx_u32 me = ids[t];
-    bpx_u64 box = (bpx_u64)me * BPX_KEY_LANES;
+    bpx_u64 box = (bpx_u64)t * BPX_KEY_LANES;
     bpx_u32 alo[3], ahi[3];
     for (int a = 0; a < 3; a++) {
         alo[a] = lo[box + (bpx_u32)a];
@@ -268,12 +271,11 @@ BPX_FN bpx_u32 bpx_lbvh_walk(bpx_u32 t, const BPX_G bpx_u32 *lo, const BPX_G bpx
     int top = 0;
     bpx_u32 node = 0;
     for (;;) {
-        bpx_u64 s = (bpx_u64)node * (2 * BPX_KEY_LANES);
-        bpx_u32 left = node_lo[s + 3], right = node_lo[s + BPX_KEY_LANES + 3];
+        const BPX_G bpx_u32 *slots = nodes + (bpx_u64)node * (2 * BPX_LBVH_SLOT);
+        bpx_u32 left = slots[3], right = slots[BPX_LBVH_SLOT + 3];
         bpx_u32 left_at = left & ~BPX_LBVH_LEAF, right_at = right & ~BPX_LBVH_LEAF;
-        int go_left = left_at > t && bpx_lbvh_overlap(alo, ahi, node_lo + s, node_hi + s);
-        int go_right =
-            bpx_lbvh_overlap(alo, ahi, node_lo + s + BPX_KEY_LANES, node_hi + s + BPX_KEY_LANES);
+        int go_left = left_at > t && bpx_lbvh_overlap(alo, ahi, slots);
+        int go_right = bpx_lbvh_overlap(alo, ahi, slots + BPX_LBVH_SLOT);
         tests += 1u + (left_at > t);
         bpx_u32 hit_at[2];
         int hits = 0;

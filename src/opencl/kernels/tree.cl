@@ -4,7 +4,8 @@
 // One cycle: bpx_tree_reset clears the scene bounds and the pair counter; bpx_tree_bounds
 // reduces the live boxes' centres to the scene's bounds; bpx_tree_codes gives each box its Morton
 // code (inert boxes the last code); the radix sort (sort.cl) orders (code, box) stably, so equal
-// codes stay in box order; bpx_tree_build makes the n - 1 internal nodes, one per item;
+// codes stay in box order; bpx_sweep_gather (sweep.cl) puts the boxes' keys in that order;
+// bpx_tree_build makes the n - 1 internal nodes, one per item;
 // bpx_tree_refit climbs from every leaf, the second child at each node carrying on;
 // bpx_tree_walk walks once per box over the later Morton positions and appends each pair as a
 // 64-bit key (min id << bits | max id) through one atomic counter; the 64-bit radix sort puts the
@@ -97,27 +98,29 @@ __kernel void bpx_tree_build(__global const uint *codes, uint n, __global uint *
     flags[k] = 0u;
 }
 
+/// lo, hi: the boxes' keys in Morton order.
 __kernel void bpx_tree_refit(__global const uint *lo, __global const uint *hi, uint n,
-                             __global const uint *ids, __global const uint *leaf_parent,
-                             __global const uint *node_parent, __global uint *node_lo,
-                             __global uint *node_hi, __global uint *flags)
+                             __global const uint *leaf_parent,
+                             __global const uint *node_parent, __global uint *nodes,
+                             __global uint *flags)
 {
     uint k = get_global_id(0);
     if (k < n)
-        bpx_lbvh_refit_leaf(k, lo, hi, ids, leaf_parent, node_parent, node_lo, node_hi, flags);
+        bpx_lbvh_refit_leaf(k, lo, hi, leaf_parent, node_parent, nodes, flags);
 }
 
-/// One walk per Morton position but the last (which has no later position); each item's bounds
-/// tests go to tests[k] for the cycle's statistics.
+/// One walk per Morton position but the last (which has no later position); lo, hi in Morton
+/// order, ids the box at each position; each item's bounds tests go to tests[k] for the cycle's
+/// statistics.
 __kernel void bpx_tree_walk(__global const uint *lo, __global const uint *hi, uint n,
-                            __global const uint *ids, __global const uint *node_lo,
-                            __global const uint *node_hi, uint bits, __global ulong *out,
+                            __global const uint *ids, __global const uint *nodes, uint bits,
+                            __global ulong *out,
                             ulong capacity, __global uint *small, __global uint *tests)
 {
     uint k = get_global_id(0);
     if (k + 1 >= n)
         return;
-    tests[k] = bpx_lbvh_walk(k, lo, hi, ids, node_lo, node_hi, bits, out, capacity,
+    tests[k] = bpx_lbvh_walk(k, lo, hi, ids, nodes, bits, out, capacity,
                              small + BPX_TREE_COUNTER);
 }
 
