@@ -84,9 +84,9 @@ enum {
 
 /// OpenCL comparator paths, for bpx_world_def.opencl_method.
 enum {
-    BPX_OPENCL_AUTO = 0,  ///< by n: brute force, then sort and sweep, then the tree
+    BPX_OPENCL_AUTO = 0,  ///< brute force for small or dense sets, the tree for the rest
     BPX_OPENCL_BRUTE = 1, ///< the paper's comparator: every pair, tiles in local memory
-    BPX_OPENCL_SWEEP = 2, ///< device radix sort of the min-x keys, then a sweep
+    BPX_OPENCL_SWEEP = 2, ///< device radix sort of the min-x keys, then a sweep (never auto)
     BPX_OPENCL_TREE = 3,  ///< a linear BVH over Morton-ordered centres, built every cycle
 };
 

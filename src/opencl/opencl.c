@@ -79,10 +79,9 @@ static bpx_status run_cycle(cl_state *st, bpx_world *w, bpx_block *block)
     if (whole) {
         int method = w->def.opencl_method;
         if (method == BPX_OPENCL_AUTO)
-            method = n < SWEEP_MIN_N || st->last_pairs > (uint64_t)DENSE_PAIRS_PER_BOX * n
+            method = n < TREE_MIN_N || st->last_pairs > (uint64_t)DENSE_PAIRS_PER_BOX * n
                          ? BPX_OPENCL_BRUTE
-                     : n < TREE_MIN_N ? BPX_OPENCL_SWEEP
-                                      : BPX_OPENCL_TREE;
+                         : BPX_OPENCL_TREE;
         if (method != BPX_OPENCL_BRUTE) {
             bpx_status status = method == BPX_OPENCL_TREE ? bpx__cl_tree_all(st, w, block)
                                                           : bpx__cl_sweep_all(st, w, block);

@@ -43,18 +43,17 @@ enum kernel_id {
 enum {
     EVENTS_MAX = 128,
     DEFAULT_PAIR_CAPACITY = 65536,
-    // Auto method: sort and sweep from this many boxes on, unless the last cycle found more than
-    // DENSE_PAIRS_PER_BOX pairs per box (then ordering the pairs costs the sweep more than brute
-    // force's second pass). Measured on PoCL: docs/opencl.md.
-    SWEEP_MIN_N = 4096,
+    // Auto method: the tree from this many boxes on, unless the last cycle found more than
+    // DENSE_PAIRS_PER_BOX pairs per box (then ordering the pairs costs more than brute force's
+    // second pass). The tree beats the sweep from 4096 boxes on PoCL and its margin grows with
+    // n (the sweep's candidates grow like n^(5/3)), so auto no longer takes the sweep; it stays
+    // as a forced path. Measured on PoCL: docs/opencl.md.
+    TREE_MIN_N = 2048,
     DENSE_PAIRS_PER_BOX = 16,
     // Device bytes per box: keys (2 x 16), per-row count and stash (4 + 16), input (24).
     BYTES_PER_BOX = 2 * 16 + 4 + 4 * BPX_CL_STASH + 24,
     // Streaming keeps two blocks of keys and of input.
     BYTES_PER_STREAMED_BOX = BYTES_PER_BOX + 2 * 16 + 24,
-    // Auto method: the tree from this many boxes on (the sweep's candidates grow like n^(5/3),
-    // the tree's work like n). Measured on PoCL: docs/opencl.md.
-    TREE_MIN_N = 16384,
     REGISTER_SLOTS = 4, // 0: brute count, 1: sweep count, 2: scratch scans, 3: tree tests
 };
 

@@ -168,9 +168,9 @@ static bool fits(const bench_variant *v, uint32_t n, bool quick)
     case BPX_BACKEND_BRUTE:
         return n <= quadratic;
     case BPX_BACKEND_OPENCL:
-        // The auto rule's rows: brute force, sort and sweep from 4096 boxes, the tree from
-        // 16384. The forced paths measure the crossover (full runs only): the sweep's
-        // candidates grow like n^(5/3), so it stops at 200k.
+        // The auto rule's rows: brute force, the tree from 2048 boxes. The forced paths
+        // measure the crossover (full runs only): the sweep's candidates grow like n^(5/3), so
+        // it stops at 200k.
         if (v->opencl_method == BPX_OPENCL_SWEEP)
             return !quick && n <= 200000u;
         if (v->opencl_method == BPX_OPENCL_TREE)
