@@ -856,6 +856,119 @@ static void test_allocation_failure(void)
     free(centres);
 }
 
+// The centres already on the device (bpx_opencl_set_centres_buffer): every path, streamed
+// blocks too, against the reference of the same boxes made on the host; the caller changing
+// them between cycles on the world's queue; each error, the world unchanged after it.
+static void test_device_centres(void)
+{
+    enum { n = 3001 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    bpx_box *equivalent = check_alloc(sizeof(bpx_box) * n);
+    float *minima = check_alloc(sizeof(float) * 3 * n);
+    float *centres = check_alloc(sizeof(float) * 3 * n);
+    CHECK(scene_generate(SCENE_MIXED_SIZES, n, 12, boxes) == 0);
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
+            minima[3 * i + a] = -half;
+            centres[3 * i + a] = boxes[i].min[a] + half;
+        }
+    pair_list want = {0};
+    static const path centre_paths[] = {{"auto", BPX_OPENCL_AUTO, 0, 0},
+                                        {"brute", BPX_OPENCL_BRUTE, 0, 0},
+                                        {"sweep", BPX_OPENCL_SWEEP, 0, 0},
+                                        {"tree", BPX_OPENCL_TREE, 0, 0},
+                                        {"streamed-640", BPX_OPENCL_BRUTE, 640, 0}};
+    for (size_t p = 0; p < sizeof centre_paths / sizeof centre_paths[0]; p++) {
+        check_set_context("device centres, path %s", centre_paths[p].name);
+        bpx_world_def def = opencl_def();
+        def.opencl_method = centre_paths[p].method;
+        def.opencl_block_boxes = centre_paths[p].block_boxes;
+        bpx_world *world = make(&def);
+        if (!world)
+            continue;
+        void *context = NULL, *queue = NULL;
+        CHECK_STATUS(bpx_opencl_world_handles(world, &context, &queue, NULL), BPX_OK);
+        cl_int err;
+        cl_mem buffer = clCreateBuffer(context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR,
+                                       sizeof(float) * 3 * n, centres, &err);
+        CHECK(buffer != NULL);
+        // Before load_extents: no minima to add to.
+        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, buffer, n), BPX_ERR_BAD_STATE);
+        CHECK_STATUS(bpx_world_load_extents(world, minima, n), BPX_OK);
+        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, buffer, n - 1), BPX_ERR_INVALID_ARGUMENT);
+        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, NULL, n), BPX_ERR_NULL_ARGUMENT);
+        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, buffer, n), BPX_OK);
+        clReleaseMemObject(buffer); // the world keeps its own reference
+        scene_rng motion;
+        scene_rng_seed(&motion, 12);
+        for (int cycle = 0; cycle < 3; cycle++) {
+            if (cycle > 0) { // the caller moves the objects on the device, on the world's queue
+                for (uint32_t i = 0; i < 3 * n; i++)
+                    centres[i] += scene_rng_range(&motion, -0.5f, 0.5f);
+                CHECK(clEnqueueWriteBuffer(queue, buffer, CL_FALSE, 0, sizeof(float) * 3 * n,
+                                           centres, 0, NULL, NULL) == CL_SUCCESS);
+            }
+            for (uint32_t i = 0; i < n; i++)
+                for (int a = 0; a < 3; a++) {
+                    equivalent[i].min[a] = centres[3 * i + a] + minima[3 * i + a];
+                    equivalent[i].max[a] = centres[3 * i + a] - minima[3 * i + a];
+                }
+            reference_pairs(equivalent, n, &want);
+            CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+            size_t count = 0;
+            const bpx_pair *pairs = bpx_world_pairs(world, &count);
+            CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
+            if (centre_paths[p].block_boxes == 0)
+                CHECK_EQ_U64(bpx_world_stats(world).bytes_in, 0); // nothing crossed the link
+        }
+        clFinish(queue); // the last write's host memory is reused below
+
+        // A centre whose box overflows: named with its object and axis; the world keeps the
+        // previous centres.
+        check_set_context("device centres errors, path %s", centre_paths[p].name);
+        float *bad_centres = check_alloc(sizeof(float) * 3 * n);
+        memcpy(bad_centres, centres, sizeof(float) * 3 * n);
+        bad_centres[3 * 2345 + 2] = INFINITY;
+        bad_centres[3 * 2999 + 0] = NAN;
+        cl_mem bad = clCreateBuffer(context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR,
+                                    sizeof(float) * 3 * n, bad_centres, &err);
+        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, bad, n), BPX_ERR_NOT_FINITE);
+        CHECK(bpx_world_error(world)->index == 2345 && bpx_world_error(world)->axis == 2);
+        clReleaseMemObject(bad);
+        cl_mem small =
+            clCreateBuffer(context, CL_MEM_READ_WRITE, sizeof(float) * 3 * (n - 1), NULL, &err);
+        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, small, n), BPX_ERR_INVALID_ARGUMENT);
+        clReleaseMemObject(small);
+        CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+        size_t count = 0;
+        const bpx_pair *pairs = bpx_world_pairs(world, &count);
+        CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
+        // Host centres take over again.
+        CHECK_STATUS(bpx_world_update_centres(world, centres), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+        pairs = bpx_world_pairs(world, &count);
+        CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
+        free(bad_centres);
+        bpx_world_destroy(world);
+    }
+    // Not an opencl world; general mode.
+    check_set_context("device centres, other backends");
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = BPX_BACKEND_BRUTE;
+    bpx_world *other = make(&def);
+    int dummy;
+    if (other)
+        CHECK_STATUS(bpx_opencl_set_centres_buffer(other, &dummy, 1), BPX_ERR_BACKEND_UNAVAILABLE);
+    bpx_world_destroy(other);
+    CHECK_STATUS(bpx_opencl_set_centres_buffer(NULL, &dummy, 1), BPX_ERR_NULL_ARGUMENT);
+    pair_list_free(&want);
+    free(boxes);
+    free(equivalent);
+    free(minima);
+    free(centres);
+}
+
 // Repeated cycles and different block sizes give the same bytes.
 static void test_determinism(void)
 {
@@ -927,6 +1040,7 @@ int main(int argc, char **argv)
     test_memory_limit();
     test_updater();
     test_device_buffer();
+    test_device_centres();
     test_determinism();
     test_objects_released();
     test_allocation_failure();

@@ -7,13 +7,13 @@
 #include "state.h"
 
 static const char *const kernel_names[K_COUNT] = {
-    "bpx_update",        "bpx_convert",         "bpx_validate",         "bpx_brute_count",
-    "bpx_brute_emit",    "bpx_scan_reduce",     "bpx_scan_sums",        "bpx_scan_apply",
-    "bpx_radix_count",   "bpx_radix_scatter",   "bpx_sweep_keys",       "bpx_sweep_gather",
-    "bpx_sweep_count",   "bpx_sweep_write",     "bpx_sweep_interleave", "bpx_brute_small",
-    "bpx_radix_count64", "bpx_radix_scatter64", "bpx_tree_reset",       "bpx_tree_bounds",
-    "bpx_tree_codes",    "bpx_tree_build",      "bpx_tree_refit",       "bpx_tree_walk",
-    "bpx_tree_unpack",
+    "bpx_update",        "bpx_convert",          "bpx_validate",         "bpx_brute_count",
+    "bpx_brute_emit",    "bpx_scan_reduce",      "bpx_scan_sums",        "bpx_scan_apply",
+    "bpx_radix_count",   "bpx_radix_scatter",    "bpx_sweep_keys",       "bpx_sweep_gather",
+    "bpx_sweep_count",   "bpx_sweep_write",      "bpx_sweep_interleave", "bpx_brute_small",
+    "bpx_radix_count64", "bpx_radix_scatter64",  "bpx_tree_reset",       "bpx_tree_bounds",
+    "bpx_tree_codes",    "bpx_tree_build",       "bpx_tree_refit",       "bpx_tree_walk",
+    "bpx_tree_unpack",   "bpx_validate_centres",
 };
 
 // ---------------------------------------------------------------------------------------------

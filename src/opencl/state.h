@@ -37,6 +37,7 @@ enum kernel_id {
     K_TREE_REFIT,
     K_TREE_WALK,
     K_TREE_UNPACK,
+    K_VALIDATE_CENTRES,
     K_COUNT
 };
 
@@ -60,9 +61,10 @@ enum {
 enum { EV_IN, EV_OUT, EV_DEVICE, EV_CLASSES };
 
 typedef enum box_source {
-    SOURCE_HOST,    // the world's boxes, uploaded as six planes (24 bytes per box)
-    SOURCE_CENTRES, // this cycle's centres (12 bytes per object) + minima kept on the device
-    SOURCE_BUFFER,  // the caller's device buffer of bpx_box (nothing uploaded)
+    SOURCE_HOST,           // the world's boxes, uploaded as six planes (24 bytes per box)
+    SOURCE_CENTRES,        // this cycle's centres (12 bytes per object) + minima kept on the device
+    SOURCE_BUFFER,         // the caller's device buffer of bpx_box (nothing uploaded)
+    SOURCE_CENTRES_BUFFER, // the caller's device buffer of centres + minima kept on the device
 } box_source;
 
 typedef struct dbuf {
@@ -87,7 +89,7 @@ typedef struct cl_state {
 
     box_source source;
     bool minima_on_device; // the current extents are in `minima`
-    cl_mem user_buffer;    // SOURCE_BUFFER (retained)
+    cl_mem user_buffer;    // SOURCE_BUFFER, SOURCE_CENTRES_BUFFER (retained)
 
     pinned up;         // uploads: six planes, two regions (row block, column block)
     pinned up_centres; // the centres of the last update_centres
@@ -165,6 +167,7 @@ bpx_status bpx__cl_read_pairs(cl_state *st, cl_mem pairs, size_t count, bpx_pair
 void bpx__cl_state_free(cl_state *st);
 bpx_status bpx__cl_state_get(bpx_world *w, cl_state **out);
 // update.c: the updater.
+bpx_status bpx__cl_upload_minima(cl_state *st, const bpx_world *w);
 bpx_status bpx__cl_upload_keys(cl_state *st, const bpx_world *w, uint32_t first, uint32_t count,
                                uint32_t padded, size_t region_offset, dbuf *lo, dbuf *hi);
 // brute.c: the tiled comparator, whole, small or streamed.
