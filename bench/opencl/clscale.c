@@ -1,11 +1,12 @@
 // bpx_clscale: the opencl backend's paths at scale, one path at a time, on the scenes `bpx bench`
-// uses (uniform: about one overlap per box; heavy: the heavy-tailed size mix), for the scaling
+// uses (uniform: about one overlap per box; heavy: the heavy-tailed size mix) and two of the
+// tests' (dense: each box overlaps ~10% of the others; clustered), for the scaling
 // figures of docs/opencl.md. Per scene, n and path it runs a few cycles of set_boxes + collide
 // on one world and prints the fastest cycle (wall and device clock), the median, the pairs and
 // the bounds tests per box. The fastest cycle is the figure to quote on a shared machine: other
 // jobs only ever add time. The pairs are checked against prune on every cycle.
 //
-//   bpx_clscale [--sizes 10000,100000,1000000] [--scene uniform,heavy]
+//   bpx_clscale [--sizes 10000,100000,1000000] [--scene uniform,heavy,dense,clustered]
 //               [--method tree,sweep,brute,auto] [--cycles 7]
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
@@ -60,19 +61,20 @@ int main(int argc, char **argv)
     int scenes[16] = {0, 1}, scene_count = 2;
     int methods[16] = {3}, method_count = 1;
     int cycles = 7;
-    static const char *const scene_names[] = {"uniform", "heavy"};
+    static const char *const scene_names[] = {"uniform", "heavy", "dense", "clustered"};
     for (int k = 1; k + 1 < argc; k += 2) {
         if (strcmp(argv[k], "--sizes") == 0)
             size_count = parse_list(argv[k + 1], sizes, NULL, 0);
         else if (strcmp(argv[k], "--scene") == 0)
-            scene_count = parse_list(argv[k + 1], scenes, scene_names, 2);
+            scene_count = parse_list(argv[k + 1], scenes, scene_names, 4);
         else if (strcmp(argv[k], "--method") == 0)
             method_count = parse_list(argv[k + 1], methods, method_names, 4);
         else if (strcmp(argv[k], "--cycles") == 0)
             cycles = atoi(argv[k + 1]) > 1 ? atoi(argv[k + 1]) : 2;
         else {
-            fprintf(stderr, "usage: bpx_clscale [--sizes N,...] [--scene uniform,heavy] "
-                            "[--method tree,sweep,brute,auto] [--cycles C]\n");
+            fprintf(stderr,
+                    "usage: bpx_clscale [--sizes N,...] [--scene uniform,heavy,dense,clustered] "
+                    "[--method tree,sweep,brute,auto] [--cycles C]\n");
             return 2;
         }
     }
@@ -94,6 +96,8 @@ int main(int argc, char **argv)
                 return 1;
             if (scenes[s] == 1)
                 scene_heavy_tailed_density(n, 1, boxes);
+            else if (scenes[s] >= 2)
+                scene_generate(scenes[s] == 2 ? SCENE_DENSE : SCENE_CLUSTERED, n, 1, boxes);
             else
                 scene_uniform_density(n, 1.0f, 1, boxes);
             size_t want = 0;

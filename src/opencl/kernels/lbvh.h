@@ -24,9 +24,8 @@
 #define BPX_LBVH_CLZ(x) ((int)clz(x))
 #define BPX_KEY_FLOAT(k) as_float(k)
 // The refit's hand-over between two children: the first to arrive leaves, the second sees the
-// first's slot.
-// The fences order a slot's stores before the count that publishes them, and the sibling's
-// slot's loads after it.
+// first's slot. The fences order a slot's stores before the count that publishes them, and the
+// sibling's slot's loads after it.
 inline uint bpx_lbvh_arrive_(__global uint *flags, uint p)
 {
     mem_fence(CLK_GLOBAL_MEM_FENCE);
@@ -68,8 +67,9 @@ static inline bpx_u32 bpx_lbvh_post_inc_(bpx_u32 *p, bpx_u32 k)
 #define BPX_LBVH_LEAF 0x80000000u
 /// The Morton code of a box with no centre (inert: removed ids, min > max): after every other.
 #define BPX_LBVH_NO_CODE 0xFFFFFFFFu
-/// Depth bound of a walk's stack: the tree splits on at most 30 Morton bits, then on at most 32
-/// position bits among equal codes, and a walk pushes at most one node per level.
+/// Depth bound of a walk's stack: the tree splits on at most 32 code bits (30 Morton bits and
+/// the inert code's), then on at most 32 position bits among equal codes, and a walk holds at
+/// most one pending node per level.
 #define BPX_LBVH_STACK 64
 /// Hits one walk keeps before reserving their places with one atomic.
 #define BPX_LBVH_BATCH 8
