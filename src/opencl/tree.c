@@ -1,8 +1,9 @@
 // The opencl backend's tree, for large sets: a linear BVH over the boxes' Morton-ordered centres
 // (Karras 2012) built every cycle, walked once per box over the later Morton positions, the pairs
 // appended as 64-bit keys and radix sorted into (i, j) order (kernels/tree.cl, kernels/lbvh.h).
-// Work is linear in n at constant density whatever the boxes' sizes, where the sweep's
-// candidates grow like n^(5/3).
+// At constant density each box's walk tests a few dozen nodes, growing only with the tree's
+// depth (log n), whatever the boxes' sizes, where the sweep's candidates per box grow like
+// n^(2/3).
 
 #include "state.h"
 
