@@ -5,6 +5,8 @@
 // depth (log n), whatever the boxes' sizes, where the sweep's candidates per box grow like
 // n^(2/3).
 
+#include <string.h>
+
 #include "state.h"
 
 // Device bytes of the pairs' stages for `keys` pair keys: two key buffers (the sort's two
@@ -108,9 +110,18 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     TRY(bpx__cl_launch(st, K_TREE_REFIT, n, 0, 7, refit_args));
     cl_uint bits = bpx__cl_bits_for(n - 1);
     TRY(walk(st, n, bits, ids));
+    // The walks' bounds tests (the cycle's statistics) summed into register 3, read back behind
+    // the count: one wait for both.
+    TRY(bpx__cl_sum(st, st->walk_tests.mem, n - 1, 3));
+    char *test_register = (char *)st->reg.host + 3 * sizeof(cl_ulong);
+    TRY(bpx__cl_read_later(st, st->registers.mem, 3 * sizeof(cl_ulong), sizeof(cl_ulong),
+                           test_register));
     // The count, read once: room for every pair, or more room and the walks again.
     cl_uint found[8];
     TRY(bpx__cl_read_buffer(st, small, 0, sizeof found, found));
+    cl_ulong tests;
+    memcpy(&tests, test_register, sizeof tests); // the in-order queue read it before `found`
+    st->tests += tests;
     uint64_t total = found[6];
     bool wrapped = found[7] != 0;
     if (wrapped)
@@ -121,10 +132,6 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
         TRY(walk(st, n, bits, ids));
         st->counters.emit_reruns++;
     }
-    TRY(bpx__cl_sum(st, st->walk_tests.mem, n - 1, 3));
-    uint64_t tests;
-    TRY(bpx__cl_read_register(st, 3, &tests));
-    st->tests += tests;
     if (total > 0) {
         int by_key;
         TRY(bpx__cl_radix_sort64(st, st->pair_keys, (uint32_t)total, 2 * bits, &by_key));
