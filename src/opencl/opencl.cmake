@@ -16,6 +16,7 @@ if(BPX_OPENCL)
     # The program is these files in this order, embedded at build time.
     set(BPX_OPENCL_KERNELS
         ${BPX_OPENCL_DIR}/kernels/twin.h
+        ${BPX_OPENCL_DIR}/../kernels/lbvh_build.h
         ${BPX_OPENCL_DIR}/kernels/lbvh.h
         ${BPX_OPENCL_DIR}/kernels/update.cl
         ${BPX_OPENCL_DIR}/kernels/brute.cl

@@ -1,12 +1,13 @@
-// bpx OpenCL kernels: the linear BVH's per-item steps (Karras 2012), shared word for word by the
-// device program (tree.cl) and its plain-C twin (src/opencl/twin.c). SPDX-License-Identifier: MIT
+// bpx OpenCL kernels: the linear BVH's per-item steps on box keys (Karras 2012), shared word for
+// word by the device program (tree.cl) and its plain-C twin (src/opencl/twin.c).
+// SPDX-License-Identifier: MIT
 //
-// Valid OpenCL C 1.2 and C11; it comes after twin.h (keys, bpx_u32, BPX_G). Each step is one
-// item's work: the Morton code of one box, one internal node's range and split, the refit from
-// one leaf, the walk of one box. The device runs the items in parallel, the twin in loops, so
-// the twin's pairs are the device's pairs and a test proves the algorithm on the host. The cuda
-// backend (src/cuda/tree.cuh) has the same structure on floats; the rules (ties broken by
-// position, walks over later positions only) are the same.
+// Valid OpenCL C 1.2 and C11; it comes after twin.h (keys, bpx_u32, BPX_G) and
+// src/kernels/lbvh_build.h (Morton codes and the node build, which the cuda backend shares).
+// Each step is one item's work: the centre of one box, the refit from one leaf, the walk of one
+// box. The device runs the items in parallel, the twin in loops, so the twin's pairs are the
+// device's pairs and a test proves the algorithm on the host. The cuda backend
+// (src/cuda/tree.cuh) refits and walks the same way on float bounds.
 //
 // Exactness: every decision about a pair compares the caller's own coordinates as order keys
 // (twin.h), and a node's bounds are minima and maxima of those keys, so culling never rounds.
@@ -16,13 +17,13 @@
 #define BPX_OPENCL_LBVH_H
 
 #ifndef __OPENCL_VERSION__
-#include "twin.h" // the device program has it just before this file
+// The device program has these two just before this file.
+#include "../../kernels/lbvh_build.h"
+#include "twin.h"
 #endif
 
 #ifdef __OPENCL_VERSION__
 #pragma OPENCL FP_CONTRACT OFF
-#define BPX_LBVH_CLZ(x) ((int)clz(x))
-#define BPX_KEY_FLOAT(k) as_float(k)
 // The refit's hand-over between two children: the first to arrive leaves, the second sees the
 // first's slot. The fences order a slot's stores before the count that publishes them, and the
 // sibling's slot's loads after it.
@@ -38,16 +39,6 @@ inline uint bpx_lbvh_arrive_(__global uint *flags, uint p)
 #define BPX_LBVH_OVERFLOW(counter) atomic_or((volatile __global uint *)(counter) + 1, 1u)
 #define BPX_LBVH_SLOTS volatile __global
 #else
-static inline int bpx_lbvh_clz_(bpx_u32 x)
-{
-    return x ? __builtin_clz(x) : 32;
-}
-static inline float bpx_key_float_(bpx_u32 u)
-{
-    float f;
-    memcpy(&f, &u, sizeof f);
-    return f;
-}
 // The twin runs the items one after another: plain counters stand in for the atomics.
 static inline bpx_u32 bpx_lbvh_post_inc_(bpx_u32 *p, bpx_u32 k)
 {
@@ -55,8 +46,6 @@ static inline bpx_u32 bpx_lbvh_post_inc_(bpx_u32 *p, bpx_u32 k)
     *p += k;
     return old;
 }
-#define BPX_LBVH_CLZ(x) bpx_lbvh_clz_(x)
-#define BPX_KEY_FLOAT(k) bpx_key_float_(k)
 #define BPX_LBVH_ARRIVE(flags, p) bpx_lbvh_post_inc_(&(flags)[p], 1u)
 #define BPX_LBVH_RESERVE(counter, k) bpx_lbvh_post_inc_((counter), (k))
 #define BPX_LBVH_OVERFLOW(counter) ((counter)[1] |= 1u)
@@ -74,12 +63,6 @@ static inline bpx_u32 bpx_lbvh_post_inc_(bpx_u32 *p, bpx_u32 k)
 /// Hits one walk keeps before reserving their places with one atomic.
 #define BPX_LBVH_BATCH 8
 
-/// The float of an order key (twin.h's bpx_key, inverted; -0.0 comes back as +0.0).
-BPX_FN float bpx_lbvh_key_value(bpx_u32 key)
-{
-    return BPX_KEY_FLOAT((key & 0x80000000u) ? (key & 0x7FFFFFFFu) : ~key);
-}
-
 /// A box with keys lo, hi (x, y, z lanes) has a centre: min x <= max x. Inert boxes (min +inf,
 /// max -inf) and padding boxes have none.
 BPX_FN int bpx_lbvh_live(const BPX_G bpx_u32 *lo, const BPX_G bpx_u32 *hi)
@@ -92,90 +75,6 @@ BPX_FN void bpx_lbvh_centre(const BPX_G bpx_u32 *lo, const BPX_G bpx_u32 *hi, fl
 {
     for (int a = 0; a < 3; a++)
         c[a] = 0.5f * bpx_lbvh_key_value(lo[a]) + 0.5f * bpx_lbvh_key_value(hi[a]);
-}
-
-BPX_FN bpx_u32 bpx_lbvh_spread10(bpx_u32 v)
-{
-    v = (v | (v << 16)) & 0x030000FFu;
-    v = (v | (v << 8)) & 0x0300F00Fu;
-    v = (v | (v << 4)) & 0x030C30C3u;
-    v = (v | (v << 2)) & 0x09249249u;
-    return v;
-}
-
-/// Cell 0..1023 of c in [lo, hi] on one axis. Halves before the difference so that a span of
-/// +-FLT_MAX does not overflow; a division, not a reciprocal, so a subnormal span gives no
-/// infinity; q <= 1 because c <= hi and rounding is monotonic. No NaN can arise.
-BPX_FN bpx_u32 bpx_lbvh_cell(float c, float lo, float hi)
-{
-    float span = 0.5f * hi - 0.5f * lo;
-    if (!(span > 0.0f))
-        return 0u;
-    float q = (0.5f * c - 0.5f * lo) / span * 1024.0f;
-    return q <= 0.0f ? 0u : q >= 1023.0f ? 1023u : (bpx_u32)q;
-}
-
-/// The 30-bit Morton code of centre c in the scene's centre bounds (order keys: min x, y, z,
-/// then max x, y, z), x in the highest bit of each triple.
-BPX_FN bpx_u32 bpx_lbvh_morton(const float c[3], const BPX_G bpx_u32 *scene)
-{
-    bpx_u32 code = 0;
-    for (int a = 0; a < 3; a++) {
-        bpx_u32 cell =
-            bpx_lbvh_cell(c[a], bpx_lbvh_key_value(scene[a]), bpx_lbvh_key_value(scene[3 + a]));
-        code |= bpx_lbvh_spread10(cell) << (2 - a);
-    }
-    return code;
-}
-
-/// Length of the common prefix of the codes at positions a and b, the positions breaking ties
-/// (so that equal codes, e.g. boxes sharing a centre, still make a binary tree); -1 when b is
-/// outside [0, n).
-BPX_FN int bpx_lbvh_prefix(const BPX_G bpx_u32 *codes, int n, int a, int b)
-{
-    if (b < 0 || b >= n)
-        return -1;
-    bpx_u32 ka = codes[a], kb = codes[b];
-    return ka == kb ? 32 + BPX_LBVH_CLZ((bpx_u32)a ^ (bpx_u32)b) : BPX_LBVH_CLZ(ka ^ kb);
-}
-
-/// Internal node i (of n - 1, root 0) of the tree over n sorted codes: finds its range's other
-/// end and its split, independently of every other node, and tells its two children that it is
-/// their parent, as (i << 1) | side. The node's left child's range ends at the split, its right
-/// child's where the node's does: the walk relies on it.
-BPX_FN void bpx_lbvh_build_node(const BPX_G bpx_u32 *codes, int n, int i,
-                                BPX_G bpx_u32 *leaf_parent, BPX_G bpx_u32 *node_parent)
-{
-    int d = bpx_lbvh_prefix(codes, n, i, i + 1) - bpx_lbvh_prefix(codes, n, i, i - 1) > 0 ? 1 : -1;
-    int least = bpx_lbvh_prefix(codes, n, i, i - d);
-    int reach = 2;
-    while (bpx_lbvh_prefix(codes, n, i, i + reach * d) > least)
-        reach <<= 1;
-    int length = 0;
-    for (int step = reach >> 1; step > 0; step >>= 1)
-        if (bpx_lbvh_prefix(codes, n, i, i + (length + step) * d) > least)
-            length += step;
-    int j = i + length * d;
-    int node_prefix = bpx_lbvh_prefix(codes, n, i, j);
-    int split = 0;
-    for (int div = 2;; div <<= 1) {
-        int step = (length + div - 1) / div;
-        if (bpx_lbvh_prefix(codes, n, i, i + (split + step) * d) > node_prefix)
-            split += step;
-        if (step <= 1)
-            break;
-    }
-    int gamma = i + split * d + (d < 0 ? d : 0);
-    int first = i < j ? i : j, last = i < j ? j : i;
-    bpx_u32 up = (bpx_u32)i << 1;
-    if (first == gamma)
-        leaf_parent[gamma] = up;
-    else
-        node_parent[gamma] = up;
-    if (last == gamma + 1)
-        leaf_parent[gamma + 1] = up | 1u;
-    else
-        node_parent[gamma + 1] = up | 1u;
 }
 
 /// Keys per child slot: min x, y, z, the child's code (BPX_LBVH_LEAF | position, or a node),
