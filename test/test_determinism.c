@@ -1,6 +1,7 @@
 // Determinism: the ordered pair list hashes the same for every backend, SIMD width, worker count
 // (1, 2, 3, 8) and host task system (inline reversed, deferred to finish in shuffled chunks with
-// varying worker ids, a 2-thread pool), and on repeated cycles of one world.
+// varying worker ids, a 2-thread pool), and on repeated cycles of one world. `--opencl`: the
+// opencl backend alone, each comparator path forced and auto; skipped (77) without a device.
 #define _POSIX_C_SOURCE 200809L
 
 #include <pthread.h>
@@ -19,11 +20,11 @@ typedef struct scene_case {
 } scene_case;
 
 static scene_case cases[] = {
-    {SCENE_DENSE, 1234, 11, NULL, 0, 0},        {SCENE_DENSE, 5000, 12, NULL, 0, 0},
-    {SCENE_TOUCHING, 1234, 13, NULL, 0, 0},     {SCENE_SHARED_COORD, 4099, 14, NULL, 0, 0},
-    {SCENE_MIXED_SIZES, 1234, 15, NULL, 0, 0},  {SCENE_UNIFORM_DENSITY, 5000, 16, NULL, 0, 0},
-    {SCENE_SIGNED_ZERO, 1000, 17, NULL, 0, 0},  {SCENE_DENORMAL, 1000, 18, NULL, 0, 0},
-    {SCENE_ALL_OVERLAP, 33, 19, NULL, 0, 0},    {SCENE_SPARSE, 2, 20, NULL, 0, 0},
+    {SCENE_DENSE, 1234, 11, NULL, 0, 0},       {SCENE_DENSE, 5000, 12, NULL, 0, 0},
+    {SCENE_TOUCHING, 1234, 13, NULL, 0, 0},    {SCENE_SHARED_COORD, 4099, 14, NULL, 0, 0},
+    {SCENE_MIXED_SIZES, 1234, 15, NULL, 0, 0}, {SCENE_UNIFORM_DENSITY, 5000, 16, NULL, 0, 0},
+    {SCENE_SIGNED_ZERO, 1000, 17, NULL, 0, 0}, {SCENE_DENORMAL, 1000, 18, NULL, 0, 0},
+    {SCENE_ALL_OVERLAP, 33, 19, NULL, 0, 0},   {SCENE_SPARSE, 2, 20, NULL, 0, 0},
 };
 enum { case_count = sizeof cases / sizeof cases[0] };
 
@@ -36,10 +37,10 @@ static const char *name_or(const char *s)
 // Test task systems
 
 typedef enum hook_mode {
-    HOOKS_NONE,          // bpx's own threads
+    HOOKS_NONE,           // bpx's own threads
     HOOKS_INLINE_REVERSE, // enqueue runs every range inline, last range first, returns NULL
-    HOOKS_DEFERRED,      // enqueue only records; finish runs shuffled random-size chunks
-    HOOKS_POOL2,         // two pthreads take chunks from a shared queue
+    HOOKS_DEFERRED,       // enqueue only records; finish runs shuffled random-size chunks
+    HOOKS_POOL2,          // two pthreads take chunks from a shared queue
     HOOKS_MODE_COUNT
 } hook_mode;
 
@@ -51,8 +52,8 @@ typedef struct job {
     void *task_context;
     int item_count;
     int chunk;
-    int next;  // first item not yet taken (pool)
-    int done;  // items finished (pool)
+    int next; // first item not yet taken (pool)
+    int done; // items finished (pool)
     struct job *link;
 } job;
 
@@ -285,7 +286,8 @@ static uint64_t hash_pairs(const bpx_pair *pairs, size_t count)
 static int total_enqueues_parallel;
 
 // One configuration over every scene; returns whether the world could be made.
-static bool run_config(bpx_backend backend, bpx_simd simd, int workers, hook_mode mode)
+static bool run_config(bpx_backend backend, bpx_simd simd, int workers, hook_mode mode,
+                       int opencl_method)
 {
     task_system ts;
     task_system_init(&ts, mode, workers, 0x5eed0000u + (uint64_t)workers);
@@ -293,13 +295,15 @@ static bool run_config(bpx_backend backend, bpx_simd simd, int workers, hook_mod
     def.backend = backend;
     def.simd = simd;
     def.worker_count = workers;
+    def.opencl_method = opencl_method;
     if (mode != HOOKS_NONE) {
         def.enqueue_task = test_enqueue;
         def.finish_task = test_finish;
         def.user_task_context = &ts;
     }
-    check_set_context("backend=%s simd=%s workers=%d hooks=%s", name_or(bpx_backend_name(backend)),
-                      name_or(bpx_simd_name(simd)), workers, hook_names[mode]);
+    check_set_context("backend=%s simd=%s workers=%d hooks=%s method=%d",
+                      name_or(bpx_backend_name(backend)), name_or(bpx_simd_name(simd)), workers,
+                      hook_names[mode], opencl_method);
     bpx_world *world = NULL;
     bpx_status s = bpx_world_create(&def, &world);
     CHECK_STATUS(s, BPX_OK);
@@ -310,9 +314,9 @@ static bool run_config(bpx_backend backend, bpx_simd simd, int workers, hook_mod
     for (int c = 0; c < case_count; c++) {
         scene_case *sc = &cases[c];
         check_set_seed(sc->seed);
-        check_set_context("scene=%s n=%u backend=%s simd=%s workers=%d hooks=%s",
+        check_set_context("scene=%s n=%u backend=%s simd=%s workers=%d hooks=%s method=%d",
                           scene_kind_name(sc->kind), sc->n, name_or(bpx_backend_name(backend)),
-                          name_or(bpx_simd_name(simd)), workers, hook_names[mode]);
+                          name_or(bpx_simd_name(simd)), workers, hook_names[mode], opencl_method);
         CHECK_STATUS(bpx_world_set_boxes(world, sc->boxes, sc->n), BPX_OK);
         CHECK_STATUS(bpx_world_collide(world), BPX_OK);
         size_t count = 0;
@@ -332,9 +336,11 @@ static bool run_config(bpx_backend backend, bpx_simd simd, int workers, hook_mod
 }
 
 // Several cycles of one world (also after moving and moving back) give the same bytes.
-static void test_repeated_cycles(void)
+static void test_repeated_cycles(bpx_backend backend, int opencl_method)
 {
     bpx_world_def def = bpx_default_world_def();
+    def.backend = backend;
+    def.opencl_method = opencl_method;
     def.worker_count = 3;
     bpx_world *world = NULL;
     CHECK_STATUS(bpx_world_create(&def, &world), BPX_OK);
@@ -375,8 +381,38 @@ static void test_repeated_cycles(void)
     bpx_world_destroy(world);
 }
 
-int main(void)
+// The opencl backend's paths, each on 1 and 8 workers (which the device ignores), auto also
+// under every task system, then repeated cycles of each path.
+static int run_opencl_configs(void)
 {
+    static const int methods[] = {BPX_OPENCL_AUTO, BPX_OPENCL_BRUTE, BPX_OPENCL_SWEEP,
+                                  BPX_OPENCL_TREE};
+    int configs = 0;
+    for (size_t m = 0; m < sizeof methods / sizeof methods[0]; m++) {
+        configs += run_config(BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, HOOKS_NONE, methods[m]);
+        configs += run_config(BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 8, HOOKS_NONE, methods[m]);
+        test_repeated_cycles(BPX_BACKEND_OPENCL, methods[m]);
+    }
+    for (int mode = HOOKS_NONE + 1; mode < HOOKS_MODE_COUNT; mode++)
+        configs +=
+            run_config(BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 2, (hook_mode)mode, BPX_OPENCL_AUTO);
+    return configs;
+}
+
+int main(int argc, char **argv)
+{
+    bool opencl_only = argc > 1 && strcmp(argv[1], "--opencl") == 0;
+    bpx_backend_info opencl = bpx_backend_query(BPX_BACKEND_OPENCL);
+    if (opencl_only && !opencl.available) {
+        // Skipped only without OpenCL at all (as test_opencl); a device that fails to build the
+        // kernels, say, is a failure.
+        const char *reason = name_or(opencl.reason);
+        printf("test_determinism --opencl: opencl unavailable: %s\n", reason);
+        CHECK_MSG(strcmp(reason, "not in this build") == 0 ||
+                      strcmp(reason, "no OpenCL platform") == 0,
+                  "opencl unavailable: %s", reason);
+        return check_finish("test_determinism --opencl", 0);
+    }
     printf("test_determinism: seeds");
     for (int c = 0; c < case_count; c++) {
         printf(" %s/%u:%" PRIu64, scene_kind_name(cases[c].kind), cases[c].n, cases[c].seed);
@@ -390,14 +426,14 @@ int main(void)
         CHECK(scene_generate(sc->kind, sc->n, sc->seed, sc->boxes) == 0);
         size_t count = 0;
         bpx_pair probe;
-        bpx_status s = bpx_find_pairs(sc->boxes, sc->n, BPX_BACKEND_REFERENCE, &probe, 0, &count,
-                                      NULL);
+        bpx_status s =
+            bpx_find_pairs(sc->boxes, sc->n, BPX_BACKEND_REFERENCE, &probe, 0, &count, NULL);
         CHECK(s == BPX_OK || s == BPX_ERR_CAPACITY);
         free(ref);
         ref = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
-        CHECK_STATUS(bpx_find_pairs(sc->boxes, sc->n, BPX_BACKEND_REFERENCE, ref, count,
-                                    &sc->count, NULL),
-                     BPX_OK);
+        CHECK_STATUS(
+            bpx_find_pairs(sc->boxes, sc->n, BPX_BACKEND_REFERENCE, ref, count, &sc->count, NULL),
+            BPX_OK);
         sc->hash = hash_pairs(ref, sc->count);
         printf("  %-16s n=%-5u pairs=%-8zu fnv1a=%016" PRIx64 "\n", scene_kind_name(sc->kind),
                sc->n, sc->count, sc->hash);
@@ -405,16 +441,24 @@ int main(void)
     free(ref);
     fflush(stdout);
 
+    if (opencl_only) {
+        int configs = run_opencl_configs();
+        for (int c = 0; c < case_count; c++) {
+            free(cases[c].boxes);
+        }
+        return check_finish("test_determinism --opencl", configs > 0);
+    }
     static const int worker_counts[] = {1, 2, 3, 8};
     int configs = 0;
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
-        if (!bpx_backend_query((bpx_backend)b).available) {
+        // opencl has its own run (--opencl).
+        if (b == BPX_BACKEND_OPENCL || !bpx_backend_query((bpx_backend)b).available) {
             continue;
         }
         for (int s = 0; s < BPX_SIMD_COUNT; s++) {
             bool forced = s != BPX_SIMD_AUTO;
-            if (forced && (!check_backend_has_simd((bpx_backend)b) ||
-                           !bpx_simd_supported((bpx_simd)s))) {
+            if (forced &&
+                (!check_backend_has_simd((bpx_backend)b) || !bpx_simd_supported((bpx_simd)s))) {
                 continue;
             }
             for (int m = 0; m < HOOKS_MODE_COUNT; m++) {
@@ -427,8 +471,8 @@ int main(void)
                     if (m == HOOKS_POOL2 && worker_counts[w] < 2) {
                         continue;
                     }
-                    configs += run_config((bpx_backend)b, (bpx_simd)s, worker_counts[w],
-                                          (hook_mode)m);
+                    configs +=
+                        run_config((bpx_backend)b, (bpx_simd)s, worker_counts[w], (hook_mode)m, 0);
                 }
             }
         }
@@ -438,7 +482,7 @@ int main(void)
     check_set_context("task hooks");
     // A 5000-box cycle on 8 workers must have split work through the host's task system.
     CHECK(total_enqueues_parallel > 0);
-    test_repeated_cycles();
+    test_repeated_cycles(BPX_BACKEND_AUTO, 0);
     for (int c = 0; c < case_count; c++) {
         free(cases[c].boxes);
     }

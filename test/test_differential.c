@@ -16,9 +16,15 @@ typedef struct config {
     bpx_backend backend;
     bpx_simd simd;
     int workers;
+    int opencl_method;
     bpx_world *world;
     char label[80];
 } config;
+
+// `--opencl`: the opencl backend alone, each comparator path forced (brute force, sort and
+// sweep, the tree) besides its auto rule, so that every path meets every scene kind at every
+// size; skipped (77) without an OpenCL device. Without it: every other backend.
+static bool opencl_only;
 
 enum { max_configs = 64 };
 
@@ -54,12 +60,13 @@ static bool too_big(scene_kind kind, uint32_t n)
     return kind == SCENE_ALL_OVERLAP && n > 1234;
 }
 
-static bpx_world *make_world(bpx_backend backend, bpx_simd simd, int workers)
+static bpx_world *make_world(bpx_backend backend, bpx_simd simd, int workers, int opencl_method)
 {
     bpx_world_def def = bpx_default_world_def();
     def.backend = backend;
     def.simd = simd;
     def.worker_count = workers;
+    def.opencl_method = opencl_method;
     bpx_world *world = NULL;
     bpx_status s = bpx_world_create(&def, &world);
     CHECK_MSG(s == BPX_OK && world, "create %s/%s/%d: %s", name_or(bpx_backend_name(backend)),
@@ -80,8 +87,36 @@ static bpx_world *make_world(bpx_backend backend, bpx_simd simd, int workers)
     return world;
 }
 
-// Every available backend other than the reference, with each supported SIMD width for the
-// brute comparator, on 1 and 3 workers (3 > cores here: more workers than cores must work too).
+// The opencl backend's paths: auto on 1 and 3 workers (which the device ignores), then each
+// path forced, the tree and the sweep at every size, far below where auto would take them.
+static int build_opencl_configs(config *cfgs)
+{
+    static const struct {
+        int method, workers;
+        const char *name;
+    } paths[] = {{BPX_OPENCL_AUTO, 1, "auto"},
+                 {BPX_OPENCL_AUTO, 3, "auto"},
+                 {BPX_OPENCL_BRUTE, 1, "brute"},
+                 {BPX_OPENCL_SWEEP, 1, "sweep"},
+                 {BPX_OPENCL_TREE, 1, "tree"}};
+    int count = 0;
+    for (size_t p = 0; p < sizeof paths / sizeof paths[0]; p++) {
+        config *c = &cfgs[count];
+        *c = (config){.backend = BPX_BACKEND_OPENCL,
+                      .simd = BPX_SIMD_AUTO,
+                      .workers = paths[p].workers,
+                      .opencl_method = paths[p].method};
+        snprintf(c->label, sizeof c->label, "backend=opencl method=%s workers=%d", paths[p].name,
+                 c->workers);
+        c->world = make_world(c->backend, c->simd, c->workers, c->opencl_method);
+        count += c->world != NULL;
+    }
+    return count;
+}
+
+// Every available backend other than the reference (and opencl, which --opencl covers), with
+// each supported SIMD width for the brute comparator, on 1 and 3 workers (3 > cores here: more
+// workers than cores must work too).
 static int build_configs(config *cfgs)
 {
     static const int worker_counts[] = {1, 3};
@@ -90,13 +125,13 @@ static int build_configs(config *cfgs)
         bpx_backend_info info = bpx_backend_query((bpx_backend)b);
         printf("backend %-10s available=%d detail='%s' reason='%s'\n", name_or(info.name),
                (int)info.available, info.detail, name_or(info.reason));
-        if (b == BPX_BACKEND_REFERENCE || !info.available) {
+        if (b == BPX_BACKEND_REFERENCE || b == BPX_BACKEND_OPENCL || !info.available) {
             continue;
         }
         for (int s = 0; s < BPX_SIMD_COUNT; s++) {
             bool forced = s != BPX_SIMD_AUTO;
-            if (forced && (!check_backend_has_simd((bpx_backend)b) ||
-                           !bpx_simd_supported((bpx_simd)s))) {
+            if (forced &&
+                (!check_backend_has_simd((bpx_backend)b) || !bpx_simd_supported((bpx_simd)s))) {
                 continue;
             }
             for (size_t w = 0; w < sizeof worker_counts / sizeof worker_counts[0]; w++) {
@@ -110,7 +145,8 @@ static int build_configs(config *cfgs)
                 snprintf(c->label, sizeof c->label, "backend=%s simd=%s workers=%d",
                          name_or(bpx_backend_name(c->backend)), name_or(bpx_simd_name(c->simd)),
                          c->workers);
-                c->world = make_world(c->backend, c->simd, c->workers);
+                c->opencl_method = BPX_OPENCL_AUTO;
+                c->world = make_world(c->backend, c->simd, c->workers, c->opencl_method);
                 if (c->world) {
                     count++;
                 }
@@ -212,22 +248,24 @@ static void check_caller_buffers(bpx_world *world, const pair_list *want)
     free(buf);
 }
 
-// bpx_find_pairs on every available backend (reference included), ample and too small.
+// bpx_find_pairs on every available backend (reference included; opencl alone with --opencl),
+// ample and too small.
 static void check_one_shot(const bpx_box *boxes, uint32_t n, const pair_list *want)
 {
     const size_t slack = 4;
     bpx_pair *buf = check_alloc(sizeof(bpx_pair) * (want->count + slack));
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
-        if (!bpx_backend_query((bpx_backend)b).available) {
+        if (!bpx_backend_query((bpx_backend)b).available ||
+            (b == BPX_BACKEND_OPENCL) != opencl_only) {
             continue;
         }
         fill_sentinel(buf, want->count + slack);
         size_t count = 999;
         bpx_error err;
         memset(&err, 0, sizeof err);
-        CHECK_STATUS(bpx_find_pairs(boxes, n, (bpx_backend)b, buf, want->count + slack, &count,
-                                    &err),
-                     BPX_OK);
+        CHECK_STATUS(
+            bpx_find_pairs(boxes, n, (bpx_backend)b, buf, want->count + slack, &count, &err),
+            BPX_OK);
         CHECK_PAIRS_EQ(want->pairs, want->count, buf, count);
         count = 999;
         CHECK_STATUS(bpx_find_pairs(boxes, n, (bpx_backend)b, buf, want->count, &count, NULL),
@@ -236,9 +274,9 @@ static void check_one_shot(const bpx_box *boxes, uint32_t n, const pair_list *wa
         if (want->count > 0) {
             fill_sentinel(buf, want->count + slack);
             count = 999;
-            CHECK_STATUS(bpx_find_pairs(boxes, n, (bpx_backend)b, buf, want->count - 1, &count,
-                                        &err),
-                         BPX_ERR_CAPACITY);
+            CHECK_STATUS(
+                bpx_find_pairs(boxes, n, (bpx_backend)b, buf, want->count - 1, &count, &err),
+                BPX_ERR_CAPACITY);
             CHECK_EQ_U64(count, want->count);
             CHECK(is_sentinel(buf, want->count + slack));
         }
@@ -248,7 +286,7 @@ static void check_one_shot(const bpx_box *boxes, uint32_t n, const pair_list *wa
 
 static void test_scenes_all_backends(config *cfgs, int cfg_count)
 {
-    bpx_world *ref_world = make_world(BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1);
+    bpx_world *ref_world = make_world(BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1, 0);
     if (!ref_world) {
         return;
     }
@@ -288,8 +326,7 @@ static void test_scenes_all_backends(config *cfgs, int cfg_count)
                     check_one_shot(boxes, n, &ref);
                 }
                 for (int c = 0; c < cfg_count; c++) {
-                    check_set_context("scene=%s n=%u %s", scene_kind_name(kind), n,
-                                      cfgs[c].label);
+                    check_set_context("scene=%s n=%u %s", scene_kind_name(kind), n, cfgs[c].label);
                     if (!world_pairs(cfgs[c].world, boxes, n, &got)) {
                         continue;
                     }
@@ -321,7 +358,7 @@ static void test_updater(config *cfgs, int cfg_count)
                                        SCENE_DENSE,           SCENE_DENORMAL};
     static const uint32_t counts[] = {0, 1, 17, 257, 1234};
     enum { cycles = 4, max_n = 1234 };
-    bpx_world *truth = make_world(BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1);
+    bpx_world *truth = make_world(BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1, 0);
     if (!truth) {
         return;
     }
@@ -329,11 +366,12 @@ static void test_updater(config *cfgs, int cfg_count)
     bpx_world *worlds[max_configs + 1];
     char labels[max_configs + 1][80];
     int world_count = 0;
-    worlds[world_count] = make_world(BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1);
+    worlds[world_count] = make_world(BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1, 0);
     snprintf(labels[world_count], sizeof labels[0], "backend=reference");
     world_count += worlds[world_count] != NULL;
     for (int c = 0; c < cfg_count; c++) {
-        worlds[world_count] = make_world(cfgs[c].backend, cfgs[c].simd, cfgs[c].workers);
+        worlds[world_count] =
+            make_world(cfgs[c].backend, cfgs[c].simd, cfgs[c].workers, cfgs[c].opencl_method);
         snprintf(labels[world_count], sizeof labels[0], "%s", cfgs[c].label);
         world_count += worlds[world_count] != NULL;
     }
@@ -375,8 +413,8 @@ static void test_updater(config *cfgs, int cfg_count)
                         equivalent[i].max[a] = centres[3 * i + a] - minima[3 * i + a];
                     }
                 }
-                check_set_context("updater scene=%s n=%u cycle=%d truth",
-                                  scene_kind_name(kinds[k]), n, cycle);
+                check_set_context("updater scene=%s n=%u cycle=%d truth", scene_kind_name(kinds[k]),
+                                  n, cycle);
                 if (!world_pairs(truth, equivalent, n, &want)) {
                     continue;
                 }
@@ -404,14 +442,31 @@ static void test_updater(config *cfgs, int cfg_count)
     bpx_world_destroy(truth);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
     double t0 = now_s();
-    printf("test_differential: scene seeds 1..3 (n <= 257), 1..2 (n <= 1234), 1 (n = 4099); "
+    opencl_only = argc > 1 && strcmp(argv[1], "--opencl") == 0;
+    printf("test_differential%s: scene seeds 1..3 (n <= 257), 1..2 (n <= 1234), 1 (n = 4099); "
            "updater seeds 100..104; simd best=%s\n",
-           name_or(bpx_simd_name(bpx_simd_best())));
+           opencl_only ? " --opencl" : "", name_or(bpx_simd_name(bpx_simd_best())));
     config cfgs[max_configs];
-    int cfg_count = build_configs(cfgs);
+    int cfg_count = 0;
+    if (opencl_only) {
+        bpx_backend_info info = bpx_backend_query(BPX_BACKEND_OPENCL);
+        if (!info.available) {
+            // Skipped only without OpenCL at all (as test_opencl); a device that fails to build
+            // the kernels, say, is a failure.
+            const char *reason = name_or(info.reason);
+            printf("opencl unavailable: %s\n", reason);
+            bool absent = strcmp(reason, "not in this build") == 0 ||
+                          strcmp(reason, "no OpenCL platform") == 0;
+            CHECK_MSG(absent, "opencl unavailable: %s", reason);
+            return check_finish("test_differential --opencl", 0);
+        }
+        cfg_count = build_opencl_configs(cfgs);
+    } else {
+        cfg_count = build_configs(cfgs);
+    }
     printf("%d configurations:\n", cfg_count);
     for (int c = 0; c < cfg_count; c++) {
         printf("  %s\n", cfgs[c].label);
@@ -425,5 +480,5 @@ int main(void)
     for (int c = 0; c < cfg_count; c++) {
         bpx_world_destroy(cfgs[c].world);
     }
-    return check_finish("test_differential", 1);
+    return check_finish(opencl_only ? "test_differential --opencl" : "test_differential", 1);
 }

@@ -1,7 +1,7 @@
 // bpx: broad-phase collision detection. SPDX-License-Identifier: MIT
 //
-// The OpenCL backend's own calls: listing devices, and handing the world boxes that are already
-// on the device. The backend itself is chosen like any other (bpx_world_def.backend =
+// The OpenCL backend's own calls: listing devices, and handing the world boxes or centres that
+// are already on the device. The backend itself is chosen like any other (bpx_world_def.backend =
 // BPX_BACKEND_OPENCL) and configured with the opencl_* fields of bpx_world_def. Every function
 // here exists in every build; without OpenCL support they return BPX_ERR_BACKEND_UNAVAILABLE.
 // OpenCL handles cross this header as void pointers, so including it needs no OpenCL headers.
@@ -51,6 +51,27 @@ BPX_API bpx_status bpx_opencl_world_handles(bpx_world *world, void **context, vo
 /// INVALID_ARGUMENT (buffer smaller than n boxes or from another context), NOT_FINITE,
 /// MIN_GREATER_THAN_MAX, DEVICE, DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.
 BPX_API bpx_status bpx_opencl_set_boxes_buffer(bpx_world *world, void *buffer, uint32_t n);
+
+/// The paper's two-phase mode with the centres already on the device: `buffer` is a cl_mem in
+/// the world's context holding n centres (x, y, z floats, 12 bytes each, the layout
+/// bpx_world_update_centres takes), n the count given to bpx_world_load_extents. Each cycle the
+/// device's updater makes the boxes from them and the minima it keeps (min = centre + minimum,
+/// max = centre - minimum, single precision, the host's arithmetic): nothing crosses the link
+/// for the boxes. They are checked now, on the device: a centre whose box is not finite is
+/// reported as bpx_world_update_centres reports it (NOT_FINITE, naming the first such object
+/// and its axis), and only that centre crosses the link.
+/// Ownership and queues: the world retains the buffer (the caller may release its own
+/// reference) and reads it in place at each bpx_world_collide* until the next set_boxes /
+/// load_extents / update_centres / set_boxes_buffer / set_centres_buffer. The caller may change
+/// the centres between cycles: with commands on the world's queue (bpx_opencl_world_handles;
+/// in order, so the next collide sees them), or on another queue finished before the collide
+/// call. Centres changed later are not checked again: they must keep every box finite.
+/// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE (not an opencl world, or a device without
+/// single-precision subnormals, whose updater would round differently from the host's),
+/// BAD_STATE (no extents loaded, or objects removed by id), INVALID_ARGUMENT (n other than the
+/// loaded count, a buffer smaller than n centres or from another context), NOT_FINITE, DEVICE,
+/// DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.
+BPX_API bpx_status bpx_opencl_set_centres_buffer(bpx_world *world, void *buffer, uint32_t n);
 
 #ifdef __cplusplus
 }

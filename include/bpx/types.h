@@ -84,9 +84,10 @@ enum {
 
 /// OpenCL comparator paths, for bpx_world_def.opencl_method.
 enum {
-    BPX_OPENCL_AUTO = 0,  ///< brute force for small n, sort and sweep for large n
+    BPX_OPENCL_AUTO = 0,  ///< brute force for small or dense sets, the tree for the rest
     BPX_OPENCL_BRUTE = 1, ///< the paper's comparator: every pair, tiles in local memory
-    BPX_OPENCL_SWEEP = 2, ///< device radix sort of the min-x keys, then a sweep
+    BPX_OPENCL_SWEEP = 2, ///< device radix sort of the min-x keys, then a sweep (never auto)
+    BPX_OPENCL_TREE = 3,  ///< a linear BVH over Morton-ordered centres, built every cycle
 };
 
 /// How a world is made. Get one from bpx_default_world_def(), change fields, pass it to
@@ -121,7 +122,7 @@ typedef struct bpx_world_def {
     int opencl_device;
     /// OpenCL backend: device types allowed, BPX_OPENCL_GPU | _CPU | _ACCELERATOR; 0 = any.
     int opencl_device_type;
-    /// OpenCL backend: comparator path, BPX_OPENCL_AUTO (default: by n), _BRUTE or _SWEEP.
+    /// OpenCL backend: comparator path, BPX_OPENCL_AUTO (default: by n), _BRUTE, _SWEEP or _TREE.
     int opencl_method;
     /// OpenCL backend: device memory this world may use, in bytes; 0 = half of the device's
     /// global memory. Boxes beyond it are streamed in blocks and pairs read out in windows.

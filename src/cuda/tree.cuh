@@ -1,11 +1,15 @@
 // The tree comparator's per-item steps, for one box, one node or one walk: __host__ __device__,
 // so the kernels (kernels.cu) and the host twin in test/test_cuda_twin.cu run the same code; the
-// twin proves the algorithm on machines without a GPU. SPDX-License-Identifier: MIT
+// twin proves the algorithm on machines without a GPU. The Morton code and the node build are
+// src/kernels/lbvh_build.h's, which the opencl backend's program and its twin run too; the refit
+// and the walk here work on float bounds, the opencl backend's (src/opencl/kernels/lbvh.h) on
+// the boxes' integer keys, with the same rules. SPDX-License-Identifier: MIT
 #pragma once
 
 #include <cstdint>
 #include <cstring>
 
+#include "../kernels/lbvh_build.h"
 #include "kernels.cuh"
 
 #define BPX_HD __host__ __device__ inline
@@ -31,15 +35,6 @@ BPX_HD float float_of(uint32_t u)
     float f;
     memcpy(&f, &u, sizeof f);
     return f;
-#endif
-}
-
-BPX_HD int leading_zeros(uint32_t x)
-{
-#ifdef __CUDA_ARCH__
-    return __clz(x);
-#else
-    return x ? __builtin_clz(x) : 32;
 #endif
 }
 
@@ -75,75 +70,21 @@ BPX_HD void centre(const float lo[3], const float hi[3], float c[3])
         c[a] = 0.5f * lo[a] + 0.5f * hi[a]; // halves first: lo + hi can overflow
 }
 
-BPX_HD uint32_t spread10(uint32_t v)
-{
-    v = (v | (v << 16)) & 0x030000FFu;
-    v = (v | (v << 8)) & 0x0300F00Fu;
-    v = (v | (v << 4)) & 0x030C30C3u;
-    v = (v | (v << 2)) & 0x09249249u;
-    return v;
-}
-
-/// The 30-bit Morton code of a centre in the scene's centre bounds (6 order keys).
+/// The 30-bit Morton code of a centre in the scene's centre bounds (6 order keys): the opencl
+/// backend's, from the shared header.
 BPX_HD uint32_t morton(const float c[3], const uint32_t scene[6])
 {
-    uint32_t code = 0;
-    for (int a = 0; a < 3; a++) {
-        // In double: the span of finite floats can overflow a float.
-        double lo = order_value(scene[a]), hi = order_value(scene[3 + a]);
-        double q = hi > lo ? ((double)c[a] - lo) * (1024.0 / (hi - lo)) : 0.0;
-        uint32_t cell = q < 0.0 ? 0u : q >= 1023.0 ? 1023u : (uint32_t)q;
-        code |= spread10(cell) << (2 - a);
-    }
-    return code;
-}
-
-/// Length of the common prefix of positions a and b's keys, the position breaking ties, so that
-/// equal Morton codes still give a binary tree; -1 outside [0, n).
-BPX_HD int common_prefix(const uint32_t *keys, int n, int a, int b)
-{
-    if (b < 0 || b >= n)
-        return -1;
-    uint32_t ka = keys[a], kb = keys[b];
-    return ka == kb ? 32 + leading_zeros((uint32_t)(a ^ b)) : leading_zeros(ka ^ kb);
+    return bpx_lbvh_morton(c, scene);
 }
 
 /// Karras (2012), "Maximizing parallelism in the construction of BVHs, octrees, and k-d trees":
 /// internal node i (of n - 1, root 0) finds its range's other end and its split, independently
 /// of every other node, and tells its two children that it is their parent: (i << 1) | side.
+/// Equal codes are split by position. The opencl backend's, from the shared header.
 BPX_HD void build_node(const uint32_t *keys, int n, int i, uint32_t *leaf_parent,
                        uint32_t *node_parent)
 {
-    int d = common_prefix(keys, n, i, i + 1) - common_prefix(keys, n, i, i - 1) > 0 ? 1 : -1;
-    int least = common_prefix(keys, n, i, i - d);
-    int reach = 2;
-    while (common_prefix(keys, n, i, i + reach * d) > least)
-        reach <<= 1;
-    int length = 0;
-    for (int step = reach >> 1; step > 0; step >>= 1)
-        if (common_prefix(keys, n, i, i + (length + step) * d) > least)
-            length += step;
-    int j = i + length * d;
-    int node_prefix = common_prefix(keys, n, i, j);
-    int split = 0;
-    for (int div = 2;; div <<= 1) {
-        int step = (length + div - 1) / div;
-        if (common_prefix(keys, n, i, i + (split + step) * d) > node_prefix)
-            split += step;
-        if (step <= 1)
-            break;
-    }
-    int gamma = i + split * d + (d < 0 ? d : 0);
-    int first = i < j ? i : j, last = i < j ? j : i;
-    uint32_t up = (uint32_t)i << 1;
-    if (first == gamma)
-        leaf_parent[gamma] = up;
-    else
-        node_parent[gamma] = up;
-    if (last == gamma + 1)
-        leaf_parent[gamma + 1] = up | 1u;
-    else
-        node_parent[gamma + 1] = up | 1u;
+    bpx_lbvh_build_node(keys, n, i, leaf_parent, node_parent);
 }
 
 /// Bottom-up from leaf t: it writes its box into its parent's slot; the second child to arrive

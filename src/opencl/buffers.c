@@ -7,10 +7,13 @@
 #include "state.h"
 
 static const char *const kernel_names[K_COUNT] = {
-    "bpx_update",      "bpx_convert",       "bpx_validate",         "bpx_brute_count",
-    "bpx_brute_emit",  "bpx_scan_reduce",   "bpx_scan_sums",        "bpx_scan_apply",
-    "bpx_radix_count", "bpx_radix_scatter", "bpx_sweep_keys",       "bpx_sweep_gather",
-    "bpx_sweep_count", "bpx_sweep_write",   "bpx_sweep_interleave", "bpx_brute_small",
+    "bpx_update",        "bpx_convert",          "bpx_validate",         "bpx_brute_count",
+    "bpx_brute_emit",    "bpx_scan_reduce",      "bpx_scan_sums",        "bpx_scan_apply",
+    "bpx_radix_count",   "bpx_radix_scatter",    "bpx_sweep_keys",       "bpx_sweep_gather",
+    "bpx_sweep_count",   "bpx_sweep_write",      "bpx_sweep_interleave", "bpx_brute_small",
+    "bpx_radix_count64", "bpx_radix_scatter64",  "bpx_tree_reset",       "bpx_tree_bounds",
+    "bpx_tree_codes",    "bpx_tree_build",       "bpx_tree_refit",       "bpx_tree_walk",
+    "bpx_tree_unpack",   "bpx_validate_centres",
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -234,13 +237,15 @@ void bpx__cl_state_free(cl_state *st)
     pinned *pins[] = {&st->up, &st->up_centres, &st->down, &st->reg};
     for (size_t k = 0; k < sizeof pins / sizeof pins[0]; k++)
         pinned_release(st, pins[k]);
-    dbuf *bufs[] = {&st->registers, &st->check,     &st->input,     &st->minima,
-                    &st->lo,        &st->hi,        &st->lo_b,      &st->hi_b,
-                    &st->row_count, &st->stash,     &st->group_sum, &st->group_long,
-                    &st->pairs,     &st->keys[0],   &st->keys[1],   &st->values[0],
-                    &st->values[1], &st->sorted_lo, &st->sorted_hi, &st->counts,
-                    &st->offsets,   &st->sums,      &st->hist,      &st->hist_offsets,
-                    &st->pi[0],     &st->pi[1],     &st->pj[0],     &st->pj[1]};
+    dbuf *bufs[] = {&st->registers,   &st->check,       &st->input,        &st->minima,
+                    &st->lo,          &st->hi,          &st->lo_b,         &st->hi_b,
+                    &st->row_count,   &st->stash,       &st->group_sum,    &st->group_long,
+                    &st->pairs,       &st->keys[0],     &st->keys[1],      &st->values[0],
+                    &st->values[1],   &st->sorted_lo,   &st->sorted_hi,    &st->counts,
+                    &st->offsets,     &st->sums,        &st->hist,         &st->hist_offsets,
+                    &st->pi[0],       &st->pi[1],       &st->pj[0],        &st->pj[1],
+                    &st->leaf_parent, &st->node_parent, &st->nodes,        &st->flags,
+                    &st->tree_small,  &st->walk_tests,  &st->pair_keys[0], &st->pair_keys[1]};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; k++)
         bpx__cl_dbuf_release(st, bufs[k]);
     if (st->user_buffer)

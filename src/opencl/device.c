@@ -254,7 +254,7 @@ bool bpx__cl_device_get(const bpx_world_def *def, const bpx_cl_device **out, con
     *out = NULL;
     if (def->opencl_platform < 0 || def->opencl_device < 0 ||
         (def->opencl_device_type & ~(BPX_OPENCL_GPU | BPX_OPENCL_CPU | BPX_OPENCL_ACCELERATOR)) ||
-        def->opencl_method < BPX_OPENCL_AUTO || def->opencl_method > BPX_OPENCL_SWEEP) {
+        def->opencl_method < BPX_OPENCL_AUTO || def->opencl_method > BPX_OPENCL_TREE) {
         *reason = "bad opencl_* field in the world definition";
         return false;
     }

@@ -5,7 +5,9 @@
 // and writes keys (twin.h); the comparator (brute.cl: tiles in local memory, or sweep.cl: a radix
 // sort on min x and a sweep, for large n) counts each row's hits; a scan turns the counts into
 // places and the collision count (the paper's register), which the host reads; the emitter
-// kernel writes the pairs in (i, j) order and the host reads them into the world's block.
+// kernel writes the pairs in (i, j) order and the host reads them into the world's block. For
+// the largest sets a tree (tree.cl: a linear BVH built every cycle) finds the pairs instead, as
+// 64-bit keys that a radix sort puts in (i, j) order.
 // Buffers live as long as the world and only grow. Boxes beyond the memory limit are streamed in
 // blocks; pairs beyond it are read out in windows. Every command gets an event, and the events'
 // device times give the cycle's transfer and compute times (bpx_cycle_stats).
@@ -46,12 +48,14 @@ static uint32_t block_capacity(const cl_state *st, uint64_t bytes_per_box)
     return boxes > BPX_MAX_BOXES ? BPX_MAX_BOXES : (uint32_t)boxes;
 }
 
-// The sort and sweep's own buffers (a whole-set cycle keeps them for the next).
+// The sort and sweep's and the tree's own buffers (a whole-set cycle keeps them for the next).
 static void release_sweep_buffers(cl_state *st)
 {
-    dbuf *sweep_set[] = {&st->keys[0],   &st->keys[1],   &st->values[0], &st->values[1],
-                         &st->sorted_lo, &st->sorted_hi, &st->counts,    &st->offsets,
-                         &st->pi[0],     &st->pi[1],     &st->pj[0],     &st->pj[1]};
+    dbuf *sweep_set[] = {&st->keys[0],     &st->keys[1],      &st->values[0],   &st->values[1],
+                         &st->sorted_lo,   &st->sorted_hi,    &st->counts,      &st->offsets,
+                         &st->pi[0],       &st->pi[1],        &st->pj[0],       &st->pj[1],
+                         &st->leaf_parent, &st->node_parent,  &st->nodes,       &st->flags,
+                         &st->walk_tests,  &st->pair_keys[0], &st->pair_keys[1]};
     for (size_t k = 0; k < sizeof sweep_set / sizeof sweep_set[0]; k++)
         bpx__cl_dbuf_release(st, sweep_set[k]);
 }
@@ -61,7 +65,7 @@ static bpx_status run_cycle(cl_state *st, bpx_world *w, bpx_block *block)
     uint32_t n = w->n;
     if (n == 0)
         return BPX_OK;
-    if (st->source == SOURCE_BUFFER && w->dead)
+    if ((st->source == SOURCE_BUFFER || st->source == SOURCE_CENTRES_BUFFER) && w->dead)
         return BPX_ERR_BAD_STATE; // add/remove/move_boxes on a world fed from a device buffer
     if (st->source == SOURCE_CENTRES && w->dead)
         st->source = SOURCE_HOST; // removed objects are inert in the host's boxes only
@@ -74,16 +78,22 @@ static bpx_status run_cycle(cl_state *st, bpx_world *w, bpx_block *block)
     uint32_t fit_all = block_capacity(st, BYTES_PER_BOX);
     bool whole = (forced == 0 || forced >= n) && fit_all >= n;
     if (whole) {
-        bool sweep = w->def.opencl_method == BPX_OPENCL_SWEEP ||
-                     (w->def.opencl_method == BPX_OPENCL_AUTO && n >= SWEEP_MIN_N &&
-                      st->last_pairs <= (uint64_t)DENSE_PAIRS_PER_BOX * n);
-        if (sweep) {
-            bpx_status status = bpx__cl_sweep_all(st, w, block);
+        int method = w->def.opencl_method;
+        if (method == BPX_OPENCL_AUTO)
+            method = n < TREE_MIN_N || st->last_pairs > (uint64_t)DENSE_PAIRS_PER_BOX * n
+                         ? BPX_OPENCL_BRUTE
+                         : BPX_OPENCL_TREE;
+        if (method != BPX_OPENCL_BRUTE) {
+            bpx_status status = method == BPX_OPENCL_TREE ? bpx__cl_tree_all(st, w, block)
+                                                          : bpx__cl_sweep_all(st, w, block);
             if (status != BPX_ERR_DEVICE_MEMORY)
                 return status;
-            // Pairs beyond the limit: brute force reads them out in windows.
+            // Beyond the limit: brute force reads the pairs out in windows.
             block->hits.count = 0;
-            st->counters.sweep_fallbacks++;
+            if (method == BPX_OPENCL_TREE)
+                st->counters.tree_fallbacks++;
+            else
+                st->counters.sweep_fallbacks++;
             clFinish(st->queue);
             release_sweep_buffers(st); // brute force may need the room
         }
@@ -289,6 +299,81 @@ bpx_status bpx_opencl_set_boxes_buffer(bpx_world *w, void *buffer, uint32_t n)
     st->user_buffer = mem;
     st->source = SOURCE_BUFFER;
     w->boxes_on_device = true;
+    w->stats.update_ns = bpx__now_ns() - start;
+    return BPX_OK;
+}
+
+bpx_status bpx_opencl_set_centres_buffer(bpx_world *w, void *buffer, uint32_t n)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    if (!buffer)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "buffer is NULL");
+    cl_state *st = NULL;
+    TRY(opencl_world_state(w, &st));
+    if (!w->extents_loaded || w->dead)
+        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          w->dead ? "set_centres_buffer: objects were removed by id"
+                                  : "set_centres_buffer before load_extents");
+    if (n != w->extent_count)
+        return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "%u centres for %u loaded extents", n, w->extent_count);
+    if (!st->dev->denormals)
+        return bpx__error(&w->error, BPX_ERR_BACKEND_UNAVAILABLE, UINT32_MAX, -1,
+                          "the device flushes subnormal floats: its updater would round "
+                          "differently from the host's");
+    cl_mem mem = buffer;
+    cl_context context = NULL;
+    size_t size = 0;
+    if (clGetMemObjectInfo(mem, CL_MEM_CONTEXT, sizeof context, &context, NULL) != CL_SUCCESS ||
+        context != st->dev->context)
+        return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "buffer is not a cl_mem of the world's context");
+    size_t need = (size_t)n * 3 * sizeof(float);
+    if (clGetMemObjectInfo(mem, CL_MEM_SIZE, sizeof size, &size, NULL) != CL_SUCCESS || size < need)
+        return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "buffer holds %zu bytes, %u centres need %zu", size, n, need);
+    uint64_t start = bpx__now_ns();
+    if (n > 0) {
+        // The minima go over now (once per load_extents), then the check: the smallest bad
+        // object, and that centre alone crosses the link.
+        cl_uint none = UINT32_MAX, n_arg = n, bad = UINT32_MAX;
+        float centre[3];
+        bpx_status status = bpx__cl_upload_minima(st, w);
+        if (status == BPX_OK)
+            status = bpx__cl_write_buffer(st, st->check.mem, 0, sizeof none, &none, true);
+        const kernel_arg args[] = {ARG(mem), ARG(st->minima.mem), ARG(n_arg), ARG(n_arg),
+                                   ARG(st->check.mem)};
+        if (status == BPX_OK)
+            status = bpx__cl_launch(st, K_VALIDATE_CENTRES, n, 0, 5, args);
+        if (status == BPX_OK)
+            status = bpx__cl_read_buffer(st, st->check.mem, 0, sizeof bad, &bad);
+        if (status == BPX_OK && bad != UINT32_MAX)
+            status =
+                bpx__cl_read_buffer(st, mem, (size_t)bad * sizeof centre, sizeof centre, centre);
+        bpx__cl_events_flush(st);
+        if (status != BPX_OK)
+            return bpx__error(&w->error, status, UINT32_MAX, -1,
+                              "opencl: checking the device centres failed");
+        if (bad != UINT32_MAX) {
+            // The host's own check names the axis, on that one object.
+            const float *const minima[3] = {w->minima[0] + bad, w->minima[1] + bad,
+                                            w->minima[2] + bad};
+            bpx_error detail = {0};
+            bpx_status why = bpx__check_centres(centre, minima, 1, &detail);
+            if (why == BPX_OK) // the device saw another centre than it gave back: changed since
+                why = BPX_ERR_NOT_FINITE;
+            return bpx__error(&w->error, why, bad, detail.axis,
+                              "device centres, object %u, axis %d: %s", bad, detail.axis,
+                              bpx_status_string(why));
+        }
+    }
+    clRetainMemObject(mem);
+    if (st->user_buffer)
+        clReleaseMemObject(st->user_buffer);
+    st->user_buffer = mem;
+    st->source = SOURCE_CENTRES_BUFFER;
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }

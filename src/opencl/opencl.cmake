@@ -16,11 +16,14 @@ if(BPX_OPENCL)
     # The program is these files in this order, embedded at build time.
     set(BPX_OPENCL_KERNELS
         ${BPX_OPENCL_DIR}/kernels/twin.h
+        ${BPX_OPENCL_DIR}/../kernels/lbvh_build.h
+        ${BPX_OPENCL_DIR}/kernels/lbvh.h
         ${BPX_OPENCL_DIR}/kernels/update.cl
         ${BPX_OPENCL_DIR}/kernels/brute.cl
         ${BPX_OPENCL_DIR}/kernels/scan.cl
         ${BPX_OPENCL_DIR}/kernels/sort.cl
-        ${BPX_OPENCL_DIR}/kernels/sweep.cl)
+        ${BPX_OPENCL_DIR}/kernels/sweep.cl
+        ${BPX_OPENCL_DIR}/kernels/tree.cl)
     set(BPX_OPENCL_EMBEDDED ${PROJECT_BINARY_DIR}/generated/bpx_opencl_kernels.c)
     add_custom_command(
         OUTPUT ${BPX_OPENCL_EMBEDDED}
@@ -34,7 +37,9 @@ if(BPX_OPENCL)
         src/opencl/buffers.c
         src/opencl/device.c
         src/opencl/opencl.c
+        src/opencl/sort.c
         src/opencl/sweep.c
+        src/opencl/tree.c
         src/opencl/twin.c
         src/opencl/update.c
         ${BPX_OPENCL_EMBEDDED})

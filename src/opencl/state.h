@@ -1,6 +1,6 @@
 // The opencl backend's state (one per world) and the calls its files share: buffers.c (device
-// memory, events, launches, transfers), update.c (the updater), brute.c and sweep.c (the
-// comparator's two paths), opencl.c (the cycle and the public calls).
+// memory, events, launches, transfers), update.c (the updater), brute.c, sweep.c and tree.c (the
+// comparator's three paths), sort.c (scans and sorts), opencl.c (the cycle and the public calls).
 
 #pragma once
 
@@ -28,30 +28,43 @@ enum kernel_id {
     K_SWEEP_WRITE,
     K_SWEEP_INTERLEAVE,
     K_BRUTE_SMALL,
+    K_RADIX_COUNT64,
+    K_RADIX_SCATTER64,
+    K_TREE_RESET,
+    K_TREE_BOUNDS,
+    K_TREE_CODES,
+    K_TREE_BUILD,
+    K_TREE_REFIT,
+    K_TREE_WALK,
+    K_TREE_UNPACK,
+    K_VALIDATE_CENTRES,
     K_COUNT
 };
 
 enum {
     EVENTS_MAX = 128,
     DEFAULT_PAIR_CAPACITY = 65536,
-    // Auto method: sort and sweep from this many boxes on, unless the last cycle found more than
-    // DENSE_PAIRS_PER_BOX pairs per box (then ordering the pairs costs the sweep more than brute
-    // force's second pass). Measured on PoCL: docs/opencl.md.
-    SWEEP_MIN_N = 4096,
+    // Auto method: the tree from this many boxes on, unless the last cycle found more than
+    // DENSE_PAIRS_PER_BOX pairs per box (then ordering the pairs costs more than brute force's
+    // second pass). The tree beats the sweep from 4096 boxes on PoCL and its margin grows with
+    // n (the sweep's candidates grow like n^(5/3)), so auto no longer takes the sweep; it stays
+    // as a forced path. Measured on PoCL: docs/opencl.md.
+    TREE_MIN_N = 2048,
     DENSE_PAIRS_PER_BOX = 16,
     // Device bytes per box: keys (2 x 16), per-row count and stash (4 + 16), input (24).
     BYTES_PER_BOX = 2 * 16 + 4 + 4 * BPX_CL_STASH + 24,
     // Streaming keeps two blocks of keys and of input.
     BYTES_PER_STREAMED_BOX = BYTES_PER_BOX + 2 * 16 + 24,
-    REGISTER_SLOTS = 4, // 0: brute count, 1: sweep count, 2: scratch scans
+    REGISTER_SLOTS = 4, // 0: brute count, 1: sweep count, 2: scratch scans, 3: tree tests
 };
 
 enum { EV_IN, EV_OUT, EV_DEVICE, EV_CLASSES };
 
 typedef enum box_source {
-    SOURCE_HOST,    // the world's boxes, uploaded as six planes (24 bytes per box)
-    SOURCE_CENTRES, // this cycle's centres (12 bytes per object) + minima kept on the device
-    SOURCE_BUFFER,  // the caller's device buffer of bpx_box (nothing uploaded)
+    SOURCE_HOST,           // the world's boxes, uploaded as six planes (24 bytes per box)
+    SOURCE_CENTRES,        // this cycle's centres (12 bytes per object) + minima kept on the device
+    SOURCE_BUFFER,         // the caller's device buffer of bpx_box (nothing uploaded)
+    SOURCE_CENTRES_BUFFER, // the caller's device buffer of centres + minima kept on the device
 } box_source;
 
 typedef struct dbuf {
@@ -76,7 +89,7 @@ typedef struct cl_state {
 
     box_source source;
     bool minima_on_device; // the current extents are in `minima`
-    cl_mem user_buffer;    // SOURCE_BUFFER (retained)
+    cl_mem user_buffer;    // SOURCE_BUFFER, SOURCE_CENTRES_BUFFER (retained)
 
     pinned up;         // uploads: six planes, two regions (row block, column block)
     pinned up_centres; // the centres of the last update_centres
@@ -91,6 +104,8 @@ typedef struct cl_state {
     // Sort and sweep.
     dbuf keys[2], values[2], sorted_lo, sorted_hi, counts, offsets, sums, hist, hist_offsets;
     dbuf pi[2], pj[2];
+    // The tree (Morton codes and ids use keys[] and values[] above).
+    dbuf leaf_parent, node_parent, nodes, flags, tree_small, walk_tests, pair_keys[2];
 
     cl_event events[EVENTS_MAX];
     unsigned char event_class[EVENTS_MAX];
@@ -152,6 +167,7 @@ bpx_status bpx__cl_read_pairs(cl_state *st, cl_mem pairs, size_t count, bpx_pair
 void bpx__cl_state_free(cl_state *st);
 bpx_status bpx__cl_state_get(bpx_world *w, cl_state **out);
 // update.c: the updater.
+bpx_status bpx__cl_upload_minima(cl_state *st, const bpx_world *w);
 bpx_status bpx__cl_upload_keys(cl_state *st, const bpx_world *w, uint32_t first, uint32_t count,
                                uint32_t padded, size_t region_offset, dbuf *lo, dbuf *hi);
 // brute.c: the tiled comparator, whole, small or streamed.
@@ -159,5 +175,15 @@ bpx_status bpx__cl_brute_all(cl_state *st, bpx_world *w, bpx_block *block);
 bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block);
 bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
                                   uint32_t block_boxes);
+// sort.c: scans and radix sorts.
+unsigned bpx__cl_bits_for(uint32_t max_value);
+bpx_status bpx__cl_sum(cl_state *st, cl_mem in, uint32_t count, cl_uint slot);
+bpx_status bpx__cl_scan(cl_state *st, cl_mem in, uint32_t count, cl_mem out, cl_uint slot);
+bpx_status bpx__cl_radix_sort(cl_state *st, dbuf *keys, dbuf *values, uint32_t count, unsigned bits,
+                              int *result);
+bpx_status bpx__cl_radix_sort64(cl_state *st, dbuf *keys, uint32_t count, unsigned bits,
+                                int *result);
 // sweep.c: sort and sweep.
 bpx_status bpx__cl_sweep_all(cl_state *st, bpx_world *w, bpx_block *block);
+// tree.c: the linear BVH.
+bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block);

@@ -20,3 +20,9 @@ bpx_status bpx_opencl_set_boxes_buffer(bpx_world *world, void *buffer, uint32_t 
     (void)buffer, (void)n;
     return world ? BPX_ERR_BACKEND_UNAVAILABLE : BPX_ERR_NULL_ARGUMENT;
 }
+
+bpx_status bpx_opencl_set_centres_buffer(bpx_world *world, void *buffer, uint32_t n)
+{
+    (void)buffer, (void)n;
+    return world ? BPX_ERR_BACKEND_UNAVAILABLE : BPX_ERR_NULL_ARGUMENT;
+}

@@ -1,9 +1,25 @@
 // The opencl backend's updater: the world's boxes, its centres (with the minima kept on the
-// device) or the caller's device buffer, turned into keys on the device.
+// device) or the caller's device buffer of boxes or of centres, turned into keys on the device.
 
 #include <string.h>
 
 #include "state.h"
+
+// Initialisation phase: the minima cross once (after each load_extents), as three planes of
+// w->n floats.
+bpx_status bpx__cl_upload_minima(cl_state *st, const bpx_world *w)
+{
+    if (st->minima_on_device)
+        return BPX_OK;
+    size_t plane = (size_t)w->n * sizeof(float);
+    TRY(bpx__cl_dbuf_reserve(st, &st->minima, 3 * plane));
+    TRY(bpx__cl_pinned_reserve(st, &st->up, 3 * plane));
+    for (int a = 0; a < 3; a++)
+        memcpy((char *)st->up.host + a * plane, w->minima[a], plane);
+    TRY(bpx__cl_write_buffer(st, st->minima.mem, 0, 3 * plane, st->up.host, true));
+    st->minima_on_device = true;
+    return BPX_OK;
+}
 
 // ---------------------------------------------------------------------------------------------
 // Updater: boxes [first, first + count) of the world onto the device as keys, padded.
@@ -24,17 +40,18 @@ bpx_status bpx__cl_upload_keys(cl_state *st, const bpx_world *w, uint32_t first,
                                    ARG(lo->mem),         ARG(hi->mem)};
         return bpx__cl_launch(st, K_CONVERT, global, 0, 8, args);
     }
+    if (st->source == SOURCE_CENTRES_BUFFER) {
+        // The caller's centres, read in place, any block of them: the minima are whole planes.
+        TRY(bpx__cl_upload_minima(st, w));
+        cl_uint stride = w->n;
+        const kernel_arg args[] = {ARG(st->user_buffer), ARG(st->minima.mem), ARG(stride),
+                                   ARG(first_arg),       ARG(count_arg),      ARG(padded_arg),
+                                   ARG(lo->mem),         ARG(hi->mem)};
+        return bpx__cl_launch(st, K_UPDATE, global, 0, 8, args);
+    }
     if (st->source == SOURCE_CENTRES && whole) {
         size_t plane = (size_t)count * sizeof(float);
-        if (!st->minima_on_device) {
-            // Initialisation phase: the minima cross once, as three planes.
-            TRY(bpx__cl_dbuf_reserve(st, &st->minima, 3 * plane));
-            TRY(bpx__cl_pinned_reserve(st, &st->up, 3 * plane));
-            for (int a = 0; a < 3; a++)
-                memcpy((char *)st->up.host + a * plane, w->minima[a], plane);
-            TRY(bpx__cl_write_buffer(st, st->minima.mem, 0, 3 * plane, st->up.host, true));
-            st->minima_on_device = true;
-        }
+        TRY(bpx__cl_upload_minima(st, w));
         TRY(bpx__cl_dbuf_reserve(st, &st->input, 3 * plane));
         TRY(bpx__cl_write_buffer(st, st->input.mem, 0, 3 * plane, st->up_centres.host, false));
         cl_uint stride = count;

@@ -21,9 +21,10 @@ typedef struct bench_variant {
     bpx_simd simd;
     int threads;
     bool centres;       // bpx: the paper's two-phase updater (extents once, centres per cycle)
+    int opencl_method;  // opencl: BPX_OPENCL_AUTO, or a path forced (the crossover's rows)
 } bench_variant;
 
-// "prune 2t", "brute avx512 1t", "opencl centres", "bullet-dbvt".
+// "prune 2t", "brute avx512 1t", "opencl centres", "opencl tree", "bullet-dbvt".
 void bench_variant_name(const bench_variant *v, char *out, size_t size);
 
 // Boxes that move on their own: each keeps its size and a velocity (per cycle) and bounces off

@@ -73,9 +73,8 @@ int bench_cmd_parse_args(int argc, char **argv, bench_options *o)
                 return cli_usage_error("bench", "--backend wants names like prune,bullet-dbvt");
             for (int n = 0; n < o->name_count; n++)
                 if (!known_name(o->names[n]))
-                    return cli_usage_error("bench",
-                                           "unknown backend or peer \"%s\" (see bpx backends)",
-                                           o->names[n]);
+                    return cli_usage_error(
+                        "bench", "unknown backend or peer \"%s\" (see bpx backends)", o->names[n]);
         } else if ((m = cli_flag_value(argc, argv, &k, "--scene", &value)) != CLI_NO_MATCH) {
             const char *list[SCENES + 1];
             int count = m == CLI_MATCH ? parse_list(value, list, SCENES + 1, scene_storage,
@@ -168,7 +167,14 @@ static bool fits(const bench_variant *v, uint32_t n, bool quick)
         return n <= (quick ? 5000u : 20000u);
     case BPX_BACKEND_BRUTE:
         return n <= quadratic;
-    case BPX_BACKEND_OPENCL: // sort and sweep on the device from 4096 boxes (BPX_OPENCL_AUTO)
+    case BPX_BACKEND_OPENCL:
+        // The auto rule's rows: brute force, the tree from 2048 boxes. The forced paths
+        // measure the crossover (full runs only): the sweep's candidates grow like n^(5/3), so
+        // it stops at 200k.
+        if (v->opencl_method == BPX_OPENCL_SWEEP)
+            return !quick && n <= 200000u;
+        if (v->opencl_method == BPX_OPENCL_TREE)
+            return !quick && n <= 1000000u;
         return n <= (quick ? quadratic : 1000000u);
     default:
         return true;
@@ -179,31 +185,36 @@ int bench_cmd_list_variants(const bench_options *o, uint32_t n, bench_variant *o
 {
     bench_variant all[BENCH_MAX_VARIANTS];
     int count = 0;
-    all[count++] = (bench_variant){-1, BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1, false};
+    all[count++] = (bench_variant){-1, BPX_BACKEND_REFERENCE, BPX_SIMD_AUTO, 1, false, 0};
     bpx_simd best = bpx_simd_best();
     for (int s = BPX_SIMD_COUNT - 1; s > BPX_SIMD_AUTO; s--) {
         if (!bpx_simd_supported((bpx_simd)s) || (!o->all_simd && s != (int)best))
             continue;
-        all[count++] = (bench_variant){-1, BPX_BACKEND_BRUTE, (bpx_simd)s, 1, false};
+        all[count++] = (bench_variant){-1, BPX_BACKEND_BRUTE, (bpx_simd)s, 1, false, 0};
         if (o->threads > 1)
-            all[count++] = (bench_variant){-1, BPX_BACKEND_BRUTE, (bpx_simd)s, o->threads, false};
+            all[count++] =
+                (bench_variant){-1, BPX_BACKEND_BRUTE, (bpx_simd)s, o->threads, false, 0};
     }
     static const bpx_backend scalable[] = {BPX_BACKEND_PRUNE, BPX_BACKEND_SAP, BPX_BACKEND_GRID,
                                            BPX_BACKEND_AUTO};
     for (size_t k = 0; k < sizeof scalable / sizeof scalable[0]; k++) {
-        all[count++] = (bench_variant){-1, scalable[k], BPX_SIMD_AUTO, 1, false};
+        all[count++] = (bench_variant){-1, scalable[k], BPX_SIMD_AUTO, 1, false, 0};
         if (o->threads > 1)
-            all[count++] = (bench_variant){-1, scalable[k], BPX_SIMD_AUTO, o->threads, false};
+            all[count++] = (bench_variant){-1, scalable[k], BPX_SIMD_AUTO, o->threads, false, 0};
     }
     // The coprocessor: boxes over the link, then only centres (the paper's updater).
     if (bpx_backend_query(BPX_BACKEND_OPENCL).available) {
-        all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, false};
-        all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true};
+        all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, false, 0};
+        all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true, 0};
+        all[count++] =
+            (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, false, BPX_OPENCL_SWEEP};
+        all[count++] =
+            (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, false, BPX_OPENCL_TREE};
     }
     if (bpx_backend_query(BPX_BACKEND_CUDA).available)
-        all[count++] = (bench_variant){-1, BPX_BACKEND_CUDA, BPX_SIMD_AUTO, 1, false};
+        all[count++] = (bench_variant){-1, BPX_BACKEND_CUDA, BPX_SIMD_AUTO, 1, false, 0};
     for (int p = 0; p < bench_peer_count() && count < BENCH_MAX_VARIANTS; p++)
-        all[count++] = (bench_variant){p, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, false};
+        all[count++] = (bench_variant){p, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, false, 0};
     int kept = 0;
     for (int k = 0; k < count; k++)
         if (bench_cmd_wanted(&all[k], o) && fits(&all[k], n, o->quick))

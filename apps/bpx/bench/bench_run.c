@@ -82,7 +82,12 @@ void bench_variant_name(const bench_variant *v, char *out, size_t size)
         const bench_peer_info *info = bench_peer_get(v->peer);
         snprintf(out, size, "%s", info ? info->name : "?");
     } else if (v->backend == BPX_BACKEND_OPENCL) {
-        snprintf(out, size, "opencl %s", v->centres ? "centres" : "boxes");
+        static const char *const forced[] = {"boxes", "brute", "sweep", "tree"};
+        int m = v->opencl_method;
+        snprintf(out, size, "opencl %s",
+                 m > 0 && m < 4 ? forced[m]
+                 : v->centres   ? "centres"
+                                : "boxes");
     } else if (v->backend == BPX_BACKEND_REFERENCE) {
         snprintf(out, size, "reference");
     } else if (v->simd != BPX_SIMD_AUTO && v->simd != bpx_simd_best()) {
@@ -260,6 +265,7 @@ static int runner_open(runner *r)
     def.backend = r->v->backend;
     def.simd = r->v->simd;
     def.worker_count = r->v->threads;
+    def.opencl_method = r->v->opencl_method;
     def.capacity_hint = fr->n;
     bpx_status status = bpx_world_create(&def, &r->world);
     if (status == BPX_OK && r->v->centres)

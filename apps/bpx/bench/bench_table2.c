@@ -84,16 +84,16 @@ static int list_variants(const bench_table2_options *o, bench_variant *out)
     bench_variant all[BENCH_MAX_VARIANTS];
     int count = 0;
     for (size_t k = 0; k < sizeof cpu / sizeof cpu[0]; k++) {
-        all[count++] = (bench_variant){-1, cpu[k], BPX_SIMD_AUTO, 1, true};
+        all[count++] = (bench_variant){-1, cpu[k], BPX_SIMD_AUTO, 1, true, 0};
         if (cpu[k] == BPX_BACKEND_BRUTE && o->threads > 1)
-            all[count++] = (bench_variant){-1, cpu[k], BPX_SIMD_AUTO, o->threads, true};
+            all[count++] = (bench_variant){-1, cpu[k], BPX_SIMD_AUTO, o->threads, true, 0};
     }
     if (bpx_backend_query(BPX_BACKEND_OPENCL).available)
-        all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true};
+        all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true, 0};
     if (bpx_backend_query(BPX_BACKEND_CUDA).available)
-        all[count++] = (bench_variant){-1, BPX_BACKEND_CUDA, BPX_SIMD_AUTO, 1, true};
+        all[count++] = (bench_variant){-1, BPX_BACKEND_CUDA, BPX_SIMD_AUTO, 1, true, 0};
     for (int p = 0; p < bench_peer_count() && count < BENCH_MAX_VARIANTS; p++)
-        all[count++] = (bench_variant){p, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, false};
+        all[count++] = (bench_variant){p, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, false, 0};
     int kept = 0;
     for (int k = 0; k < count; k++)
         if (!o->wanted || o->wanted(&all[k], o->wanted_context))

@@ -107,6 +107,23 @@ BPX_FN int bpx_box_problem(const BPX_G float *box, int *axis)
     return 0;
 }
 
+/// The first axis on which object i's box (centre + minimum, centre - minimum, as
+/// bpx_update_keys makes it) is not finite, or -1: the host's check of bpx_world_update_centres.
+/// A NaN fails both comparisons.
+BPX_FN int bpx_centre_problem(const BPX_G float *centres, const BPX_G float *minima, bpx_u32 stride,
+                              bpx_u32 i)
+{
+    for (int a = 0; a < 3; a++) {
+        float c = centres[3 * (bpx_u64)i + (bpx_u32)a];
+        float m = minima[(bpx_u64)a * stride + i];
+        float low = c + m;
+        float high = c - m;
+        if (!(-3.40282347e38f <= low && high <= 3.40282347e38f))
+            return a;
+    }
+    return -1;
+}
+
 /// Sort and sweep, one sorted position p: boxes sorted by min-x key (ties by index), their keys
 /// gathered into sorted order, `index` the box number at each position. Walks q = p + 1, ...
 /// while q's min x <= p's max x; every overlapping q makes the pair (min, max) of the two box

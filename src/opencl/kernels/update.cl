@@ -56,3 +56,14 @@ __kernel void bpx_validate(__global const float *boxes, uint n, __global volatil
     if (bpx_box_problem(boxes + 6 * (ulong)k, &axis))
         atomic_min(&result[0], k);
 }
+
+/// Checks the boxes that n centres of a caller's buffer make with the stored minima (three
+/// planes of `stride` floats): result[0] becomes the smallest object whose box is not finite
+/// (it must start at 0xFFFFFFFF).
+__kernel void bpx_validate_centres(__global const float *centres, __global const float *minima,
+                                   uint stride, uint n, __global volatile uint *result)
+{
+    uint k = get_global_id(0);
+    if (k < n && bpx_centre_problem(centres, minima, stride, k) >= 0)
+        atomic_min(&result[0], k);
+}

@@ -1,0 +1,151 @@
+// bpx_clscale: the opencl backend's paths at scale, one path at a time, on the scenes `bpx bench`
+// uses (uniform: about one overlap per box; heavy: the heavy-tailed size mix) and two of the
+// tests' (dense: each box overlaps ~10% of the others; clustered), for the scaling
+// figures of docs/opencl.md. Per scene, n and path it runs a few cycles of set_boxes + collide
+// on one world and prints the fastest cycle (wall and device clock), the median, the pairs and
+// the bounds tests per box. The fastest cycle is the figure to quote on a shared machine: other
+// jobs only ever add time. The pairs are checked against prune on every cycle.
+//
+//   bpx_clscale [--sizes 10000,100000,1000000] [--scene uniform,heavy,dense,clustered]
+//               [--method tree,sweep,brute,auto] [--cycles 7]
+#define _POSIX_C_SOURCE 200809L
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include <bpx/bpx.h>
+
+#include "scenes.h"
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int compare_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static const char *const method_names[] = {"auto", "brute", "sweep", "tree"};
+
+// Comma-separated names or numbers into out[] (at most 16); returns the count.
+static int parse_list(const char *text, int *out, const char *const *names, int name_count)
+{
+    int count = 0;
+    char buf[256];
+    snprintf(buf, sizeof buf, "%s", text);
+    for (char *tok = strtok(buf, ","); tok && count < 16; tok = strtok(NULL, ",")) {
+        int value = -1;
+        for (int k = 0; k < name_count; k++)
+            if (strcmp(tok, names[k]) == 0)
+                value = k;
+        if (!names)
+            value = atoi(tok);
+        if (value < 0) {
+            fprintf(stderr, "bpx_clscale: unknown name '%s'\n", tok);
+            exit(2);
+        }
+        out[count++] = value;
+    }
+    return count;
+}
+
+int main(int argc, char **argv)
+{
+    int sizes[16] = {10000, 100000, 1000000}, size_count = 3;
+    int scenes[16] = {0, 1}, scene_count = 2;
+    int methods[16] = {3}, method_count = 1;
+    int cycles = 7;
+    static const char *const scene_names[] = {"uniform", "heavy", "dense", "clustered"};
+    for (int k = 1; k + 1 < argc; k += 2) {
+        if (strcmp(argv[k], "--sizes") == 0)
+            size_count = parse_list(argv[k + 1], sizes, NULL, 0);
+        else if (strcmp(argv[k], "--scene") == 0)
+            scene_count = parse_list(argv[k + 1], scenes, scene_names, 4);
+        else if (strcmp(argv[k], "--method") == 0)
+            method_count = parse_list(argv[k + 1], methods, method_names, 4);
+        else if (strcmp(argv[k], "--cycles") == 0)
+            cycles = atoi(argv[k + 1]) > 1 ? atoi(argv[k + 1]) : 2;
+        else {
+            fprintf(stderr,
+                    "usage: bpx_clscale [--sizes N,...] [--scene uniform,heavy,dense,clustered] "
+                    "[--method tree,sweep,brute,auto] [--cycles C]\n");
+            return 2;
+        }
+    }
+    bpx_backend_info info = bpx_backend_query(BPX_BACKEND_OPENCL);
+    if (!info.available) {
+        printf("bpx_clscale: opencl unavailable: %s\n", info.reason ? info.reason : "?");
+        return 77;
+    }
+    printf("opencl on %s; %d cycles per row, the first (cold) not counted\n\n", info.detail,
+           cycles);
+    printf("| scene | n | path | pairs/box | tests/box | fastest ms | device ms | median ms |\n");
+    printf("|---|---:|---|---:|---:|---:|---:|---:|\n");
+    int failures = 0;
+    for (int s = 0; s < scene_count; s++)
+        for (int z = 0; z < size_count; z++) {
+            uint32_t n = (uint32_t)sizes[z];
+            bpx_box *boxes = malloc(sizeof(bpx_box) * (n ? n : 1));
+            if (!boxes)
+                return 1;
+            if (scenes[s] == 1)
+                scene_heavy_tailed_density(n, 1, boxes);
+            else if (scenes[s] >= 2)
+                scene_generate(scenes[s] == 2 ? SCENE_DENSE : SCENE_CLUSTERED, n, 1, boxes);
+            else
+                scene_uniform_density(n, 1.0f, 1, boxes);
+            size_t want = 0;
+            bpx_pair probe;
+            bpx_find_pairs(boxes, n, BPX_BACKEND_PRUNE, &probe, 0, &want, NULL);
+            for (int m = 0; m < method_count; m++) {
+                bpx_world_def def = bpx_default_world_def();
+                def.backend = BPX_BACKEND_OPENCL;
+                def.opencl_method = methods[m];
+                bpx_world *world = NULL;
+                if (bpx_world_create(&def, &world) != BPX_OK)
+                    return 1;
+                double wall[64], fastest = 1e30, device = 0;
+                int timed = 0;
+                bpx_cycle_stats stats = {0};
+                for (int c = 0; c <= cycles && c < 64; c++) {
+                    double t0 = now_s();
+                    bpx_status st = bpx_world_set_boxes(world, boxes, n);
+                    if (st == BPX_OK)
+                        st = bpx_world_collide(world);
+                    double ms = (now_s() - t0) * 1e3;
+                    stats = bpx_world_stats(world);
+                    if (st != BPX_OK || stats.pair_count != want) {
+                        fprintf(stderr, "bpx_clscale: %s n=%u %s: status %s, %zu pairs, want %zu\n",
+                                scene_names[scenes[s]], n, method_names[methods[m]],
+                                bpx_status_string(st), (size_t)stats.pair_count, want);
+                        failures++;
+                        break;
+                    }
+                    if (c == 0)
+                        continue; // cold: buffers grow
+                    wall[timed++] = ms;
+                    if (ms < fastest) {
+                        fastest = ms;
+                        device = (double)stats.device_ns * 1e-6;
+                    }
+                }
+                bpx_world_destroy(world);
+                if (timed == 0)
+                    continue;
+                qsort(wall, (size_t)timed, sizeof *wall, compare_double);
+                printf("| %s | %u | %s | %.2f | %.1f | %.1f | %.1f | %.1f |\n",
+                       scene_names[scenes[s]], n, method_names[methods[m]],
+                       (double)want / (n ? n : 1), (double)stats.pair_tests / (n ? n : 1), fastest,
+                       device, wall[timed / 2]);
+                fflush(stdout);
+            }
+            free(boxes);
+        }
+    return failures ? 1 : 0;
+}

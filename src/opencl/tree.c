@@ -1,0 +1,146 @@
+// The opencl backend's tree, for large sets: a linear BVH over the boxes' Morton-ordered centres
+// (Karras 2012) built every cycle, walked once per box over the later Morton positions, the pairs
+// appended as 64-bit keys and radix sorted into (i, j) order (kernels/tree.cl, kernels/lbvh.h).
+// At constant density each box's walk tests a few dozen nodes, growing only with the tree's
+// depth (log n), whatever the boxes' sizes, where the sweep's candidates per box grow like
+// n^(2/3).
+
+#include <string.h>
+
+#include "state.h"
+
+// Device bytes of the pairs' stages for `keys` pair keys: two key buffers (the sort's two
+// sides) and the packed pairs.
+static uint64_t pair_bytes(uint64_t keys)
+{
+    return keys * (2 * sizeof(cl_ulong) + sizeof(bpx_pair));
+}
+
+// Makes room for `keys` pair keys and their pairs; DEVICE_MEMORY (nothing changed) when that
+// passes the limit, so that the caller can fall back to brute force's windows.
+static bpx_status reserve_pairs(cl_state *st, uint64_t keys)
+{
+    uint64_t held = st->pair_keys[0].size + st->pair_keys[1].size + st->pairs.size;
+    if (keys > UINT32_MAX || keys * sizeof(cl_ulong) > st->dev->max_alloc ||
+        st->used - held + pair_bytes(keys) > st->limit)
+        return BPX_ERR_DEVICE_MEMORY;
+    for (int k = 0; k < 2; k++)
+        TRY(bpx__cl_dbuf_reserve(st, &st->pair_keys[k], keys * sizeof(cl_ulong)));
+    return bpx__cl_dbuf_reserve(st, &st->pairs, keys * sizeof(bpx_pair));
+}
+
+// tree_small holds the scene's bounds (six words) and the walks' pair counter (two: the count and
+// a wrap flag); bpx_tree_reset clears them.
+static bpx_status reset(cl_state *st)
+{
+    const kernel_arg args[] = {ARG(st->tree_small.mem)};
+    return bpx__cl_launch(st, K_TREE_RESET, 1, 1, 1, args);
+}
+
+// The walks, appending pair keys into pair_keys[0] up to its capacity.
+static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids)
+{
+    cl_ulong capacity = st->pair_keys[0].size / sizeof(cl_ulong);
+    const kernel_arg args[] = {ARG(st->sorted_lo.mem),
+                               ARG(st->sorted_hi.mem),
+                               ARG(n),
+                               ARG(ids),
+                               ARG(st->nodes.mem),
+                               ARG(bits),
+                               ARG(st->pair_keys[0].mem),
+                               ARG(capacity),
+                               ARG(st->tree_small.mem),
+                               ARG(st->walk_tests.mem)};
+    return bpx__cl_launch(st, K_TREE_WALK, n - 1, 0, 10, args);
+}
+
+bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
+{
+    uint32_t n = w->n;
+    uint32_t padded = (uint32_t)round_up(n, st->tile);
+    TRY(bpx__cl_upload_keys(st, w, 0, n, padded, 0, &st->lo, &st->hi));
+    if (n < 2) {
+        st->counters.tree_cycles++;
+        return BPX_OK;
+    }
+    size_t nodes = (size_t)n - 1;
+    for (int k = 0; k < 2; k++) {
+        TRY(bpx__cl_dbuf_reserve(st, &st->keys[k], (size_t)n * sizeof(cl_uint)));
+        TRY(bpx__cl_dbuf_reserve(st, &st->values[k], (size_t)n * sizeof(cl_uint)));
+    }
+    TRY(bpx__cl_dbuf_reserve(st, &st->leaf_parent, (size_t)n * sizeof(cl_uint)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->node_parent, nodes * sizeof(cl_uint)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->flags, nodes * sizeof(cl_uint)));
+    // Two child slots per node, eight keys each (kernels/lbvh.h, BPX_LBVH_SLOT).
+    TRY(bpx__cl_dbuf_reserve(st, &st->nodes, nodes * 2 * 8 * sizeof(cl_uint)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->tree_small, 8 * sizeof(cl_uint)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->walk_tests, nodes * sizeof(cl_uint)));
+    if (st->pair_keys[0].size == 0)
+        TRY(reserve_pairs(st, st->first_pair_capacity));
+
+    cl_uint n_arg = n;
+    cl_mem small = st->tree_small.mem;
+    TRY(reset(st));
+    size_t wg = st->dev->scan_wg;
+    size_t per_group = wg * 16; // BPX_TREE_ITEMS (tree.cl) boxes per item
+    size_t groups = (n + per_group - 1) / per_group;
+    const kernel_arg bounds_args[] = {ARG(st->lo.mem), ARG(st->hi.mem), ARG(n_arg), ARG(small)};
+    TRY(bpx__cl_launch(st, K_TREE_BOUNDS, groups * wg, wg, 4, bounds_args));
+    const kernel_arg code_args[] = {ARG(st->lo.mem), ARG(st->hi.mem),      ARG(n_arg),
+                                    ARG(small),      ARG(st->keys[0].mem), ARG(st->values[0].mem)};
+    TRY(bpx__cl_launch(st, K_TREE_CODES, n, 0, 6, code_args));
+    int sorted;
+    TRY(bpx__cl_radix_sort(st, st->keys, st->values, n, 32, &sorted));
+    cl_mem codes = st->keys[sorted].mem, ids = st->values[sorted].mem;
+    // The keys in Morton order: the refit and the walks then read neighbouring boxes.
+    TRY(bpx__cl_dbuf_reserve(st, &st->sorted_lo, (size_t)padded * 16));
+    TRY(bpx__cl_dbuf_reserve(st, &st->sorted_hi, (size_t)padded * 16));
+    cl_uint padded_arg = padded;
+    const kernel_arg gather_args[] = {
+        ARG(st->lo.mem),        ARG(st->hi.mem),       ARG(ids), ARG(n_arg), ARG(padded_arg),
+        ARG(st->sorted_lo.mem), ARG(st->sorted_hi.mem)};
+    TRY(bpx__cl_launch(st, K_SWEEP_GATHER, padded, 0, 7, gather_args));
+    const kernel_arg build_args[] = {ARG(codes), ARG(n_arg), ARG(st->leaf_parent.mem),
+                                     ARG(st->node_parent.mem), ARG(st->flags.mem)};
+    TRY(bpx__cl_launch(st, K_TREE_BUILD, nodes, 0, 5, build_args));
+    const kernel_arg refit_args[] = {
+        ARG(st->sorted_lo.mem),   ARG(st->sorted_hi.mem),   ARG(n_arg),
+        ARG(st->leaf_parent.mem), ARG(st->node_parent.mem), ARG(st->nodes.mem),
+        ARG(st->flags.mem)};
+    TRY(bpx__cl_launch(st, K_TREE_REFIT, n, 0, 7, refit_args));
+    cl_uint bits = bpx__cl_bits_for(n - 1);
+    TRY(walk(st, n, bits, ids));
+    // The walks' bounds tests (the cycle's statistics) summed into register 3, read back behind
+    // the count: one wait for both.
+    TRY(bpx__cl_sum(st, st->walk_tests.mem, n - 1, 3));
+    char *test_register = (char *)st->reg.host + 3 * sizeof(cl_ulong);
+    TRY(bpx__cl_read_later(st, st->registers.mem, 3 * sizeof(cl_ulong), sizeof(cl_ulong),
+                           test_register));
+    // The count, read once: room for every pair, or more room and the walks again.
+    cl_uint found[8];
+    TRY(bpx__cl_read_buffer(st, small, 0, sizeof found, found));
+    cl_ulong tests;
+    memcpy(&tests, test_register, sizeof tests); // the in-order queue read it before `found`
+    st->tests += tests;
+    uint64_t total = found[6];
+    bool wrapped = found[7] != 0;
+    if (wrapped)
+        return BPX_ERR_DEVICE_MEMORY; // 2^32 pairs or more: brute force reads them in windows
+    if (total > st->pair_keys[0].size / sizeof(cl_ulong)) {
+        TRY(reserve_pairs(st, total));
+        TRY(reset(st));
+        TRY(walk(st, n, bits, ids));
+        st->counters.emit_reruns++;
+    }
+    if (total > 0) {
+        int by_key;
+        TRY(bpx__cl_radix_sort64(st, st->pair_keys, (uint32_t)total, 2 * bits, &by_key));
+        cl_uint count_arg = (cl_uint)total;
+        const kernel_arg unpack_args[] = {ARG(st->pair_keys[by_key].mem), ARG(count_arg), ARG(bits),
+                                          ARG(st->pairs.mem)};
+        TRY(bpx__cl_launch(st, K_TREE_UNPACK, (size_t)total, 0, 4, unpack_args));
+        TRY(bpx__cl_read_pairs(st, st->pairs.mem, (size_t)total, &block->hits));
+    }
+    st->counters.tree_cycles++;
+    return BPX_OK;
+}
