@@ -132,9 +132,12 @@ void bpx__emitter_merge(const bpx_world *w, bpx_pair *out)
 {
     for (int b = 0; b < w->block_count; b++) {
         const bpx_block *block = &w->blocks[b];
-        if (block->hits.count)
+        // out is NULL when no pair was found (an empty list owns no memory), and even + 0 on
+        // a null pointer is undefined: only a block with hits moves it.
+        if (block->hits.count) {
             memcpy(out, block->hits.pairs, block->hits.count * sizeof(bpx_pair));
-        out += block->hits.count;
+            out += block->hits.count;
+        }
     }
 }
 

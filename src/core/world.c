@@ -535,6 +535,9 @@ static bool merge_own(bpx_world *w, size_t total)
 static bpx_status compare(bpx_world *w, size_t *total)
 {
     w->merged = false;
+    // Last cycle's events go with its pairs: a cycle that fails shows neither (the next
+    // successful one reports against the last successful one, whose pairs objects.c keeps).
+    w->events_valid = false;
     w->stats.pair_count = 0;
     w->stats.rebuilt = false; // only backends that keep state between cycles set it
     uint64_t start = bpx__now_ns();
