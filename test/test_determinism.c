@@ -414,7 +414,7 @@ int main(void)
         for (int s = 0; s < BPX_SIMD_COUNT; s++) {
             bool forced = s != BPX_SIMD_AUTO;
             if (forced && (!check_backend_has_simd((bpx_backend)b) ||
-                           !bpx_simd_supported((bpx_simd)s))) {
+                           !bpx_simd_supported((bpx_simd)s) || check_quick())) {
                 continue;
             }
             for (int m = 0; m < HOOKS_MODE_COUNT; m++) {
@@ -425,6 +425,10 @@ int main(void)
                 for (size_t w = 0; w < sizeof worker_counts / sizeof worker_counts[0]; w++) {
                     // The pool has worker ids 0 and 1: it needs worker_count >= 2.
                     if (m == HOOKS_POOL2 && worker_counts[w] < 2) {
+                        continue;
+                    }
+                    // Quick: threads only, and not 8 of them on a small machine.
+                    if (check_quick() && (worker_counts[w] == 1 || worker_counts[w] == 8)) {
                         continue;
                     }
                     configs += run_config((bpx_backend)b, (bpx_simd)s, worker_counts[w],

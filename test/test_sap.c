@@ -969,14 +969,17 @@ int main(void)
         {"resting with jumps", test_resting_with_jumps},
         {"allocation failure", test_allocation_failure},
     };
-    for (int workers = 1; workers <= 3; workers += 2)
+    // Quick (BPX_TEST_QUICK, the tsan preset): the runs on more than one worker, and no
+    // allocation failure or scalar sweep, which run on one thread.
+    int first_workers = check_quick() ? 2 : 1;
+    for (int workers = first_workers == 2 ? 3 : 1; workers <= 3; workers += 2)
         for (int wide = 0; wide < 2; wide++) {
             double t = now_s();
             test_coherent_and_jumps(workers, wide);
             printf("  coherent and jumps, %d worker(s)%s: %.2f s\n", workers,
                    wide ? ", one wide box" : "", now_s() - t);
         }
-    for (int workers = 1; workers <= 2; workers++) {
+    for (int workers = first_workers; workers <= 2; workers++) {
         double t = now_s();
         test_many_boxes(workers);
         printf("  many boxes, %d worker(s): %.2f s\n", workers, now_s() - t);
@@ -988,14 +991,19 @@ int main(void)
     test_lists_on_demand();
     printf("  large rebuilds, 2 workers: %.2f s\n", now_s() - t_large);
     // The rebuild sweeps with the prune kernel of the world's SIMD width: the narrowest too.
-    forced_simd = BPX_SIMD_SCALAR;
-    double t_scalar = now_s();
-    test_changing_n();
-    test_shared_coordinates();
-    printf("  changing n + shared coordinates, scalar sweep: %.2f s\n",
-           now_s() - t_scalar);
-    forced_simd = BPX_SIMD_AUTO;
+    if (!check_quick()) {
+        forced_simd = BPX_SIMD_SCALAR;
+        double t_scalar = now_s();
+        test_changing_n();
+        test_shared_coordinates();
+        printf("  changing n + shared coordinates, scalar sweep: %.2f s\n",
+               now_s() - t_scalar);
+        forced_simd = BPX_SIMD_AUTO;
+    }
     for (size_t k = 0; k < sizeof tests / sizeof tests[0]; k++) {
+        if (check_quick() && tests[k].run == test_allocation_failure) {
+            continue;
+        }
         double t = now_s();
         tests[k].run();
         printf("  %-20s %.2f s\n", tests[k].name, now_s() - t);
