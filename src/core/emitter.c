@@ -186,6 +186,16 @@ bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_lis
     return BPX_OK;
 }
 
+void bpx__emitter_release(bpx_world *w)
+{
+    for (int b = 0; b < w->block_capacity; b++) {
+        list_free(&w->blocks[b].hits);
+        list_free(&w->blocks[b].stage);
+        w->blocks[b].status = BPX_OK;
+    }
+    list_free(&w->pairs);
+}
+
 void bpx__emitter_free(bpx_world *w)
 {
     for (int b = 0; b < w->block_capacity; b++) {
