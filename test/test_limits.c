@@ -5,8 +5,8 @@
 //                          reached by adding), allocation failing at 10 million boxes, and
 //                          the pair set past 2^32 below under a 1 GB allocation budget
 //   test_limits --pairs    a pair set past 2^32 (92,683 boxes that all overlap: 4,295,022,903
-//                          pairs, 34 GB each copy): brute reports every one, grid refuses with
-//                          TOO_MANY_PAIRS. Skips (77) with less than 100 GB of memory available.
+//                          pairs, 34 GB each copy): brute reports every one, prune and grid
+//                          refuse with TOO_MANY_PAIRS. Skips (77) below 81 GB available.
 #include <stdatomic.h>
 #include <stdbool.h>
 #include <stdint.h>
@@ -218,19 +218,22 @@ static int test_pairs_past_2_32(int workers)
     printf("%u boxes, %llu pairs expected (2^32 - 1 = %u), %d workers\n", (unsigned)PAIRS_N,
            (unsigned long long)want, UINT32_MAX, workers);
 
-    // grid indexes its pairs with 32-bit offsets: it refuses, and says so.
-    check_set_context("pairs past 2^32, grid");
+    // prune and grid order their pairs with 32-bit offsets: they refuse, and say so.
     bpx_world_def def = bpx_default_world_def();
-    def.backend = BPX_BACKEND_GRID;
     def.worker_count = workers;
     bpx_world *w;
-    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
-    CHECK_STATUS(bpx_world_set_boxes(w, boxes, PAIRS_N), BPX_OK);
-    CHECK_STATUS(bpx_world_collide(w), BPX_ERR_TOO_MANY_PAIRS);
-    printf("grid: %s\n", bpx_world_error(w)->message);
     size_t count = 1;
-    CHECK(bpx_world_pairs(w, &count) == NULL && count == 0);
-    bpx_world_destroy(w);
+    static const bpx_backend refusing[] = {BPX_BACKEND_PRUNE, BPX_BACKEND_GRID};
+    for (int b = 0; b < 2; b++) {
+        check_set_context("pairs past 2^32, %s", bpx_backend_name(refusing[b]));
+        def.backend = refusing[b];
+        CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+        CHECK_STATUS(bpx_world_set_boxes(w, boxes, PAIRS_N), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(w), BPX_ERR_TOO_MANY_PAIRS);
+        printf("%s: %s\n", bpx_backend_name(refusing[b]), bpx_world_error(w)->message);
+        CHECK(bpx_world_pairs(w, &count) == NULL && count == 0);
+        bpx_world_destroy(w);
+    }
 
     // brute counts in size_t: every pair, in order, the last one (n - 2, n - 1).
     check_set_context("pairs past 2^32, brute");

@@ -27,10 +27,11 @@ extern "C" {
 ///   any n, gives BPX_ERR_OUT_OF_MEMORY ("no memory for 10000000 boxes"; for a collide the
 ///   backend and n), and the world keeps its previous state.
 /// - More than 2^32 - 1 pairs in one cycle (all of 92,683 boxes overlapping each other, say):
-///   reference, brute, prune and sap count pairs in size_t and report them all, memory allowing
-///   (16 bytes a pair at the peak: 69 GB for 4.3 billion); grid and opencl's sort-and-sweep
-///   index pairs with 32-bit offsets and return BPX_ERR_TOO_MANY_PAIRS; auto reports what the
-///   backend it chose reports. bpx_cycle_stats.pair_count is 64-bit.
+///   reference and brute emit rows in order and count in size_t, so they report them all,
+///   memory allowing (16 bytes a pair at the peak: 69 GB for 4.3 billion); prune, sap, grid and
+///   opencl's sort-and-sweep order pairs with 32-bit offsets and return
+///   BPX_ERR_TOO_MANY_PAIRS; auto reports what the backend it chose reports. Short of memory,
+///   every backend returns BPX_ERR_OUT_OF_MEMORY first. bpx_cycle_stats.pair_count is 64-bit.
 #define BPX_MAX_BOXES (1u << 30)
 
 /// An axis-aligned bounding box: six IEEE single-precision floats, in this order in memory

@@ -161,6 +161,8 @@ bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_lis
     bpx_status status = bpx__emitter_total(w, &total);
     if (status != BPX_OK)
         return status;
+    if (total > UINT32_MAX)
+        return BPX_ERR_TOO_MANY_PAIRS; // the counting sort's offsets are 32-bit
     a->count = b->count = 0;
     // Headroom: the three lists that take turns here (a, b and block 0's) settle in a few
     // cycles even when the pair count drifts up.
