@@ -2,7 +2,7 @@
 // removed, filters changed and events tracked, checked against Algorithm 1 every k cycles, its
 // resident memory sampled from /proc/self/statm. SPDX-License-Identifier: MIT
 //
-//   test_soak [CYCLES [K [WORKERS]]]     defaults 1000000, 1000, 2
+//   test_soak [CYCLES [K [WORKERS [BACKEND]]]]     defaults 1000000, 1000, 2, auto
 //
 // The population follows a sine between 200 and 1800 boxes (period 50,000 cycles) and every
 // box's size another (period 20,000 cycles, its own phase); boxes wander and bounce off the
@@ -239,6 +239,11 @@ int main(int argc, char **argv)
     uint64_t cycles = argc > 1 ? strtoull(argv[1], NULL, 10) : 1000000;
     uint64_t k = argc > 2 ? strtoull(argv[2], NULL, 10) : 1000;
     int workers = argc > 3 ? atoi(argv[3]) : 2;
+    bpx_backend backend = BPX_BACKEND_AUTO;
+    if (argc > 4 && bpx_backend_from_name(argv[4], &backend) != BPX_OK) {
+        fprintf(stderr, "test_soak: no backend named %s\n", argv[4]);
+        return 2;
+    }
     if (k == 0)
         k = 1;
     static soak s;
@@ -261,6 +266,7 @@ int main(int argc, char **argv)
     bpx_world_def def = bpx_default_world_def();
     def.worker_count = workers;
     def.track_events = true;
+    def.backend = backend;
     CHECK_STATUS(bpx_world_create(&def, &s.world), BPX_OK);
     if (!s.world)
         return check_finish("test_soak", 1);
@@ -348,7 +354,7 @@ int main(int argc, char **argv)
            "to %zu\n",
            (unsigned long long)cycles, seconds, 1e6 * seconds / (double)(cycles ? cycles : 1),
            (unsigned long long)checks, max_n, max_pairs);
-    printf("cycles per backend (auto's choice):");
+    printf("cycles per backend the world ran:");
     for (int b = 0; b < BPX_BACKEND_COUNT; b++)
         if (backend_cycles[b])
             printf(" %s %llu", bpx_backend_name((bpx_backend)b),
