@@ -457,8 +457,8 @@ int main(int argc, char **argv)
         }
         for (int s = 0; s < BPX_SIMD_COUNT; s++) {
             bool forced = s != BPX_SIMD_AUTO;
-            if (forced &&
-                (!check_backend_has_simd((bpx_backend)b) || !bpx_simd_supported((bpx_simd)s))) {
+            if (forced && (!check_backend_has_simd((bpx_backend)b) ||
+                           !bpx_simd_supported((bpx_simd)s) || check_quick())) {
                 continue;
             }
             for (int m = 0; m < HOOKS_MODE_COUNT; m++) {
@@ -471,8 +471,12 @@ int main(int argc, char **argv)
                     if (m == HOOKS_POOL2 && worker_counts[w] < 2) {
                         continue;
                     }
-                    configs +=
-                        run_config((bpx_backend)b, (bpx_simd)s, worker_counts[w], (hook_mode)m, 0);
+                    // Quick: threads only, and not 8 of them on a small machine.
+                    if (check_quick() && (worker_counts[w] == 1 || worker_counts[w] == 8)) {
+                        continue;
+                    }
+                    configs += run_config((bpx_backend)b, (bpx_simd)s, worker_counts[w],
+                                          (hook_mode)m, 0);
                 }
             }
         }

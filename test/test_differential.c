@@ -51,6 +51,9 @@ static bool fp_environment_intact(void)
 // Seeds per size: more for small scenes, where they are cheap.
 static int seed_count(uint32_t n)
 {
+    if (check_quick()) {
+        return 1;
+    }
     return n <= 257 ? 3 : n <= 1234 ? 2 : 1;
 }
 
@@ -130,11 +133,14 @@ static int build_configs(config *cfgs)
         }
         for (int s = 0; s < BPX_SIMD_COUNT; s++) {
             bool forced = s != BPX_SIMD_AUTO;
-            if (forced &&
-                (!check_backend_has_simd((bpx_backend)b) || !bpx_simd_supported((bpx_simd)s))) {
+            if (forced && (!check_backend_has_simd((bpx_backend)b) ||
+                           !bpx_simd_supported((bpx_simd)s) || check_quick())) {
                 continue;
             }
             for (size_t w = 0; w < sizeof worker_counts / sizeof worker_counts[0]; w++) {
+                if (check_quick() && worker_counts[w] == 1) {
+                    continue;
+                }
                 if (count == max_configs) {
                     return count;
                 }

@@ -503,7 +503,9 @@ int main(void)
         {"changing n", test_changing_n},       {"objects", test_objects},
         {"resting with jumps", test_resting_with_jumps},
     };
-    for (int workers = 1; workers <= 3; workers += 2)
+    // Quick (BPX_TEST_QUICK, the tsan preset): the runs on more than one worker, and no scalar
+    // sweep, which runs on one thread (allocation failure lives in test_sap_large).
+    for (int workers = check_quick() ? 3 : 1; workers <= 3; workers += 2)
         for (int wide = 0; wide < 2; wide++) {
             double t = now_s();
             test_coherent_and_jumps(workers, wide);
@@ -511,13 +513,15 @@ int main(void)
                    wide ? ", one wide box" : "", now_s() - t);
         }
     // The rebuild sweeps with the prune kernel of the world's SIMD width: the narrowest too.
-    forced_simd = BPX_SIMD_SCALAR;
-    double t_scalar = now_s();
-    test_changing_n();
-    test_shared_coordinates();
-    printf("  changing n + shared coordinates, scalar sweep: %.2f s\n",
-           now_s() - t_scalar);
-    forced_simd = BPX_SIMD_AUTO;
+    if (!check_quick()) {
+        forced_simd = BPX_SIMD_SCALAR;
+        double t_scalar = now_s();
+        test_changing_n();
+        test_shared_coordinates();
+        printf("  changing n + shared coordinates, scalar sweep: %.2f s\n",
+               now_s() - t_scalar);
+        forced_simd = BPX_SIMD_AUTO;
+    }
     for (size_t k = 0; k < sizeof tests / sizeof tests[0]; k++) {
         double t = now_s();
         tests[k].run();

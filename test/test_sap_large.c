@@ -369,7 +369,8 @@ int main(void)
     double t0 = now_s();
     printf("test_sap_large: seeds 81..151 (fixed); %s\n",
            bpx_backend_query(BPX_BACKEND_SAP).detail);
-    for (int workers = 1; workers <= 2; workers++) {
+    // Quick (BPX_TEST_QUICK, the tsan preset): the runs on more than one worker only.
+    for (int workers = check_quick() ? 2 : 1; workers <= 2; workers++) {
         double t = now_s();
         test_many_boxes(workers);
         printf("  many boxes, %d worker(s): %.2f s\n", workers, now_s() - t);
@@ -381,7 +382,8 @@ int main(void)
     test_lists_on_demand();
     printf("  large rebuilds, 2 workers: %.2f s\n", now_s() - t_large);
     double t = now_s();
-    test_allocation_failure();
+    if (!check_quick())
+        test_allocation_failure();
     printf("  %-20s %.2f s\n", "allocation failure", now_s() - t);
     printf("total %.2f s\n", now_s() - t0);
     return check_finish("test_sap_large", 1);

@@ -50,7 +50,8 @@ BPX_API const char *bpx_version(void);
     X(BPX_ERR_BACKEND_UNAVAILABLE, "the backend is not compiled in or not supported here")         \
     X(BPX_ERR_BAD_STATE, "the call is not valid in the world's current state")                     \
     X(BPX_ERR_DEVICE, "the compute device failed (driver error, kernel build, lost device)")       \
-    X(BPX_ERR_DEVICE_MEMORY, "the device is out of memory, or opencl_memory_limit is too low")
+    X(BPX_ERR_DEVICE_MEMORY, "the device is out of memory, or opencl_memory_limit is too low")  \
+    X(BPX_ERR_TOO_MANY_PAIRS, "the pair set exceeds the 2^32 - 1 pairs this backend indexes")
 
 typedef enum bpx_status {
 #define BPX_STATUS_ENUM_(name, text) name,

@@ -12,7 +12,26 @@ extern "C" {
 #endif
 
 /// Largest box count a world or one-shot call accepts. Pair indices are 32-bit and pair counts
-/// 64-bit (size_t), so this is a sanity bound, not a format limit.
+/// 64-bit (size_t), so this is a sanity bound, not a format limit: it keeps every count of boxes
+/// plus padding, and every byte size of a per-box array, far from wrapping.
+///
+/// Limits, each answered by a status and a message (test/test_limits.c), never by a wrapped
+/// index or a silent truncation:
+/// - More than BPX_MAX_BOXES boxes requested (up to 2^32 - 1): set_boxes, load_extents,
+///   add_boxes (old count + added), bpx_find_pairs and bpx_validate_boxes return
+///   BPX_ERR_TOO_MANY_BOXES naming the count, before reading the array; a capacity_hint past
+///   it makes bpx_world_create return BPX_ERR_INVALID_ARGUMENT.
+/// - Memory: a box costs about 56 bytes in a world (two sets of six floats, the per-id arrays)
+///   plus what the backend keeps (sap and grid: about as much again), and a pair 8 bytes, held
+///   twice while it is merged; 10 million boxes take about 1 GB. An allocation that fails, at
+///   any n, gives BPX_ERR_OUT_OF_MEMORY ("no memory for 10000000 boxes"; for a collide the
+///   backend and n), and the world keeps its previous state.
+/// - More than 2^32 - 1 pairs in one cycle (all of 92,683 boxes overlapping each other, say):
+///   reference and brute emit rows in order and count in size_t, so they report them all,
+///   memory allowing (16 bytes a pair at the peak: 69 GB for 4.3 billion); prune, sap, grid and
+///   opencl's sort-and-sweep order pairs with 32-bit offsets and return
+///   BPX_ERR_TOO_MANY_PAIRS; auto reports what the backend it chose reports. Short of memory,
+///   every backend returns BPX_ERR_OUT_OF_MEMORY first. bpx_cycle_stats.pair_count is 64-bit.
 #define BPX_MAX_BOXES (1u << 30)
 
 /// An axis-aligned bounding box: six IEEE single-precision floats, in this order in memory

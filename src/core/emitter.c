@@ -132,9 +132,12 @@ void bpx__emitter_merge(const bpx_world *w, bpx_pair *out)
 {
     for (int b = 0; b < w->block_count; b++) {
         const bpx_block *block = &w->blocks[b];
-        if (block->hits.count)
+        // out is NULL when no pair was found (an empty list owns no memory), and even + 0 on
+        // a null pointer is undefined: only a block with hits moves it.
+        if (block->hits.count) {
             memcpy(out, block->hits.pairs, block->hits.count * sizeof(bpx_pair));
-        out += block->hits.count;
+            out += block->hits.count;
+        }
     }
 }
 
@@ -158,6 +161,8 @@ bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_lis
     bpx_status status = bpx__emitter_total(w, &total);
     if (status != BPX_OK)
         return status;
+    if (total > UINT32_MAX)
+        return BPX_ERR_TOO_MANY_PAIRS; // the counting sort's offsets are 32-bit
     a->count = b->count = 0;
     // Headroom: the three lists that take turns here (a, b and block 0's) settle in a few
     // cycles even when the pair count drifts up.
@@ -181,6 +186,16 @@ bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_lis
     w->blocks[0].tests = tests;
     *a = block0;
     return BPX_OK;
+}
+
+void bpx__emitter_release(bpx_world *w)
+{
+    for (int b = 0; b < w->block_capacity; b++) {
+        list_free(&w->blocks[b].hits);
+        list_free(&w->blocks[b].stage);
+        w->blocks[b].status = BPX_OK;
+    }
+    list_free(&w->pairs);
 }
 
 void bpx__emitter_free(bpx_world *w)

@@ -122,14 +122,16 @@ bpx_status bpx_world_add_boxes(bpx_world *w, const bpx_box *boxes, uint32_t coun
     if (w->extents_loaded)
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
                           "add_boxes: the world is in the two-phase mode (load_extents)");
-    bpx_status status = bpx__check_boxes(boxes, count, &w->error);
-    if (status != BPX_OK)
-        return status;
+    // The count first: a count past the limit is refused before its boxes are read.
     uint32_t reused = count < w->free_count ? count : w->free_count;
     uint64_t new_n = (uint64_t)w->n + (count - reused);
     if (new_n > BPX_MAX_BOXES)
         return bpx__error(&w->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
-                          "%llu boxes exceed BPX_MAX_BOXES", (unsigned long long)new_n);
+                          "add_boxes: %u boxes added to %u make %llu, past BPX_MAX_BOXES (%u)",
+                          count, w->n, (unsigned long long)new_n, BPX_MAX_BOXES);
+    bpx_status status = bpx__check_boxes(boxes, count, &w->error);
+    if (status != BPX_OK)
+        return status;
     uint32_t old_n = w->n;
     if (!reserve_objects(w, (uint32_t)new_n) || !bpx__boxes_resize(w, (uint32_t)new_n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,

@@ -445,6 +445,9 @@ static bool merge_own(bpx_world *w, size_t total)
 static bpx_status compare(bpx_world *w, size_t *total)
 {
     w->merged = false;
+    // Last cycle's events go with its pairs: a cycle that fails shows neither (the next
+    // successful one reports against the last successful one, whose pairs objects.c keeps).
+    w->events_valid = false;
     w->stats.pair_count = 0;
     w->stats.rebuilt = false; // only backends that keep state between cycles set it
     uint64_t start = bpx__now_ns();
@@ -455,9 +458,11 @@ static bpx_status compare(bpx_world *w, size_t *total)
     }
     w->stats.compare_ns = bpx__now_ns() - start;
     w->result_valid = status == BPX_OK; // nothing partial is ever reported
+    if (status == BPX_ERR_OUT_OF_MEMORY || status == BPX_ERR_TOO_MANY_PAIRS)
+        bpx__emitter_release(w); // a cycle too big for memory leaves none of it held
     if (status != BPX_OK) {
-        return bpx__error(&w->error, status, UINT32_MAX, -1, "%s: %s", w->backend->name,
-                          bpx_status_string(status));
+        return bpx__error(&w->error, status, UINT32_MAX, -1, "%s, %u boxes: %s",
+                          w->backend->name, w->n, bpx_status_string(status));
     }
     uint64_t tests = 0;
     for (int b = 0; b < w->block_count; b++)
@@ -480,6 +485,7 @@ bpx_status bpx_world_collide(bpx_world *w)
     uint64_t start = bpx__now_ns();
     if (!merge_own(w, total)) {
         w->result_valid = false;
+        bpx__emitter_release(w);
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %zu pairs", total);
     }

@@ -157,6 +157,9 @@ bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_lis
 /// Concatenates the blocks, in order, into out (which holds at least the total).
 void bpx__emitter_merge(const bpx_world *w, bpx_pair *out);
 void bpx__emitter_free(bpx_world *w);
+/// Frees every block's hits and the merged list, after a cycle that ran out of memory or pairs:
+/// what the failed cycle grew them to is given back, and the next cycle starts small again.
+void bpx__emitter_release(bpx_world *w);
 
 // Backends.
 extern const bpx_backend_impl bpx__reference_backend;

@@ -19,7 +19,8 @@ void bpx__prune_sweep_blocks(bpx_world *w, const bpx_sorted *sorted, int blocks)
 /// The grid's pairs of `boxes` (boxes.n must be the world's n; any boxes of that count, e.g. sap's
 /// fat ones, padded to a multiple of BPX_PAD_LANES with inert boxes) into block 0, in (i, j)
 /// order, on the world's workers (grid/grid.c). *state is the grid's own, made on first use and
-/// kept between calls; bpx__grid_free releases it.
+/// kept between calls, freed after a call that fails (OUT_OF_MEMORY, TOO_MANY_PAIRS);
+/// bpx__grid_free releases it.
 bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes);
 void bpx__grid_free(void **state);
 /// Makes the grid's next call pick its cells from those boxes alone, not from its last call's

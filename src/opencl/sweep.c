@@ -47,7 +47,9 @@ bpx_status bpx__cl_sweep_all(cl_state *st, bpx_world *w, bpx_block *block)
     uint64_t need = total * (4 * sizeof(cl_uint) + sizeof(bpx_pair));
     uint64_t held =
         st->pi[0].size + st->pi[1].size + st->pj[0].size + st->pj[1].size + st->pairs.size;
-    if (total > UINT32_MAX || total * sizeof(bpx_pair) > st->dev->max_alloc ||
+    if (total > UINT32_MAX)
+        return BPX_ERR_TOO_MANY_PAIRS; // the device sort's keys and offsets are 32-bit
+    if (total * sizeof(bpx_pair) > st->dev->max_alloc ||
         st->used - held + need > st->limit)
         return BPX_ERR_DEVICE_MEMORY;
     for (int k = 0; k < 2; k++) {

@@ -135,7 +135,7 @@ bpx_status bpx__grid_emit_sorted(bpx_world *w, grid_state *st, uint32_t n)
     for (int k = 0; k < w->block_count; k++)
         tests += w->blocks[k].tests;
     if (total > UINT32_MAX)
-        return BPX_ERR_OUT_OF_MEMORY; // bucket offsets are 32-bit
+        return BPX_ERR_TOO_MANY_PAIRS; // bucket offsets are 32-bit
     // Buckets of 2^shift ids holding about EMIT_BUCKET_PAIRS pairs (dense pair sets: fewer ids).
     int shift = EMIT_SHIFT;
     while (shift > 0 && (double)total * (double)(1u << shift) > (double)EMIT_BUCKET_PAIRS * n)

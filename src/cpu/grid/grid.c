@@ -190,7 +190,7 @@ static void plan_items(grid_state *st, uint32_t columns, uint32_t positions)
     st->item_count = items;
 }
 
-bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes)
+static bpx_status find(bpx_world *w, void **state, bpx_soa boxes)
 {
     grid_state *st = *state;
     if (!st) {
@@ -351,6 +351,16 @@ bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes)
 
     // 7. Hits to (i, j) order.
     return bpx__grid_emit_sorted(w, st, n);
+}
+
+bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes)
+{
+    bpx_status status = find(w, state, boxes);
+    // The state is memory only (every cycle starts from the boxes): a cycle too big for memory,
+    // or for 32-bit pair offsets, gives it all back, and the next one grows it again.
+    if (status == BPX_ERR_OUT_OF_MEMORY || status == BPX_ERR_TOO_MANY_PAIRS)
+        bpx__grid_free(state);
+    return status;
 }
 
 static bpx_status grid_compare(bpx_world *w)

@@ -124,6 +124,8 @@ static void filter_task(int begin, int end, int worker, void *context)
 size_t bpx__sap_filter_pairs(const bpx_world *w, sap_state *st, bpx_pair *out)
 {
     size_t total = st->fat_pairs.count;
+    if (total == 0)
+        return 0; // out may be NULL (an empty list owns no memory): no pointer arithmetic on it
     uint32_t chunks = total <= UINT32_MAX ? bpx__sap_chunks_for(w, total) : 1;
     if (chunks == 1)
         return filter_range(st, out, 0, total);

@@ -1,0 +1,836 @@
+// Fuzzes the API: the input is a world's definition and a sequence of operations on it.
+// SPDX-License-Identifier: MIT
+//
+// A model of the world (boxes, live and removed ids, the ids waiting for reuse, filters, the
+// last cycle's pairs) runs beside it. Every call's status is predicted from the model and
+// checked; every collide is checked against Algorithm 1 (brute force over the model's live
+// boxes, filters applied), and with track_events its began and ended lists against the model's
+// last pairs; every error is checked to leave the world as it was (box count, last pairs, and
+// the next collide against the unchanged model). An operation can make one allocation of the
+// next call fail (bpx_set_allocator), so out-of-memory paths are walked too.
+//
+// Input: byte 0 the backend (every CPU one), byte 1 the options (workers, events, SIMD), then
+// operations, an opcode byte and its arguments each. Running out of bytes ends the sequence;
+// bulk data past the end (a large set_boxes) comes from a generator seeded by the input.
+#include <float.h>
+#include <math.h>
+#include <stdatomic.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <bpx/bpx.h>
+
+#include "fuzz_check.h"
+
+enum {
+    MAX_N = 640,  // boxes in a world: past auto's brute limit (128), small enough to check
+    MAX_BATCH = 8, // boxes or ids per add / remove / move / set_filters
+    NO_FAILURE = -1,
+};
+
+// ---------------------------------------------------------------------------------------------
+// Reading the input
+
+typedef struct input {
+    const uint8_t *data;
+    size_t size, at;
+    uint64_t rng; // for bulk data past the input's end
+} input;
+
+static bool more(const input *in)
+{
+    return in->at < in->size;
+}
+
+static uint8_t byte(input *in)
+{
+    if (in->at < in->size)
+        return in->data[in->at++];
+    in->rng ^= in->rng << 13, in->rng ^= in->rng >> 7, in->rng ^= in->rng << 17;
+    return (uint8_t)(in->rng >> 24);
+}
+
+static uint32_t u32(input *in)
+{
+    uint32_t v = 0;
+    for (int k = 0; k < 4; k++)
+        v = v << 8 | byte(in);
+    return v;
+}
+
+static float bits_to_float(uint32_t bits)
+{
+    float f;
+    memcpy(&f, &bits, sizeof f);
+    return f;
+}
+
+// A coordinate: mostly small multiples of 1/4 (so faces touch and boxes overlap often), else
+// a special value, else any 32 bits (NaN, infinities, subnormals, huge values).
+static float coordinate(input *in)
+{
+    static const float special[] = {0.0f,     -0.0f,    FLT_MAX,  -FLT_MAX, FLT_MIN,
+                                    -FLT_MIN, 1e-45f,   INFINITY, -INFINITY, NAN,
+                                    3e38f,    -3e38f,   1e30f,    0.5f,     -1.0f};
+    uint8_t b = byte(in);
+    if (b < 0xE0)
+        return (float)((int)b - 0x70) * 0.25f;
+    if (b < 0xF8)
+        return special[(b - 0xE0) % (sizeof special / sizeof special[0])];
+    return bits_to_float(u32(in));
+}
+
+// A box: a corner and a size (usually valid), or six coordinates as they come.
+static bpx_box box(input *in)
+{
+    bpx_box b;
+    uint8_t how = byte(in);
+    if (how < 0xF0) {
+        for (int a = 0; a < 3; a++) {
+            b.min[a] = coordinate(in);
+            b.max[a] = b.min[a] + (float)(byte(in) & 0x1F) * 0.25f;
+        }
+    } else {
+        for (int a = 0; a < 3; a++)
+            b.min[a] = coordinate(in), b.max[a] = coordinate(in);
+    }
+    return b;
+}
+
+// A count of boxes for set_boxes / load_extents: mostly small, sometimes past auto's brute
+// limit, so prune, sap and grid run too.
+static uint32_t world_size(input *in)
+{
+    uint8_t b = byte(in);
+    if (b < 0xC0)
+        return b % 40;
+    return 100 + (uint32_t)(b - 0xC0) * (MAX_N - 100) / 0x3F;
+}
+
+// An id: mostly one near the range in use, sometimes any 32 bits.
+static uint32_t some_id(input *in, uint32_t n)
+{
+    uint8_t b = byte(in);
+    if (b < 0xF8)
+        return b % (n + 2);
+    return u32(in);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Allocation failure: the `fail_at`-th allocation from now fails (counting from 0).
+
+static atomic_long fail_at = NO_FAILURE;
+static atomic_long failures;
+
+static void *fuzz_alloc(size_t size, size_t alignment, void *user)
+{
+    (void)user;
+    if (atomic_load(&fail_at) >= 0 && atomic_fetch_sub(&fail_at, 1) == 0) {
+        atomic_fetch_add(&failures, 1);
+        return NULL;
+    }
+    return aligned_alloc(alignment, size);
+}
+
+// Called right after the call under test, so that the checks' own calls never fail.
+static void disarm(void)
+{
+    atomic_store(&fail_at, NO_FAILURE);
+}
+
+static void fuzz_free(void *memory, void *user)
+{
+    (void)user;
+    free(memory);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The model
+
+typedef struct model {
+    uint32_t n;
+    bpx_box boxes[MAX_N];
+    bool dead[MAX_N];
+    uint32_t category[MAX_N], mask[MAX_N];
+    uint32_t pending[MAX_N], pending_count; // removed since the last collide
+    uint32_t freed[MAX_N], free_count;      // reusable; add_boxes takes from the end
+    bool two_phase;
+    float minima[MAX_N][3];
+    // The last collide: its pairs when it succeeded, and what events should say.
+    bool result_valid;
+    bpx_pair *pairs;
+    size_t pair_count;
+    bpx_pair *previous; // pairs of the last successful collide, for events
+    size_t previous_count;
+    bool have_previous;
+    bool events_valid;
+    bool track_events;
+} model;
+
+static void model_unfilter(model *m, uint32_t id)
+{
+    m->category[id] = 1;
+    m->mask[id] = UINT32_MAX;
+}
+
+// set_boxes and load_extents: ids 0 .. n-1 live; a filter stays on an id live below both counts.
+static void model_reset(model *m, uint32_t n)
+{
+    uint32_t kept = n < m->n ? n : m->n;
+    for (uint32_t id = 0; id < MAX_N; id++) {
+        if (id >= kept || m->dead[id])
+            model_unfilter(m, id);
+        m->dead[id] = false;
+    }
+    m->pending_count = m->free_count = 0;
+    m->n = n;
+}
+
+static bool box_valid(const bpx_box *b)
+{
+    for (int a = 0; a < 3; a++)
+        if (!(-FLT_MAX <= b->min[a] && b->min[a] <= b->max[a] && b->max[a] <= FLT_MAX))
+            return false;
+    return true;
+}
+
+// The status and axis the library names for an invalid box: a non-finite coordinate first.
+static bpx_status box_problem(const bpx_box *b, int *axis)
+{
+    for (int a = 0; a < 3; a++)
+        if (!isfinite(b->min[a]) || !isfinite(b->max[a]))
+            return *axis = a, BPX_ERR_NOT_FINITE;
+    for (int a = 0; a < 3; a++)
+        if (!(b->min[a] <= b->max[a]))
+            return *axis = a, BPX_ERR_MIN_GREATER_THAN_MAX;
+    return *axis = -1, BPX_OK;
+}
+
+// First invalid box of an array: its status, index and axis.
+static bpx_status boxes_problem(const bpx_box *boxes, uint32_t n, uint32_t *index, int *axis)
+{
+    for (uint32_t i = 0; i < n; i++)
+        if (!box_valid(&boxes[i])) {
+            *index = i;
+            return box_problem(&boxes[i], axis);
+        }
+    return BPX_OK;
+}
+
+static bool overlap(const bpx_box *a, const bpx_box *b)
+{
+    for (int k = 0; k < 3; k++)
+        if (!(a->min[k] <= b->max[k] && b->min[k] <= a->max[k]))
+            return false;
+    return true;
+}
+
+// Algorithm 1 over the model's live boxes, with the filters; sorted by (i, j) as it is made.
+static size_t reference_pairs(const model *m, bpx_pair **out)
+{
+    size_t count = 0, capacity = 64;
+    bpx_pair *pairs = malloc(capacity * sizeof *pairs);
+    FUZZ_CHECK(pairs != NULL, "out of memory");
+    for (uint32_t i = 0; i < m->n; i++) {
+        if (m->dead[i])
+            continue;
+        for (uint32_t j = i + 1; j < m->n; j++) {
+            if (m->dead[j] || !overlap(&m->boxes[i], &m->boxes[j]))
+                continue;
+            if (!((m->category[i] & m->mask[j]) && (m->category[j] & m->mask[i])))
+                continue;
+            if (count == capacity) {
+                capacity *= 2;
+                pairs = realloc(pairs, capacity * sizeof *pairs);
+                FUZZ_CHECK(pairs != NULL, "out of memory");
+            }
+            pairs[count++] = (bpx_pair){i, j};
+        }
+    }
+    *out = pairs;
+    return count;
+}
+
+static bool pair_less(bpx_pair a, bpx_pair b)
+{
+    return a.i < b.i || (a.i == b.i && a.j < b.j);
+}
+
+// began = now - before or ended = before - now (which = 0 / 1), into *out.
+static size_t difference(const bpx_pair *a, size_t na, const bpx_pair *b, size_t nb,
+                         bpx_pair *out)
+{
+    size_t x = 0, y = 0, count = 0;
+    while (x < na) {
+        if (y == nb || pair_less(a[x], b[y]))
+            out[count++] = a[x++];
+        else if (pair_less(b[y], a[x]))
+            y++;
+        else
+            x++, y++;
+    }
+    return count;
+}
+
+static void check_same_pairs(const char *what, const bpx_pair *got, size_t got_count,
+                             const bpx_pair *want, size_t want_count)
+{
+    FUZZ_CHECK(got_count == want_count, "%s: %zu pairs, the reference %zu", what, got_count,
+               want_count);
+    FUZZ_CHECK(want_count == 0 || (got && memcmp(got, want, want_count * sizeof *got) == 0),
+               "%s: pairs differ from the reference", what);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The run
+
+typedef struct run {
+    bpx_world *world;
+    model m;
+    input in;
+    bool inject; // an allocation of this call may fail
+} run;
+
+static const char *const op_names[] = {
+    "set_boxes", "load_extents", "update_centres", "add_boxes",    "remove_boxes",
+    "move_boxes", "set_filters", "collide",        "collide_into", "fail_next",
+    "copy_pairs", "find_pairs",
+};
+enum { OP_COUNT = sizeof op_names / sizeof op_names[0] };
+
+// What the world shows that an error must leave alone: box count and the last pairs.
+typedef struct snapshot {
+    uint32_t n;
+    bool pairs_valid;
+    bpx_pair *pairs;
+    size_t count;
+} snapshot;
+
+static snapshot take_snapshot(run *r)
+{
+    snapshot s = {.n = bpx_world_box_count(r->world)};
+    FUZZ_CHECK(s.n == r->m.n, "box count %u, the model's %u", s.n, r->m.n);
+    size_t count = 0;
+    const bpx_pair *pairs = bpx_world_pairs(r->world, &count);
+    s.pairs_valid = pairs != NULL || count > 0;
+    FUZZ_CHECK(r->m.result_valid || (pairs == NULL && count == 0),
+               "pairs readable after a failed collide");
+    if (r->m.result_valid)
+        check_same_pairs("pairs", pairs, count, r->m.pairs, r->m.pair_count);
+    s.count = count;
+    s.pairs = malloc((count ? count : 1) * sizeof *s.pairs);
+    FUZZ_CHECK(s.pairs != NULL, "out of memory");
+    if (count)
+        memcpy(s.pairs, pairs, count * sizeof *pairs);
+    return s;
+}
+
+static void check_unchanged(run *r, const snapshot *s, const char *op)
+{
+    FUZZ_CHECK(bpx_world_box_count(r->world) == s->n, "%s: a failed call changed n from %u to %u",
+               op, s->n, bpx_world_box_count(r->world));
+    size_t count = 0;
+    const bpx_pair *pairs = bpx_world_pairs(r->world, &count);
+    check_same_pairs(op, pairs, count, s->pairs, s->count);
+}
+
+// The status a call returned against the one the model predicts. With an allocation made to
+// fail, OUT_OF_MEMORY may stand for any error, and for success when the library has a way
+// round it (it must then still be right: the model goes on as for success).
+static bool accept(run *r, const char *op, bpx_status got, bpx_status want, long failures_before)
+{
+    bool failed_alloc = atomic_load(&failures) > failures_before;
+    if (got == BPX_ERR_OUT_OF_MEMORY && failed_alloc)
+        return false;
+    FUZZ_CHECK(got == want, "%s: status %s, predicted %s (%s)", op, bpx_status_string(got),
+               bpx_status_string(want), bpx_world_error(r->world)->message);
+    if (got != BPX_OK) {
+        const bpx_error *e = bpx_world_error(r->world);
+        FUZZ_CHECK(e->status == got && e->message[0] != '\0', "%s: error %s without a message",
+                   op, bpx_status_string(got));
+    }
+    return got == BPX_OK;
+}
+
+static void check_box_error(run *r, const char *op, uint32_t index, int axis)
+{
+    const bpx_error *e = bpx_world_error(r->world);
+    FUZZ_CHECK(e->index == index && e->axis == axis, "%s: error names box %u axis %d, not %u %d",
+               op, e->index, e->axis, index, axis);
+}
+
+static void op_set_boxes(run *r)
+{
+    uint32_t n = world_size(&r->in);
+    bpx_box *boxes = malloc((n ? n : 1) * sizeof *boxes);
+    FUZZ_CHECK(boxes != NULL, "out of memory");
+    for (uint32_t i = 0; i < n; i++)
+        boxes[i] = box(&r->in);
+    uint32_t index = UINT32_MAX;
+    int axis = -1;
+    bpx_status want = boxes_problem(boxes, n, &index, &axis);
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_set_boxes(r->world, boxes, n);
+    disarm();
+    if (accept(r, "set_boxes", got, want, before)) {
+        model_reset(&r->m, n);
+        memcpy(r->m.boxes, boxes, n * sizeof *boxes);
+        r->m.two_phase = false;
+    } else if (got == want) {
+        check_box_error(r, "set_boxes", index, axis);
+    }
+    free(boxes);
+}
+
+static void op_load_extents(run *r)
+{
+    uint32_t n = world_size(&r->in);
+    float *minima = malloc((n ? n : 1) * 3 * sizeof *minima);
+    FUZZ_CHECK(minima != NULL, "out of memory");
+    bpx_status want = BPX_OK;
+    uint32_t index = UINT32_MAX;
+    int axis = -1;
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            uint8_t b = byte(&r->in);
+            float v = b < 0xF0 ? -(float)(b & 0x1F) * 0.25f : coordinate(&r->in);
+            minima[3 * i + a] = v;
+            if (want == BPX_OK && (!isfinite(v) || !(v <= 0.0f))) {
+                want = isfinite(v) ? BPX_ERR_MIN_GREATER_THAN_MAX : BPX_ERR_NOT_FINITE;
+                index = i, axis = a;
+            }
+        }
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_load_extents(r->world, minima, n);
+    disarm();
+    if (accept(r, "load_extents", got, want, before)) {
+        model_reset(&r->m, n);
+        for (uint32_t i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) {
+                float v = minima[3 * i + a];
+                r->m.minima[i][a] = v;
+                r->m.boxes[i].min[a] = v;
+                r->m.boxes[i].max[a] = -v;
+            }
+        r->m.two_phase = true;
+    } else if (got == want) {
+        check_box_error(r, "load_extents", index, axis);
+    }
+    free(minima);
+}
+
+static void op_update_centres(run *r)
+{
+    uint32_t n = r->m.n;
+    float *centres = malloc((n ? n : 1) * 3 * sizeof *centres);
+    FUZZ_CHECK(centres != NULL, "out of memory");
+    bpx_status want = r->m.two_phase ? BPX_OK : BPX_ERR_BAD_STATE;
+    uint32_t index = UINT32_MAX;
+    int axis = -1;
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            float c = coordinate(&r->in);
+            centres[3 * i + a] = c;
+            if (want == BPX_OK && r->m.two_phase) {
+                float m = r->m.minima[i][a];
+                float lo = c + m, hi = c - m;
+                if (!(-FLT_MAX <= lo && hi <= FLT_MAX))
+                    want = BPX_ERR_NOT_FINITE, index = i, axis = a;
+            }
+        }
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_update_centres(r->world, centres);
+    disarm();
+    if (accept(r, "update_centres", got, want, before)) {
+        for (uint32_t i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) {
+                r->m.boxes[i].min[a] = centres[3 * i + a] + r->m.minima[i][a];
+                r->m.boxes[i].max[a] = centres[3 * i + a] - r->m.minima[i][a];
+            }
+    } else if (got == want && want == BPX_ERR_NOT_FINITE) {
+        check_box_error(r, "update_centres", index, axis);
+    }
+    free(centres);
+}
+
+static void op_add_boxes(run *r)
+{
+    uint32_t count = byte(&r->in) % (MAX_BATCH + 1);
+    bpx_box boxes[MAX_BATCH];
+    for (uint32_t k = 0; k < count; k++)
+        boxes[k] = box(&r->in);
+    uint32_t index = UINT32_MAX;
+    int axis = -1;
+    bpx_status want = BPX_OK;
+    if (r->m.two_phase)
+        want = BPX_ERR_BAD_STATE;
+    else
+        want = boxes_problem(boxes, count, &index, &axis);
+    uint32_t reused = count < r->m.free_count ? count : r->m.free_count;
+    uint32_t new_n = r->m.n + (count - reused);
+    if (want == BPX_OK && new_n > MAX_N)
+        return; // past what the model holds: not tried
+    uint32_t ids[MAX_BATCH + 1];
+    memset(ids, 0xAB, sizeof ids);
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_add_boxes(r->world, boxes, count, ids);
+    disarm();
+    if (accept(r, "add_boxes", got, want, before)) {
+        model *m = &r->m;
+        for (uint32_t k = 0; k < count; k++) {
+            uint32_t want_id = k < reused ? m->freed[--m->free_count] : m->n + (k - reused);
+            FUZZ_CHECK(ids[k] == want_id, "add_boxes: id %u, expected %u", ids[k], want_id);
+            m->dead[want_id] = false;
+            model_unfilter(m, want_id);
+            m->boxes[want_id] = boxes[k];
+        }
+        m->n = new_n;
+        FUZZ_CHECK(ids[count] == 0xABABABABu, "add_boxes wrote past its count");
+    } else if (got == want && want != BPX_ERR_BAD_STATE) {
+        check_box_error(r, "add_boxes", index, axis);
+    }
+}
+
+// Ids for remove / move: in use and once each, else INVALID_ARGUMENT naming the position.
+static bpx_status ids_problem(const model *m, const uint32_t *ids, uint32_t count,
+                              uint32_t *index)
+{
+    for (uint32_t k = 0; k < count; k++) {
+        if (ids[k] >= m->n || m->dead[ids[k]])
+            return *index = k, BPX_ERR_INVALID_ARGUMENT;
+        for (uint32_t e = 0; e < k; e++)
+            if (ids[e] == ids[k])
+                return *index = k, BPX_ERR_INVALID_ARGUMENT;
+    }
+    return BPX_OK;
+}
+
+static void op_remove_boxes(run *r)
+{
+    uint32_t count = byte(&r->in) % (MAX_BATCH + 1);
+    uint32_t ids[MAX_BATCH];
+    for (uint32_t k = 0; k < count; k++)
+        ids[k] = some_id(&r->in, r->m.n);
+    uint32_t index = UINT32_MAX;
+    bpx_status want = ids_problem(&r->m, ids, count, &index);
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_remove_boxes(r->world, ids, count);
+    disarm();
+    if (accept(r, "remove_boxes", got, want, before)) {
+        for (uint32_t k = 0; k < count; k++) {
+            r->m.dead[ids[k]] = true;
+            r->m.pending[r->m.pending_count++] = ids[k];
+        }
+    } else if (got == want) {
+        check_box_error(r, "remove_boxes", index, -1);
+    }
+}
+
+static void op_move_boxes(run *r)
+{
+    uint32_t count = byte(&r->in) % (MAX_BATCH + 1);
+    uint32_t ids[MAX_BATCH];
+    bpx_box boxes[MAX_BATCH];
+    for (uint32_t k = 0; k < count; k++) {
+        ids[k] = some_id(&r->in, r->m.n);
+        boxes[k] = box(&r->in);
+    }
+    uint32_t index = UINT32_MAX;
+    int axis = -1;
+    bpx_status want = boxes_problem(boxes, count, &index, &axis);
+    if (want == BPX_OK)
+        want = ids_problem(&r->m, ids, count, &index);
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_move_boxes(r->world, ids, boxes, count);
+    disarm();
+    if (accept(r, "move_boxes", got, want, before)) {
+        for (uint32_t k = 0; k < count; k++)
+            r->m.boxes[ids[k]] = boxes[k];
+    } else if (got == want) {
+        check_box_error(r, "move_boxes", index, want == BPX_ERR_INVALID_ARGUMENT ? -1 : axis);
+    }
+}
+
+static void op_set_filters(run *r)
+{
+    uint8_t how = byte(&r->in);
+    uint32_t count = how % (MAX_BATCH + 1);
+    bool by_position = how & 0x80; // ids NULL: ids 0 .. count-1
+    uint32_t ids[MAX_BATCH], categories[MAX_BATCH], masks[MAX_BATCH];
+    for (uint32_t k = 0; k < count; k++) {
+        ids[k] = by_position ? k : some_id(&r->in, r->m.n);
+        uint8_t bits = byte(&r->in);
+        categories[k] = bits & 0x0F ? (uint32_t)(bits & 0x0F) : 0;
+        masks[k] = bits & 0x80 ? UINT32_MAX : (uint32_t)(bits >> 4);
+    }
+    uint32_t index = UINT32_MAX;
+    bpx_status want = BPX_OK;
+    for (uint32_t k = 0; k < count && want == BPX_OK; k++)
+        if (ids[k] >= r->m.n || r->m.dead[ids[k]])
+            want = BPX_ERR_INVALID_ARGUMENT, index = k;
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_set_filters(r->world, by_position ? NULL : ids, categories, masks,
+                                           count);
+    disarm();
+    if (accept(r, "set_filters", got, want, before)) {
+        for (uint32_t k = 0; k < count; k++)
+            r->m.category[ids[k]] = categories[k], r->m.mask[ids[k]] = masks[k];
+    } else if (got == want) {
+        check_box_error(r, "set_filters", index, -1);
+    }
+}
+
+// After a collide the library reports as done: the model's pairs, events and reusable ids.
+static void model_collided(run *r, bpx_pair *want, size_t want_count)
+{
+    model *m = &r->m;
+    if (m->track_events) {
+        bpx_pair_events ev;
+        FUZZ_CHECK(bpx_world_pair_events(r->world, &ev) == BPX_OK, "no events after a collide");
+        const bpx_pair *before = m->have_previous ? m->previous : NULL;
+        size_t before_count = m->have_previous ? m->previous_count : 0;
+        bpx_pair *diff = malloc((want_count + before_count + 1) * sizeof *diff);
+        FUZZ_CHECK(diff != NULL, "out of memory");
+        size_t began = difference(want, want_count, before, before_count, diff);
+        check_same_pairs("began", ev.began, ev.began_count, diff, began);
+        size_t ended = difference(before, before_count, want, want_count, diff);
+        check_same_pairs("ended", ev.ended, ev.ended_count, diff, ended);
+        free(diff);
+    }
+    free(m->previous);
+    m->previous = malloc((want_count ? want_count : 1) * sizeof *want);
+    FUZZ_CHECK(m->previous != NULL, "out of memory");
+    if (want_count)
+        memcpy(m->previous, want, want_count * sizeof *want);
+    m->previous_count = want_count;
+    m->have_previous = true;
+    free(m->pairs);
+    m->pairs = want;
+    m->pair_count = want_count;
+    m->result_valid = true;
+    for (uint32_t k = 0; k < m->pending_count; k++)
+        m->freed[m->free_count++] = m->pending[k];
+    m->pending_count = 0;
+    bpx_cycle_stats stats = bpx_world_stats(r->world);
+    FUZZ_CHECK(stats.pair_count == want_count && stats.box_count == m->n,
+               "stats: %llu pairs of %u boxes, expected %zu of %u",
+               (unsigned long long)stats.pair_count, stats.box_count, want_count, m->n);
+    FUZZ_CHECK(bpx_world_backend(r->world) != BPX_BACKEND_AUTO, "backend auto after a cycle");
+}
+
+// A collide that failed: nothing is readable until the next one succeeds.
+static void model_collide_failed(run *r, bpx_pair *want)
+{
+    free(want);
+    r->m.result_valid = false;
+    free(r->m.pairs);
+    r->m.pairs = NULL;
+    r->m.pair_count = 0;
+    size_t count = 7;
+    FUZZ_CHECK(bpx_world_pairs(r->world, &count) == NULL && count == 0,
+               "pairs readable after a failed collide");
+    bpx_pair_events ev;
+    FUZZ_CHECK(bpx_world_pair_events(r->world, &ev) == BPX_ERR_BAD_STATE,
+               "events readable after a failed collide");
+}
+
+static void op_collide(run *r)
+{
+    bpx_pair *want;
+    size_t want_count = reference_pairs(&r->m, &want);
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_collide(r->world);
+    disarm();
+    if (accept(r, "collide", got, BPX_OK, before)) {
+        size_t count = 0;
+        const bpx_pair *pairs = bpx_world_pairs(r->world, &count);
+        check_same_pairs("collide", pairs, count, want, want_count);
+        model_collided(r, want, want_count);
+    } else {
+        model_collide_failed(r, want);
+    }
+}
+
+static void op_collide_into(run *r)
+{
+    bpx_pair *want;
+    size_t want_count = reference_pairs(&r->m, &want);
+    uint8_t how = byte(&r->in);
+    size_t capacity = how < 0x80 ? how % 8 : how < 0xC0 ? want_count : want_count + how % 5;
+    if (how >= 0x80 && how < 0xC0 && capacity > 0 && (how & 1))
+        capacity--; // one short
+    bpx_pair *out = malloc((capacity + 1) * sizeof *out);
+    FUZZ_CHECK(out != NULL, "out of memory");
+    memset(out, 0xCD, (capacity + 1) * sizeof *out);
+    size_t count = 12345;
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_collide_into(r->world, capacity ? out : NULL, capacity, &count);
+    disarm();
+    bool failed_alloc = atomic_load(&failures) > before;
+    if (got == BPX_ERR_OUT_OF_MEMORY && failed_alloc) {
+        model_collide_failed(r, want);
+        free(out);
+        return;
+    }
+    bpx_status expect = want_count > capacity ? BPX_ERR_CAPACITY : BPX_OK;
+    FUZZ_CHECK(got == expect, "collide_into: status %s, predicted %s (%s)",
+               bpx_status_string(got), bpx_status_string(expect),
+               bpx_world_error(r->world)->message);
+    FUZZ_CHECK(count == want_count, "collide_into: count %zu, the reference %zu", count,
+               want_count);
+    if (got == BPX_OK) {
+        check_same_pairs("collide_into", out, count, want, want_count);
+        uint8_t guard[sizeof *out];
+        memset(guard, 0xCD, sizeof guard);
+        FUZZ_CHECK(memcmp(out + capacity, guard, sizeof guard) == 0,
+                   "collide_into wrote past its capacity");
+    } else {
+        uint8_t *bytes = (uint8_t *)out;
+        for (size_t k = 0; k < (capacity + 1) * sizeof *out; k++)
+            FUZZ_CHECK(bytes[k] == 0xCD, "collide_into wrote to out with CAPACITY");
+    }
+    free(out);
+    // The whole set stays readable, though it did not fit.
+    size_t all = 0;
+    const bpx_pair *pairs = bpx_world_pairs(r->world, &all);
+    check_same_pairs("pairs after collide_into", pairs, all, want, want_count);
+    model_collided(r, want, want_count);
+}
+
+static void op_copy_pairs(run *r)
+{
+    size_t capacity = byte(&r->in) % 6;
+    bpx_pair out[6];
+    size_t count = 99;
+    bpx_status got = bpx_world_copy_pairs(r->world, out, capacity, &count);
+    disarm();
+    size_t have = r->m.result_valid ? r->m.pair_count : 0;
+    FUZZ_CHECK(count == have, "copy_pairs: count %zu, expected %zu", count, have);
+    FUZZ_CHECK(got == (have > capacity ? BPX_ERR_CAPACITY : BPX_OK), "copy_pairs: status %s",
+               bpx_status_string(got));
+    if (got == BPX_OK)
+        check_same_pairs("copy_pairs", out, count, r->m.pairs, have);
+}
+
+// The one-shot call on the model's live boxes, with the backend under test; it knows no
+// filters, so its pairs are checked only when no filter is set.
+static void op_find_pairs(run *r, bpx_backend backend)
+{
+    model *m = &r->m;
+    bpx_box *live = malloc((m->n ? m->n : 1) * sizeof *live);
+    FUZZ_CHECK(live != NULL, "out of memory");
+    uint32_t live_count = 0;
+    bool filtered = false;
+    for (uint32_t i = 0; i < m->n; i++) {
+        if (!m->dead[i])
+            live[live_count++] = m->boxes[i];
+        filtered |= m->category[i] != 1 || m->mask[i] != UINT32_MAX;
+    }
+    size_t capacity = byte(&r->in) % 4, count = 0;
+    bpx_pair out[4];
+    bpx_error err;
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_find_pairs(live, live_count, backend, out, capacity, &count, &err);
+    disarm();
+    disarm();
+    if (got == BPX_ERR_OUT_OF_MEMORY && atomic_load(&failures) > before) {
+        free(live);
+        return;
+    }
+    size_t want_count = 0;
+    bpx_pair want[4];
+    for (uint32_t i = 0; i < live_count; i++)
+        for (uint32_t j = i + 1; j < live_count; j++)
+            if (overlap(&live[i], &live[j])) {
+                if (want_count < 4)
+                    want[want_count] = (bpx_pair){i, j};
+                want_count++;
+            }
+    free(live);
+    if (filtered)
+        return;
+    FUZZ_CHECK(got == (want_count > capacity ? BPX_ERR_CAPACITY : BPX_OK) && count == want_count,
+               "find_pairs: %s, %zu pairs, the reference %zu (%s)", bpx_status_string(got), count,
+               want_count, err.message);
+    if (got == BPX_OK)
+        check_same_pairs("find_pairs", out, count, want, want_count);
+}
+
+static const bpx_backend cpu_backends[] = {
+    BPX_BACKEND_AUTO, BPX_BACKEND_REFERENCE, BPX_BACKEND_BRUTE, BPX_BACKEND_PRUNE,
+    BPX_BACKEND_SAP,  BPX_BACKEND_GRID,      BPX_BACKEND_MODEL,
+};
+enum { CPU_BACKEND_COUNT = sizeof cpu_backends / sizeof cpu_backends[0] };
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    if (size < 2)
+        return 0;
+    static bool hooked;
+    if (!hooked) {
+        bpx_set_allocator(fuzz_alloc, fuzz_free, NULL);
+        hooked = true;
+    }
+    atomic_store(&fail_at, NO_FAILURE);
+    static run r; // the model is large: not on the stack
+    memset(&r, 0, sizeof r);
+    r.in = (input){data, size, 0, 0x9E3779B97F4A7C15ull ^ size};
+    for (size_t k = 0; k < size && k < 16; k++)
+        r.in.rng = r.in.rng * 31 + data[k];
+    uint8_t which = byte(&r.in), options = byte(&r.in);
+    bpx_backend backend = cpu_backends[which % CPU_BACKEND_COUNT];
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = backend;
+    def.track_events = options & 1;
+    def.worker_count = options & 2 ? 2 : 1;
+    def.spin_us = -1; // workers sleep at once: many short worlds on a shared machine
+    bpx_simd simd = (bpx_simd)((options >> 2) % BPX_SIMD_COUNT);
+    def.simd = bpx_simd_supported(simd) ? simd : BPX_SIMD_AUTO;
+    for (uint32_t id = 0; id < MAX_N; id++)
+        model_unfilter(&r.m, id);
+    r.m.track_events = def.track_events;
+    bpx_status created = bpx_world_create(&def, &r.world);
+    if (created == BPX_ERR_BACKEND_UNAVAILABLE)
+        return 0;
+    FUZZ_CHECK(created == BPX_OK, "create: %s", bpx_status_string(created));
+    long arm = NO_FAILURE;
+    while (more(&r.in)) {
+        uint8_t code = byte(&r.in);
+        int op = code % OP_COUNT;
+        if (op == 9) { // fail_next: one allocation of the next call fails
+            arm = (long)(byte(&r.in) % 24);
+            continue;
+        }
+        snapshot before = take_snapshot(&r);
+        atomic_store(&fail_at, arm); // after the snapshot: only the call under test may fail
+        arm = NO_FAILURE;
+        switch (op) {
+        case 0: op_set_boxes(&r); break;
+        case 1: op_load_extents(&r); break;
+        case 2: op_update_centres(&r); break;
+        case 3: op_add_boxes(&r); break;
+        case 4: op_remove_boxes(&r); break;
+        case 5: op_move_boxes(&r); break;
+        case 6: op_set_filters(&r); break;
+        case 7: op_collide(&r); break;
+        case 8: op_collide_into(&r); break;
+        case 10: op_copy_pairs(&r); break;
+        case 11: op_find_pairs(&r, backend); break;
+        }
+        bool failed_call = op != 7 && op != 8 && op != 10 && op != 11 &&
+                           bpx_world_error(r.world)->status != BPX_OK;
+        disarm();
+        if (failed_call)
+            check_unchanged(&r, &before, op_names[op]);
+        free(before.pairs);
+    }
+    // Last, a collide on whatever the sequence left: every run ends checked.
+    op_collide(&r);
+    bpx_world_destroy(r.world);
+    free(r.m.pairs);
+    free(r.m.previous);
+    return 0;
+}
