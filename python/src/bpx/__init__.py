@@ -51,6 +51,7 @@ from ._errors import (
     OutOfMemoryError,
     StateError,
     TooManyBoxesError,
+    TooManyPairsError,
     UnknownBackendError,
 )
 from ._query import BatchHits, BatchIds, Hit, Hits, QueryStats
@@ -78,6 +79,7 @@ __all__ = [
     "NotFiniteError",
     "MinGreaterThanMaxError",
     "TooManyBoxesError",
+    "TooManyPairsError",
     "UnknownBackendError",
     "DTypeError",
     "BackendUnavailableError",

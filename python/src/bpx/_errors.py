@@ -15,6 +15,7 @@ __all__ = [
     "NotFiniteError",
     "MinGreaterThanMaxError",
     "TooManyBoxesError",
+    "TooManyPairsError",
     "UnknownBackendError",
     "DTypeError",
     "BackendUnavailableError",
@@ -90,6 +91,11 @@ class OutOfMemoryError(Error, MemoryError):
     """bpx could not allocate memory; the world is as it was before the call."""
 
 
+class TooManyPairsError(Error, OverflowError):
+    """The pair set passed what the backend can count (2^32 - 1 pairs for prune, sap, grid and
+    opencl's sweep); brute and reference count further."""
+
+
 class DeviceError(Error, RuntimeError):
     """The compute device failed (driver error, kernel build, lost device)."""
 
@@ -110,6 +116,7 @@ _BY_STATUS = {
     "BPX_ERR_BAD_STATE": StateError,
     "BPX_ERR_DEVICE": DeviceError,
     "BPX_ERR_DEVICE_MEMORY": DeviceMemoryError,
+    "BPX_ERR_TOO_MANY_PAIRS": TooManyPairsError,
 }
 
 
