@@ -37,9 +37,10 @@ int main(void)
             printf(" %u", inside[k].id);
         printf("\n");
     }
-    const bpx_error *error = bpx_world_error(world);
-    if (error->status != BPX_OK)
+    const bpx_error *error = bpx_world_error(world); // valid until the world is destroyed
+    bpx_status status = error->status;
+    if (status != BPX_OK)
         fprintf(stderr, "%s\n", error->message);
     bpx_world_destroy(world);
-    return error->status == BPX_OK ? 0 : 1;
+    return status == BPX_OK ? 0 : 1;
 }
