@@ -29,13 +29,7 @@ BPX_HD uint32_t bits_of(float f)
 
 BPX_HD float float_of(uint32_t u)
 {
-#ifdef __CUDA_ARCH__
-    return __uint_as_float(u);
-#else
-    float f;
-    memcpy(&f, &u, sizeof f);
-    return f;
-#endif
+    return BPX_LB_FLOAT(u); // the shared build's bit cast (src/kernels/lbvh_build.h)
 }
 
 /// Floats as unsigned keys of the same order, for atomicMin/atomicMax.
