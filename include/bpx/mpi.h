@@ -116,7 +116,9 @@ typedef struct bpx_mpi_stats {
     uint64_t select_ns;       ///< keeping the pairs whose corner is in this rank's region
     uint64_t events_ns;       ///< events: the change, its exchange and arbitration
     uint64_t total_ns;        ///< the whole collide
-    uint64_t cpu_ns;          ///< process CPU time over the whole collide
+    uint64_t cpu_ns;          ///< process CPU time over the whole collide (MPI's waits spin)
+    uint64_t compute_cpu_ns;  ///< process CPU time of the work outside MPI calls: routing,
+                              ///< packing, sorting, the rank's collide, selecting the pairs
 } bpx_mpi_stats;
 
 /// The change of the pair set made by the last collide, on the event rank of each pair.
@@ -143,9 +145,10 @@ BPX_API void bpx_mpi_world_destroy(bpx_mpi_world *world);
 /// Collective. One cycle: this rank's count boxes with their global ids (filters may be NULL:
 /// every box pairs with every other, unless another rank passes filters for its boxes), then
 /// the exchange and the pairs. count may be 0 (NULLs allowed then).
-/// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, NOT_FINITE, MIN_GREATER_THAN_MAX,
-/// INVALID_ARGUMENT (an id twice), OUT_OF_MEMORY, TOO_MANY_PAIRS (a rank's share of pairs or
-/// records past MPI's int counts), and those of the rank's bpx_world_collide.
+/// Errors: NULL_ARGUMENT, TOO_MANY_BOXES (count, or the boxes a rank tests, past BPX_MAX_BOXES;
+/// copies to send past MPI's int counts), NOT_FINITE, MIN_GREATER_THAN_MAX, INVALID_ARGUMENT
+/// (an id twice), OUT_OF_MEMORY, TOO_MANY_PAIRS (events past MPI's int counts), and those of
+/// the rank's bpx_world_collide.
 BPX_API bpx_status bpx_mpi_world_collide(bpx_mpi_world *world, const uint64_t *ids,
                                          const bpx_box *boxes, const bpx_mpi_filter *filters,
                                          size_t count);

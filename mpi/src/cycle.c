@@ -103,6 +103,7 @@ static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t c
     memset(w->send_counts, 0, sizeof(int) * (size_t)w->size);
     size_t own = 0, foreign = 0;
     uint64_t sent = 0;
+    uint64_t cpu = bpx_mpi__cpu_ns();
     for (size_t i = 0; i < count; i++) {
         int touched = rcb_touching(&w->tree, &boxes[i], w->touched);
         for (int t = 0; t < touched; t++) {
@@ -116,6 +117,7 @@ static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t c
         rcb_centre(&boxes[i], c);
         foreign += !rcb_holds(&w->tree, w->rank, c);
     }
+    w->stats.compute_cpu_ns += bpx_mpi__cpu_ns() - cpu;
     MPI_Alltoall(w->send_counts, 1, MPI_INT, w->recv_counts, 1, MPI_INT, w->comm);
     size_t send_total = 0, recv_total = 0;
     for (int r = 0; r < w->size; r++) {
@@ -275,11 +277,14 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
     bpx_status s = plan_exchange(w, boxes, count, record_bytes, &route);
     if (s != BPX_OK)
         return failed(w, s);
+    uint64_t cpu = bpx_mpi__cpu_ns();
     pack(w, ids, boxes, filters, count, record_bytes);
     uint64_t packed = bpx_mpi__now_ns();
+    st->compute_cpu_ns += bpx_mpi__cpu_ns() - cpu;
     MPI_Alltoallv(w->send, w->send_counts, w->send_displs, record, w->recv, w->recv_counts,
                   w->recv_displs, record, w->comm);
     uint64_t exchanged = bpx_mpi__now_ns();
+    cpu = bpx_mpi__cpu_ns();
     unpack(w, route.own_present, route.recv_total, record_bytes);
     st->route_ns = (packed - t) + (bpx_mpi__now_ns() - exchanged);
     st->exchange_ns = exchanged - packed;
@@ -300,6 +305,7 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
     if (w->error.status == BPX_OK)
         select_pairs(w);
     st->select_ns = bpx_mpi__now_ns() - t;
+    st->compute_cpu_ns += bpx_mpi__cpu_ns() - cpu; // unpack, sort, local collide, select
     if ((s = bpx_mpi__agree(w)) != BPX_OK)
         return failed(w, s);
     uint64_t sums[2] = {n, w->next_count}, totals[2], most;

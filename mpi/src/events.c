@@ -78,7 +78,8 @@ bpx_status bpx_mpi__events(bpx_mpi_world *w) {
 
     // Each rank's list holds a pair at most once, so a pair arrives at most twice: as ended by
     // the rank that reported it last cycle and as began by the one that reports it now.
-    qsort(w->ev_recv, recv_total, sizeof(event_record), compare_records);
+    if (recv_total > 1)
+        qsort(w->ev_recv, recv_total, sizeof(event_record), compare_records);
     w->began_count = w->ended_count = 0;
     for (size_t k = 0; k < recv_total; k++) {
         const event_record *e = &w->ev_recv[k];

@@ -63,6 +63,8 @@ bpx_status bpx_mpi__agree(bpx_mpi_world *w) {
 
 void bpx_mpi__sort_ids(uint64_t *keys, uint32_t *order, uint64_t *keys_tmp, uint32_t *order_tmp,
                        size_t n) {
+    if (n < 2)
+        return;
     uint64_t all_or = 0, all_and = ~(uint64_t)0;
     for (size_t i = 0; i < n; i++) {
         all_or |= keys[i];
