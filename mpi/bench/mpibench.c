@@ -69,7 +69,7 @@ int main(int argc, char **argv) {
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &ranks);
     size_t per_rank = 100000, total = 0;
-    int cycles = 10, heavy = 0, header = 0;
+    int cycles = 10, heavy = 0, header = 0, phases = 0;
     float step = 0.05f;
     for (int a = 1; a < argc; a++) {
         if (!strcmp(argv[a], "--weak") && a + 1 < argc)
@@ -84,6 +84,8 @@ int main(int argc, char **argv) {
             heavy = 1;
         else if (!strcmp(argv[a], "--header"))
             header = 1;
+        else if (!strcmp(argv[a], "--phases"))
+            phases = 1;
         else {
             if (rank == 0)
                 fprintf(stderr, "usage: bpx_mpibench [--weak N | --strong N] [--cycles C] "
@@ -155,6 +157,13 @@ int main(int argc, char **argv) {
             copies += (double)st.copies_sent, moved_sum += (double)moved, own_sum += (double)own;
             pairs += (double)st.total_pair_count;
             measured++;
+            if (phases && rank == 0)
+                fprintf(stderr,
+                        "cycle %d: route %.2f exchange %.2f local %.2f select %.2f events %.2f "
+                        "total %.2f ms; present %llu\n",
+                        c, st.route_ns * 1e-6, st.exchange_ns * 1e-6, st.local_ns * 1e-6,
+                        st.select_ns * 1e-6, st.events_ns * 1e-6, st.total_ns * 1e-6,
+                        (unsigned long long)st.present_count);
         }
     }
 

@@ -65,22 +65,12 @@ static bool reserve_present(bpx_mpi_world *w, size_t n) {
 #define GROW_PRESENT(field)                                                                        \
     (c = cap, bpx_mpi__grow((void **)&w->field, &c, n, sizeof *w->field) == 0)
     bool ok = GROW_PRESENT(ids) && GROW_PRESENT(ids_tmp) && GROW_PRESENT(order) &&
-              GROW_PRESENT(order_tmp) && GROW_PRESENT(boxes_in) && GROW_PRESENT(boxes) &&
-              GROW_PRESENT(category_in) && GROW_PRESENT(mask_in) && GROW_PRESENT(category) &&
-              GROW_PRESENT(mask);
+              GROW_PRESENT(order_tmp) && GROW_PRESENT(own_index) && GROW_PRESENT(boxes) &&
+              GROW_PRESENT(category) && GROW_PRESENT(mask) && GROW_PRESENT(inside);
 #undef GROW_PRESENT
     if (ok && n > cap)
         w->present_cap = c; // every array grew to the same capacity (the same rule each)
     return ok;
-}
-
-static void put_present(bpx_mpi_world *w, size_t at, uint64_t id, const bpx_box *box,
-                        uint32_t category, uint32_t mask) {
-    w->ids[at] = id;
-    w->order[at] = (uint32_t)at;
-    w->boxes_in[at] = *box;
-    w->category_in[at] = category;
-    w->mask_in[at] = mask;
 }
 
 // The rank a present box came from, for error messages: own boxes first, then by receipt.
@@ -105,6 +95,10 @@ static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t c
     uint64_t sent = 0;
     uint64_t cpu = bpx_mpi__cpu_ns();
     for (size_t i = 0; i < count; i++) {
+        if (rcb_inside(&w->tree, w->rank, &boxes[i])) { // most boxes: no copies, no descent
+            own++;
+            continue;
+        }
         int touched = rcb_touching(&w->tree, &boxes[i], w->touched);
         for (int t = 0; t < touched; t++) {
             int r = w->touched[t];
@@ -142,18 +136,24 @@ static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t c
     return bpx_mpi__agree(w);
 }
 
-// Packs the records for other ranks and puts this rank's own boxes in the present set.
+// Packs the records for other ranks and notes this rank's own boxes in its region.
 static void pack(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
                  const bpx_mpi_filter *filters, size_t count, size_t record_bytes) {
     memcpy(w->cursor, w->send_displs, sizeof(int) * (size_t)w->size);
     size_t own = 0;
     for (size_t i = 0; i < count; i++) {
+        if (rcb_inside(&w->tree, w->rank, &boxes[i])) {
+            w->ids[own] = ids[i];
+            w->own_index[own++] = (uint32_t)i;
+            continue;
+        }
         bpx_mpi_filter f = filters ? filters[i] : (bpx_mpi_filter){1, 0xFFFFFFFFu};
         int touched = rcb_touching(&w->tree, &boxes[i], w->touched);
         for (int t = 0; t < touched; t++) {
             int r = w->touched[t];
             if (r == w->rank) {
-                put_present(w, own++, ids[i], &boxes[i], f.category, f.mask);
+                w->ids[own] = ids[i];
+                w->own_index[own++] = (uint32_t)i;
                 continue;
             }
             unsigned char *rec = w->send + (size_t)w->cursor[r]++ * record_bytes;
@@ -165,29 +165,40 @@ static void pack(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
     }
 }
 
+// The ids of the records received, after the own ones; every arrival position in order.
 static void unpack(bpx_mpi_world *w, size_t own, size_t recv_total, size_t record_bytes) {
-    for (size_t k = 0; k < recv_total; k++) {
-        const unsigned char *rec = w->recv + k * record_bytes;
-        uint64_t id;
-        bpx_box box;
-        bpx_mpi_filter f = {1, 0xFFFFFFFFu};
-        memcpy(&id, rec, 8);
-        memcpy(&box, rec + 8, sizeof box);
-        if (record_bytes == BPX_MPI_RECORD_FILTER_BYTES)
-            memcpy(&f, rec + 32, sizeof f);
-        put_present(w, own + k, id, &box, f.category, f.mask);
-    }
+    for (size_t k = 0; k < recv_total; k++)
+        memcpy(&w->ids[own + k], w->recv + k * record_bytes, 8);
+    for (size_t k = 0; k < own + recv_total; k++)
+        w->order[k] = (uint32_t)k;
 }
 
-// Sorts the present boxes by id (so local pairs (i, j) come out in global (a, b) order), checks
-// that no id came twice, and runs the rank's own world.
-static void find_local(bpx_mpi_world *w, size_t n, size_t own, bool with_filters) {
-    bpx_mpi__sort_ids(w->ids, w->order, w->ids_tmp, w->order_tmp, n);
+// Sorts the present boxes by id (so local pairs (i, j) come out in global (a, b) order),
+// gathers them from the caller's arrays and the records, checks that no id came twice, and runs
+// the rank's own world.
+static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_filter *filters,
+                       size_t n, size_t own, size_t record_bytes, bool with_filters) {
+    bpx_mpi__sort_ids(&w->ids, &w->order, &w->ids_tmp, &w->order_tmp, n);
+    bool gather_filters = with_filters || w->local_filtered; // defaults when only last had any
     for (size_t k = 0; k < n; k++) {
         uint32_t from = w->order[k];
-        w->boxes[k] = w->boxes_in[from];
-        w->category[k] = w->category_in[from];
-        w->mask[k] = w->mask_in[from];
+        bpx_mpi_filter f = {1, 0xFFFFFFFFu};
+        if (from < own) {
+            uint32_t i = w->own_index[from];
+            w->boxes[k] = boxes[i];
+            if (filters)
+                f = filters[i];
+        } else {
+            const unsigned char *rec = w->recv + (size_t)(from - own) * record_bytes;
+            memcpy(&w->boxes[k], rec + 8, sizeof(bpx_box));
+            if (record_bytes == BPX_MPI_RECORD_FILTER_BYTES)
+                memcpy(&f, rec + 32, sizeof f);
+        }
+        w->inside[k] = (uint8_t)rcb_inside(&w->tree, w->rank, &w->boxes[k]);
+        if (gather_filters) {
+            w->category[k] = f.category;
+            w->mask[k] = f.mask;
+        }
         if (k > 0 && w->ids[k] == w->ids[k - 1]) {
             bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, w->ids[k], SIZE_MAX, -1,
                           "id %llu is given twice (by ranks %d and %d)",
@@ -219,12 +230,16 @@ static void select_pairs(bpx_mpi_world *w) {
     }
     size_t kept = 0;
     for (size_t k = 0; k < m; k++) {
-        const bpx_box *a = &w->boxes[local[k].i], *b = &w->boxes[local[k].j];
-        float corner[3];
-        for (int d = 0; d < 3; d++)
-            corner[d] = a->min[d] > b->min[d] ? a->min[d] : b->min[d];
-        if (rcb_holds(&w->tree, w->rank, corner))
-            w->next[kept++] = (bpx_mpi_pair){w->ids[local[k].i], w->ids[local[k].j]};
+        uint32_t i = local[k].i, j = local[k].j;
+        if (!(w->inside[i] | w->inside[j])) { // near a border: where is the corner?
+            const bpx_box *a = &w->boxes[i], *b = &w->boxes[j];
+            float corner[3];
+            for (int d = 0; d < 3; d++)
+                corner[d] = a->min[d] > b->min[d] ? a->min[d] : b->min[d];
+            if (!rcb_holds(&w->tree, w->rank, corner))
+                continue;
+        }
+        w->next[kept++] = (bpx_mpi_pair){w->ids[i], w->ids[j]};
     }
     w->next_count = kept;
 }
@@ -299,7 +314,7 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
 
     // 4. This rank's pairs.
     t = bpx_mpi__now_ns();
-    find_local(w, n, route.own_present, with_filters);
+    find_local(w, boxes, filters, n, route.own_present, record_bytes, with_filters);
     st->local_ns = bpx_mpi__now_ns() - t;
     t = bpx_mpi__now_ns();
     if (w->error.status == BPX_OK)

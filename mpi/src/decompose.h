@@ -50,6 +50,13 @@ static inline int rcb_holds(const rcb_tree *tree, int rank, const float p[3]) {
            p[2] < hi[2];
 }
 
+/// Whether the closed box lies wholly in the half-open region of rank (then it touches no other).
+static inline int rcb_inside(const rcb_tree *tree, int rank, const bpx_box *b) {
+    const float *lo = tree->lo[rank], *hi = tree->hi[rank];
+    return lo[0] <= b->min[0] && b->max[0] < hi[0] && lo[1] <= b->min[1] && b->max[1] < hi[1] &&
+           lo[2] <= b->min[2] && b->max[2] < hi[2];
+}
+
 /// A box's centre, halved first so that boxes near +-FLT_MAX do not overflow.
 static inline void rcb_centre(const bpx_box *box, float out[3]) {
     for (int k = 0; k < 3; k++)

@@ -61,31 +61,53 @@ bpx_status bpx_mpi__agree(bpx_mpi_world *w) {
     return w->error.status;
 }
 
-void bpx_mpi__sort_ids(uint64_t *keys, uint32_t *order, uint64_t *keys_tmp, uint32_t *order_tmp,
-                       size_t n) {
+void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp,
+                       uint32_t **order_tmp, size_t n) {
+    // 11-bit digits (six passes at most; an 8 KB histogram stays in L1), all histograms from one
+    // read of the keys, and digits every key shares are skipped: ids below 2^22 take two passes.
+    // Keys already in order (one rank, or callers that keep their arrays sorted) cost one read.
+    enum { BITS = 11, DIGITS = 6, RADIX = 1 << BITS };
     if (n < 2)
         return;
-    uint64_t all_or = 0, all_and = ~(uint64_t)0;
+    const uint64_t *k0 = *keys;
+    size_t sorted = 1;
+    while (sorted < n && k0[sorted - 1] <= k0[sorted])
+        sorted++;
+    if (sorted == n)
+        return;
+    uint32_t count[DIGITS][RADIX]; // 48 KB
+    memset(count, 0, sizeof count);
     for (size_t i = 0; i < n; i++) {
-        all_or |= keys[i];
-        all_and &= keys[i];
+        uint64_t k = k0[i];
+        for (int d = 0; d < DIGITS; d++)
+            count[d][(k >> (d * BITS)) & (RADIX - 1)]++;
     }
-    uint64_t differ = all_or ^ all_and; // bytes where some keys differ
-    for (int shift = 0; shift < 64; shift += 8) {
-        if (((differ >> shift) & 0xff) == 0)
-            continue;
-        size_t count[257] = {0};
-        for (size_t i = 0; i < n; i++)
-            count[((keys[i] >> shift) & 0xff) + 1]++;
-        for (int d = 0; d < 256; d++)
-            count[d + 1] += count[d];
-        for (size_t i = 0; i < n; i++) {
-            size_t to = count[(keys[i] >> shift) & 0xff]++;
-            keys_tmp[to] = keys[i];
-            order_tmp[to] = order[i];
+    for (int d = 0; d < DIGITS; d++) {
+        uint32_t *c = count[d];
+        if (c[(k0[0] >> (d * BITS)) & (RADIX - 1)] == n)
+            continue; // every key has this digit
+        uint32_t sum = 0;
+        for (int v = 0; v < RADIX; v++) {
+            uint32_t here = c[v];
+            c[v] = sum;
+            sum += here;
         }
-        memcpy(keys, keys_tmp, n * sizeof *keys);
-        memcpy(order, order_tmp, n * sizeof *order);
+        const uint64_t *k_in = *keys;
+        const uint32_t *o_in = *order;
+        uint64_t *k_out = *keys_tmp;
+        uint32_t *o_out = *order_tmp;
+        for (size_t i = 0; i < n; i++) {
+            uint32_t to = c[(k_in[i] >> (d * BITS)) & (RADIX - 1)]++;
+            k_out[to] = k_in[i];
+            o_out[to] = o_in[i];
+        }
+        uint64_t *kt = *keys;
+        *keys = *keys_tmp;
+        *keys_tmp = kt;
+        uint32_t *ot = *order;
+        *order = *order_tmp;
+        *order_tmp = ot;
+        k0 = *keys;
     }
 }
 
@@ -101,8 +123,8 @@ static void free_buffers(bpx_mpi_world *w) {
     void *buffers[] = {w->send_counts, w->send_displs, w->recv_counts, w->recv_displs,
                        w->cursor,      w->touched,     w->samples,     w->send,        w->recv,
                        w->ids,         w->ids_tmp,     w->order,       w->order_tmp,
-                       w->boxes_in,    w->boxes,       w->category_in, w->mask_in,
-                       w->category,    w->mask,        w->pairs,       w->next,
+                       w->own_index,   w->boxes,
+                       w->category,    w->mask,        w->inside,      w->pairs,       w->next,
                        w->ev_send,     w->ev_recv,     w->began,       w->ended,
                        w->gathered,    w->gather_tmp};
     for (size_t i = 0; i < sizeof buffers / sizeof buffers[0]; i++)

@@ -41,11 +41,14 @@ struct bpx_mpi_world {
     unsigned char *send, *recv; // box records
     size_t send_cap, recv_cap;  // in bytes
 
-    // The boxes this rank tests, in arrival order then sorted by id.
+    // The boxes this rank tests. Arrival positions: first this rank's own boxes in its region
+    // (own_index: where in the caller's input), then the records received. ids and order (the
+    // arrival position) are sorted by id; boxes and filters are then gathered in that order.
     uint64_t *ids, *ids_tmp;
-    uint32_t *order, *order_tmp;
-    bpx_box *boxes_in, *boxes;
-    uint32_t *category_in, *mask_in, *category, *mask;
+    uint32_t *order, *order_tmp, *own_index;
+    bpx_box *boxes;
+    uint32_t *category, *mask;
+    uint8_t *inside; // the box lies wholly in this rank's region: its pairs' corners do too
     size_t present_cap;
 
     // This rank's pairs: the last successful cycle's, and the next one's being made.
@@ -81,9 +84,10 @@ void bpx_mpi__fail(bpx_mpi_world *w, bpx_status status, uint64_t id, size_t inde
 /// BPX_OK when no rank failed.
 bpx_status bpx_mpi__agree(bpx_mpi_world *w);
 
-/// Sorts keys (with their positions in order) ascending; LSD radix over the bytes that differ.
-void bpx_mpi__sort_ids(uint64_t *keys, uint32_t *order, uint64_t *keys_tmp, uint32_t *order_tmp,
-                       size_t n);
+/// Sorts keys (with their positions in order) ascending; LSD radix over the bytes that differ,
+/// passing between the arrays and their tmp twins (swapped, so the result is in *keys, *order).
+void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp,
+                       uint32_t **order_tmp, size_t n);
 
 /// Events of the cycle: what changed between w->pairs and w->next, settled on each pair's
 /// event rank. Collective.
