@@ -116,6 +116,9 @@ typedef struct bpx_mpi_stats {
     uint64_t select_ns;       ///< keeping the pairs whose corner is in this rank's region
     uint64_t events_ns;       ///< events: the change, its exchange and arbitration
     uint64_t total_ns;        ///< the whole collide
+    uint64_t migrated_sent;     ///< the last bpx_mpi_world_migrate: objects sent away,
+    uint64_t migrated_received; ///< objects received,
+    uint64_t migrate_bytes_sent;///< and the bytes sent (id, box and payload each)
     uint64_t cpu_ns;          ///< process CPU time over the whole collide (MPI's waits spin)
     uint64_t compute_cpu_ns;  ///< process CPU time of the work outside MPI calls: routing,
                               ///< packing, sorting, the rank's collide, selecting the pairs
@@ -182,6 +185,21 @@ BPX_API bpx_status bpx_mpi_world_region(const bpx_mpi_world *world, int rank, fl
 /// object is cheapest to pass. BAD_STATE before the first collide.
 BPX_API bpx_status bpx_mpi_world_home_ranks(const bpx_mpi_world *world, const bpx_box *boxes,
                                             size_t count, int *ranks);
+
+/// Collective. Moves each object to its home rank (as bpx_mpi_world_home_ranks, by the regions
+/// of the last collide) together with payload_size bytes of the caller's data per object, so
+/// that only the objects that crossed a border travel. On entry ids, boxes and payload (NULL
+/// when payload_size is 0) hold this rank's *count objects in arrays with room for capacity;
+/// on return they hold its objects after the move: those that stayed, in their order, then the
+/// arrivals by source rank and their order there, and *count their number.
+/// Errors, the same on every rank, with nothing moved: CAPACITY when any rank lacks room (each
+/// rank's *count then receives the room it needs, and the call can be made again with more),
+/// BAD_STATE before the first collide, NULL_ARGUMENT, INVALID_ARGUMENT (payload_size over 1 MB),
+/// NOT_FINITE or MIN_GREATER_THAN_MAX (a box), OUT_OF_MEMORY, TOO_MANY_BOXES (past MPI's
+/// int counts).
+BPX_API bpx_status bpx_mpi_world_migrate(bpx_mpi_world *world, uint64_t *ids, bpx_box *boxes,
+                                         void *payload, size_t payload_size, size_t capacity,
+                                         size_t *count);
 
 /// Asks the next collide to recompute the regions whatever the balance (collective in effect:
 /// the regions are recomputed if any rank asked).

@@ -1,9 +1,9 @@
 // bpx_mpibench: libbpx_mpi's weak and strong scaling, run under mpiexec.
 //   mpiexec -n P bpx_mpibench --weak 100000     (100k boxes per rank, constant density)
 //   mpiexec -n P bpx_mpibench --strong 1000000  (1M boxes over all ranks)
-// Objects move every cycle at their own constant velocity; the application keeps each on the
-// rank bpx_mpi_world_home_ranks names, moving those that crossed a border (as particle codes
-// do), so bpx sends only the copies near borders. Prints one row: per-rank time (wall and
+// Objects move every cycle at their own constant velocity; bpx_mpi_world_migrate keeps each on
+// its home rank, moving those that crossed a border with their velocity (as particle codes do),
+// so bpx sends only the copies near borders. Prints one row: per-rank time (wall and
 // CPU), imbalance, bytes and messages per rank per cycle, and the CPU time of a single-process
 // world on this rank's boxes, measured in the same run. With more ranks than cores, wall time
 // counts waits for a core: read CPU time.
@@ -17,11 +17,9 @@
 
 #include "scenes.h"
 
-typedef struct object {
-    uint64_t id;
-    bpx_box box;
-    float velocity[3];
-} object;
+typedef struct velocity {
+    float v[3];
+} velocity_t;
 
 static int rank, ranks;
 
@@ -34,34 +32,6 @@ static double cpu_ms(void) {
 static void die(const char *what, bpx_status s) {
     fprintf(stderr, "rank %d: %s: %s\n", rank, what, bpx_status_name(s));
     MPI_Abort(MPI_COMM_WORLD, 1);
-}
-
-// Sends each object to dest[k] (an application's own exchange); returns the new count.
-static size_t migrate(object **objects, size_t count, const int *dest, size_t *moved) {
-    int *send = calloc((size_t)ranks, sizeof(int)), *recv = calloc((size_t)ranks, sizeof(int));
-    int *sd = calloc((size_t)ranks, sizeof(int)), *rd = calloc((size_t)ranks, sizeof(int));
-    for (size_t k = 0; k < count; k++)
-        send[dest[k]] += (int)sizeof(object);
-    MPI_Alltoall(send, 1, MPI_INT, recv, 1, MPI_INT, MPI_COMM_WORLD);
-    size_t total_in = 0, total_out = 0;
-    for (int r = 0; r < ranks; r++) {
-        sd[r] = (int)total_out, rd[r] = (int)total_in;
-        total_out += (size_t)send[r], total_in += (size_t)recv[r];
-    }
-    object *out = malloc(total_out + 1), *in = malloc(total_in + 1);
-    int *cursor = malloc(sizeof(int) * (size_t)ranks);
-    memcpy(cursor, sd, sizeof(int) * (size_t)ranks);
-    *moved = 0;
-    for (size_t k = 0; k < count; k++) {
-        memcpy((char *)out + cursor[dest[k]], &(*objects)[k], sizeof(object));
-        cursor[dest[k]] += (int)sizeof(object);
-        *moved += dest[k] != rank;
-    }
-    MPI_Alltoallv(out, send, sd, MPI_BYTE, in, recv, rd, MPI_BYTE, MPI_COMM_WORLD);
-    free(*objects);
-    *objects = in;
-    free(out), free(cursor), free(send), free(recv), free(sd), free(rd);
-    return total_in / sizeof(object);
 }
 
 int main(int argc, char **argv) {
@@ -104,15 +74,21 @@ int main(int argc, char **argv) {
         scene_heavy_tailed_density((uint32_t)total, 1, all);
     else
         scene_uniform_density((uint32_t)total, 1.0f, 1, all);
-    size_t count = 0;
-    object *objects = malloc((total / (size_t)ranks + 1) * sizeof *objects);
+    // This rank's objects (room for all: migrations may gather many on one rank).
+    size_t count = 0, capacity = total;
+    uint64_t *ids = malloc(capacity * sizeof *ids);
+    bpx_box *boxes = malloc(capacity * sizeof *boxes);
+    velocity_t *velocity = malloc(capacity * sizeof *velocity);
     scene_rng rng;
     scene_rng_seed(&rng, 2);
     for (size_t k = 0; k < total; k++) {
-        float v[3] = {scene_rng_range(&rng, -step, step), scene_rng_range(&rng, -step, step),
-                      scene_rng_range(&rng, -step, step)};
-        if ((int)(k % (size_t)ranks) == rank)
-            objects[count++] = (object){k, all[k], {v[0], v[1], v[2]}};
+        velocity_t v = {{scene_rng_range(&rng, -step, step), scene_rng_range(&rng, -step, step),
+                         scene_rng_range(&rng, -step, step)}};
+        if ((int)(k % (size_t)ranks) == rank) {
+            ids[count] = k;
+            boxes[count] = all[k];
+            velocity[count++] = v;
+        }
     }
     free(all);
 
@@ -121,35 +97,28 @@ int main(int argc, char **argv) {
     bpx_status s = bpx_mpi_world_create(MPI_COMM_WORLD, &def, &world, NULL);
     if (s != BPX_OK)
         die("create", s);
-    uint64_t *ids = NULL;
-    bpx_box *boxes = NULL;
-    int *home = NULL;
     // Sums over the measured cycles (all but the first two: decomposition and the big move).
     double wall = 0, cpu = 0, compute = 0, imbalance = 0, bytes = 0, messages = 0, copies = 0,
            moved_sum = 0, own_sum = 0, pairs = 0;
     int measured = 0;
     for (int c = 0; c < cycles + 2; c++) {
-        ids = realloc(ids, (count + 1) * sizeof *ids);
-        boxes = realloc(boxes, (count + 1) * sizeof *boxes);
-        for (size_t k = 0; k < count; k++)
-            ids[k] = objects[k].id, boxes[k] = objects[k].box;
         MPI_Barrier(MPI_COMM_WORLD);
         if ((s = bpx_mpi_world_collide(world, ids, boxes, NULL, count)) != BPX_OK)
             die(bpx_mpi_world_error(world)->message, s);
         bpx_mpi_stats st = bpx_mpi_world_stats(world);
-        // The application's step: move, then send the objects that left this rank's region.
+        // The application's step: move, then send the objects that left this rank's region
+        // to their new home, with their velocities (bpx_mpi_world_migrate).
         for (size_t k = 0; k < count; k++)
             for (int d = 0; d < 3; d++) {
-                objects[k].box.min[d] += objects[k].velocity[d];
-                objects[k].box.max[d] += objects[k].velocity[d];
+                boxes[k].min[d] += velocity[k].v[d];
+                boxes[k].max[d] += velocity[k].v[d];
             }
-        home = realloc(home, (count + 1) * sizeof *home);
-        for (size_t k = 0; k < count; k++)
-            boxes[k] = objects[k].box;
-        bpx_mpi_world_home_ranks(world, boxes, count, home);
-        size_t moved;
-        size_t own = count;
-        count = migrate(&objects, count, home, &moved);
+        size_t own = count, moved = count;
+        s = bpx_mpi_world_migrate(world, ids, boxes, velocity, sizeof *velocity, capacity, &moved);
+        if (s != BPX_OK)
+            die(bpx_mpi_world_error(world)->message, s);
+        count = moved;
+        moved = bpx_mpi_world_stats(world).migrated_sent;
         if (c >= 2) {
             wall += st.total_ns * 1e-6, cpu += st.cpu_ns * 1e-6;
             compute += st.compute_cpu_ns * 1e-6, imbalance += st.imbalance;
@@ -167,14 +136,12 @@ int main(int argc, char **argv) {
         }
     }
 
-    // The same work in one process: a plain world on this rank's boxes, same CPU clock.
+    // The same work in one process: a plain world on this rank's boxes, same CPU clock (the
+    // boxes move on as before; they are this rank's own copy now).
     bpx_world *single;
     bpx_world_def sdef = bpx_default_world_def();
     if ((s = bpx_world_create(&sdef, &single)) != BPX_OK)
         die("single", s);
-    boxes = realloc(boxes, (count + 1) * sizeof *boxes);
-    for (size_t k = 0; k < count; k++)
-        boxes[k] = objects[k].box;
     double single_cpu = 0;
     for (int c = 0; c < cycles + 2; c++) {
         double t0 = cpu_ms();
@@ -184,7 +151,7 @@ int main(int argc, char **argv) {
             single_cpu += cpu_ms() - t0;
         for (size_t k = 0; k < count; k++)
             for (int d = 0; d < 3; d++)
-                boxes[k].min[d] += objects[k].velocity[d], boxes[k].max[d] += objects[k].velocity[d];
+                boxes[k].min[d] += velocity[k].v[d], boxes[k].max[d] += velocity[k].v[d];
     }
     bpx_world_destroy(single);
 
@@ -213,7 +180,7 @@ int main(int argc, char **argv) {
                sum[6] / ranks, pairs / measured);
     }
     bpx_mpi_world_destroy(world);
-    free(objects), free(ids), free(boxes), free(home);
+    free(ids), free(boxes), free(velocity);
     MPI_Finalize();
     return 0;
 }

@@ -256,10 +256,13 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
     memset(&w->error, 0, sizeof w->error);
     w->error.rank = -1;
     bpx_mpi_stats *st = &w->stats;
-    uint64_t cycles = st->cycle_count, decompositions = st->decomposition_count;
+    bpx_mpi_stats kept = *st; // the counts since creation and the last migrate's figures
     memset(st, 0, sizeof *st);
-    st->cycle_count = cycles;
-    st->decomposition_count = decompositions;
+    st->cycle_count = kept.cycle_count;
+    st->decomposition_count = kept.decomposition_count;
+    st->migrated_sent = kept.migrated_sent;
+    st->migrated_received = kept.migrated_received;
+    st->migrate_bytes_sent = kept.migrate_bytes_sent;
     st->own_count = count;
 
     // 1. Input, and what every rank must know of the others before anything moves.

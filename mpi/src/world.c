@@ -126,7 +126,7 @@ static void free_buffers(bpx_mpi_world *w) {
                        w->own_index,   w->boxes,
                        w->category,    w->mask,        w->inside,      w->pairs,       w->next,
                        w->ev_send,     w->ev_recv,     w->began,       w->ended,
-                       w->gathered,    w->gather_tmp};
+                       w->gathered,    w->gather_tmp,  w->home};
     for (size_t i = 0; i < sizeof buffers / sizeof buffers[0]; i++)
         free(buffers[i]);
     rcb_free(&w->tree);

@@ -63,6 +63,10 @@ struct bpx_mpi_world {
     size_t began_count, ended_count, began_cap, ended_cap;
     bool events_valid;
 
+    // Migrate: each object's home rank.
+    int *home;
+    size_t home_cap;
+
     // Gather.
     bpx_mpi_pair *gathered, *gather_tmp;
     size_t gathered_cap, gather_tmp_cap;

@@ -476,6 +476,81 @@ static void test_errors(void) {
     CHECK(w == NULL && err.rank == last && strstr(err.message, "rebalance_threshold"));
 }
 
+// bpx_mpi_world_migrate: objects reach their home ranks with their payload, none lost or
+// doubled; CAPACITY moves nothing and names the room needed.
+static void test_migrate(void) {
+    size_t n = 2000;
+    check_set_context("migrate ranks=%d", ranks);
+    scene s = scene_make(n, false, false, 23);
+    scene_uniform_density((uint32_t)n, 1.0f, 23, s.boxes);
+    run r = run_open(&s, bpx_mpi_default_world_def(), 23);
+    size_t count = 0;
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &count),
+                 BPX_ERR_BAD_STATE);
+    cycle(&r, &s, OWN_NOT_LAST, 0);
+    typedef struct payload {
+        uint64_t id;
+        float tag[3];
+    } payload;
+    payload *data = check_alloc(n * sizeof *data);
+    uint64_t *ids_before = check_alloc(n * sizeof *ids_before);
+    count = take_share(&r, &s, OWN_NOT_LAST);
+    for (size_t k = 0; k < count; k++)
+        data[k] = (payload){r.ids[k], {r.boxes[k].min[0], (float)k, -1.0f}};
+    memcpy(ids_before, r.ids, count * sizeof *r.ids);
+    if (ranks > 1) { // the last rank has nothing and no room: nobody moves anything
+        size_t room = rank == ranks - 1 ? 0 : n, asked = count;
+        bpx_status got =
+            bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, room, &asked);
+        check_collective(r.world, got, BPX_ERR_CAPACITY, ranks - 1, 0);
+        CHECK(memcmp(ids_before, r.ids, count * sizeof *r.ids) == 0);
+        CHECK(asked >= (rank == ranks - 1 ? 1 : 0) && asked <= n);
+    }
+    size_t moved = count;
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &moved),
+                 BPX_OK);
+    // Each object is at home, its payload with it; together they are every object once.
+    CHECK_STATUS(bpx_mpi_world_home_ranks(r.world, r.boxes, moved, r.home), BPX_OK);
+    for (size_t k = 0; k < moved; k++) {
+        CHECK(r.home[k] == rank);
+        CHECK(data[k].id == r.ids[k] && data[k].tag[0] == r.boxes[k].min[0]);
+    }
+    bpx_mpi_pair *mine = check_alloc((moved + 1) * sizeof *mine);
+    for (size_t k = 0; k < moved; k++)
+        mine[k] = (bpx_mpi_pair){r.ids[k], 0};
+    size_t total;
+    bpx_mpi_pair *all = gather_list(mine, moved, &total);
+    bpx_mpi_pair *want = check_alloc((n + 1) * sizeof *want);
+    for (size_t k = 0; k < n; k++)
+        want[k] = (bpx_mpi_pair){object_id(k), 0};
+    qsort(want, n, sizeof *want, compare_pairs);
+    CHECK(same_pairs(all, total, want, n));
+    bpx_mpi_stats st = bpx_mpi_world_stats(r.world);
+    uint64_t sent = st.migrated_sent, sum_sent, sum_received;
+    MPI_Allreduce(&sent, &sum_sent, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+    MPI_Allreduce(&st.migrated_received, &sum_received, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+    CHECK_EQ_U64(sum_sent, sum_received);
+    // At home, nothing is foreign, and the pairs are still the reference's.
+    CHECK_STATUS(bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, moved), BPX_OK);
+    CHECK_EQ_U64(bpx_mpi_world_stats(r.world).foreign_count, 0);
+    CHECK_EQ_U64(bpx_mpi_world_stats(r.world).migrated_sent, sent);
+    size_t want_pairs;
+    bpx_world_pairs(s.reference, &want_pairs);
+    CHECK_EQ_U64(bpx_mpi_world_stats(r.world).total_pair_count, want_pairs);
+    // A bad box on one rank: refused everywhere, nothing moved.
+    if (rank == 0 && moved > 0)
+        r.boxes[0].min[0] = NAN;
+    size_t again = moved;
+    bpx_status got =
+        bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &again);
+    CHECK_MSG(got == BPX_ERR_NOT_FINITE || (got == BPX_OK && ranks == 1 && moved == 0), "%s",
+              check_status_name(got));
+    CHECK(again == moved);
+    free(mine), free(all), free(want), free(data), free(ids_before);
+    run_close(&r);
+    scene_free(&s);
+}
+
 int main(int argc, char **argv) {
     MPI_Init(&argc, &argv);
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
@@ -487,6 +562,7 @@ int main(int argc, char **argv) {
     test_moving(2, true);
     test_clustered();
     test_huge_and_borders();
+    test_migrate();
     int local[2] = {check_failures, check_count}, total[2];
     MPI_Reduce(local, total, 2, MPI_INT, MPI_SUM, 0, MPI_COMM_WORLD);
     int code = 0;
