@@ -1,0 +1,101 @@
+// The distributed world's state, shared by the files of libbpx_mpi.
+#pragma once
+
+#include <bpx/mpi.h>
+
+#include "decompose.h"
+
+/// One box as it travels: global id and box, then the filter when any rank uses filters.
+#define BPX_MPI_RECORD_BYTES 32
+#define BPX_MPI_RECORD_FILTER_BYTES 40
+
+/// A candidate begin or end, sent to the pair's event rank.
+typedef struct event_record {
+    uint64_t a, b;
+    uint32_t began; // 1 began, 0 ended
+    uint32_t pad;
+} event_record;
+
+struct bpx_mpi_world {
+    MPI_Comm comm;
+    int rank, size;
+    bpx_mpi_world_def def;
+    bpx_world *local;
+    bpx_mpi_error error;
+    bpx_mpi_stats stats;
+
+    rcb_tree tree;
+    bool have_tree;
+    bool rebalance_asked; // by bpx_mpi_world_rebalance, for the next collide
+    bool rebalance_next;  // the last cycle's imbalance passed the threshold
+    bool local_filtered;  // the local world holds filters from an earlier cycle
+
+    MPI_Datatype record_type[2]; // 32 and 40 bytes
+    MPI_Datatype pair_type, event_type, sample_type;
+
+    // Per rank: counts and displacements for all-to-all and gathers; touched ranks scratch.
+    int *send_counts, *send_displs, *recv_counts, *recv_displs, *cursor, *touched;
+
+    rcb_sample *samples;
+    size_t samples_cap;
+    unsigned char *send, *recv; // box records
+    size_t send_cap, recv_cap;  // in bytes
+
+    // The boxes this rank tests. Arrival positions: first this rank's own boxes in its region
+    // (own_index: where in the caller's input), then the records received. ids and order (the
+    // arrival position) are sorted by id; boxes and filters are then gathered in that order.
+    uint64_t *ids, *ids_tmp;
+    uint32_t *order, *order_tmp, *own_index;
+    bpx_box *boxes;
+    uint32_t *category, *mask;
+    uint8_t *inside; // the box lies wholly in this rank's region: its pairs' corners do too
+    size_t present_cap;
+
+    // This rank's pairs: the last successful cycle's, and the next one's being made.
+    bpx_mpi_pair *pairs, *next;
+    size_t pair_count, pairs_cap, next_count, next_cap;
+    bool pairs_valid;
+
+    // Events.
+    event_record *ev_send, *ev_recv;
+    size_t ev_send_cap, ev_recv_cap;
+    bpx_mpi_pair *began, *ended;
+    size_t began_count, ended_count, began_cap, ended_cap;
+    bool events_valid;
+
+    // Migrate: each object's home rank.
+    int *home;
+    size_t home_cap;
+
+    // Gather.
+    bpx_mpi_pair *gathered, *gather_tmp;
+    size_t gathered_cap, gather_tmp_cap;
+};
+
+/// Grows *memory to hold at least need elements of size bytes (keeping the contents).
+/// 0, or -1 with *memory untouched.
+int bpx_mpi__grow(void **memory, size_t *cap, size_t need, size_t size);
+
+/// Sets the world's error on this rank (printf-style message, prefixed with the rank).
+void bpx_mpi__fail(bpx_mpi_world *w, bpx_status status, uint64_t id, size_t index, int axis,
+                   const char *format, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 6, 7)))
+#endif
+    ;
+
+/// Collective: the lowest rank whose error is set gives it to all. Returns its status, or
+/// BPX_OK when no rank failed.
+bpx_status bpx_mpi__agree(bpx_mpi_world *w);
+
+/// Sorts keys (with their positions in order) ascending; LSD radix over the bytes that differ,
+/// passing between the arrays and their tmp twins (swapped, so the result is in *keys, *order).
+void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp,
+                       uint32_t **order_tmp, size_t n);
+
+/// Events of the cycle: what changed between w->pairs and w->next, settled on each pair's
+/// event rank. Collective.
+bpx_status bpx_mpi__events(bpx_mpi_world *w);
+
+uint64_t bpx_mpi__now_ns(void);
+uint64_t bpx_mpi__cpu_ns(void);
