@@ -1,10 +1,11 @@
 // The opencl backend beyond what the suites that loop over every backend check: each comparator
 // path (brute force, sort and sweep, streamed blocks) on every scene kind against the reference,
 // the pair buffer growing and re-emitting, pairs read out in windows, the updater on the device
-// (only the centres cross), boxes already on the device, the per-cycle transfer figures, device
-// listing and selection, and each error that can be provoked: no such platform or device, kernel
-// build failure (with its log), refused build options, device memory below the need, invalid
-// boxes in a device buffer. The host twin of the kernels (kernels/twin.h) is checked too.
+// (only the centres cross), boxes already on the device (queries refused while they are there),
+// the per-cycle transfer figures, device listing and selection, and each error that can be
+// provoked: no such platform or device, kernel build failure (with its log), refused build
+// options, device memory below the need, invalid boxes in a device buffer. The host twin of the
+// kernels (kernels/twin.h) is checked too.
 //
 // `test_opencl --expect-no-platform` is run with an empty ICD vendor directory: the backend must
 // then report "no OpenCL platform" and refuse to make a world. Without OpenCL in the build, or
@@ -617,6 +618,150 @@ done:
 }
 
 // ---------------------------------------------------------------------------------------------
+// Queries while the boxes live on the device: refused (BAD_STATE) until host boxes come back
+
+// A query and a batch of one are refused with BAD_STATE, naming the reason, writing nothing.
+static void check_query_refused(bpx_world *world, const bpx_query *q)
+{
+    bpx_hit hit = {7, 0.5f};
+    size_t count = 99, offsets[2] = {5, 5}, total = 99;
+    CHECK_STATUS(bpx_world_query(world, q, &hit, 1, &count), BPX_ERR_BAD_STATE);
+    CHECK(count == 99 && hit.id == 7);
+    const bpx_error *e = bpx_world_error(world);
+    CHECK(e->status == BPX_ERR_BAD_STATE && e->index == UINT32_MAX && e->axis == -1);
+    CHECK_MSG(strstr(e->message, "device buffer") && strstr(e->message, "set host boxes"),
+              "message: %s", e->message);
+    CHECK_STATUS(bpx_world_query_batch(world, q, 1, offsets, &hit, 1, &total), BPX_ERR_BAD_STATE);
+    CHECK(offsets[0] == 5 && offsets[1] == 5 && total == 99 && hit.id == 7);
+    CHECK_MSG(strstr(bpx_world_error(world)->message, "device buffer"), "message: %s",
+              bpx_world_error(world)->message);
+}
+
+// The query answers with the ids of boxes[0 .. n) that overlap its region, in id order.
+static void check_query_sees(bpx_world *world, const bpx_query *q, const bpx_box *boxes, uint32_t n)
+{
+    size_t count = 0, total = 0, want = 0;
+    bpx_status s = bpx_world_query(world, q, NULL, 0, &count);
+    CHECK_MSG(s == BPX_OK || s == BPX_ERR_CAPACITY, "query: %s (%s)", check_status_name(s),
+              bpx_world_error(world)->message);
+    const bpx_hit *hits = bpx_world_query_hits(world, NULL, NULL, &total);
+    bool same = total == count;
+    for (uint32_t i = 0; i < n; i++)
+        if (bpx_overlap(&boxes[i], &q->box)) {
+            same &= want < total && hits[want].id == i;
+            want++;
+        }
+    CHECK_MSG(same && want == total && want > 0, "%zu hits, want %zu", total, want);
+}
+
+static void test_device_queries(void)
+{
+    enum { n = 600 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    bpx_box *other = check_alloc(sizeof(bpx_box) * n);
+    float *minima = check_alloc(sizeof(float) * 3 * n);
+    float *centres = check_alloc(sizeof(float) * 3 * n);
+    CHECK(scene_generate(SCENE_MIXED_SIZES, n, 13, boxes) == 0);
+    CHECK(scene_generate(SCENE_MIXED_SIZES, n, 14, other) == 0);
+    // The middle of the scene (about a third of each axis), and the extents of `other`.
+    bpx_box region = boxes[0];
+    for (uint32_t i = 1; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            region.min[a] = fminf(region.min[a], boxes[i].min[a]);
+            region.max[a] = fmaxf(region.max[a], boxes[i].max[a]);
+        }
+    for (int a = 0; a < 3; a++) {
+        float span = region.max[a] - region.min[a];
+        region.min[a] += span / 3, region.max[a] -= span / 3;
+    }
+    const bpx_query q = bpx_query_box(region);
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            float half = (other[i].max[a] - other[i].min[a]) * 0.5f;
+            minima[3 * i + a] = -half;
+            centres[3 * i + a] = other[i].min[a] + half;
+            other[i].min[a] = centres[3 * i + a] + minima[3 * i + a]; // the updater's boxes
+            other[i].max[a] = centres[3 * i + a] - minima[3 * i + a];
+        }
+    pair_list want = {0}, want_other = {0};
+    reference_pairs(boxes, n, &want);
+    reference_pairs(other, n, &want_other);
+    bpx_world_def def = opencl_def();
+    bpx_world *world = make(&def);
+    void *context = NULL;
+    if (!world || bpx_opencl_world_handles(world, &context, NULL, NULL) != BPX_OK)
+        goto done;
+    cl_int err;
+    cl_mem box_buffer = clCreateBuffer(context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR,
+                                       sizeof(bpx_box) * n, boxes, &err);
+    cl_mem centre_buffer = clCreateBuffer(context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR,
+                                          sizeof(float) * 3 * n, centres, &err);
+    CHECK(box_buffer && centre_buffer);
+
+    // Host boxes: queries work (and build the tree, which must not outlive what follows).
+    check_set_context("queries: host boxes first");
+    CHECK_STATUS(bpx_world_set_boxes(world, other, n), BPX_OK);
+    check_query_sees(world, &q, other, n);
+
+    // A box buffer: refused, before and after a cycle, which the refusal does not disturb.
+    check_set_context("queries: box buffer");
+    CHECK_STATUS(bpx_opencl_set_boxes_buffer(world, box_buffer, n), BPX_OK);
+    check_query_refused(world, &q);
+    CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+    size_t count = 0;
+    const bpx_pair *pairs = bpx_world_pairs(world, &count);
+    CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
+    check_query_refused(world, &q);
+    // A refused set_boxes_buffer leaves the device boxes (and the refusal) in place.
+    CHECK_STATUS(bpx_opencl_set_boxes_buffer(world, box_buffer, n + 1), BPX_ERR_INVALID_ARGUMENT);
+    check_query_refused(world, &q);
+    CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+    pairs = bpx_world_pairs(world, &count);
+    CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
+
+    // Host boxes again (set_boxes): queries see them, not the tree of the first host boxes.
+    check_set_context("queries: host boxes after the box buffer");
+    CHECK_STATUS(bpx_world_set_boxes(world, boxes, n), BPX_OK);
+    check_query_sees(world, &q, boxes, n);
+    CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+    pairs = bpx_world_pairs(world, &count);
+    CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
+
+    // The two-phase mode brings host boxes back too: load_extents, then update_centres.
+    check_set_context("queries: load_extents after the box buffer");
+    CHECK_STATUS(bpx_opencl_set_boxes_buffer(world, box_buffer, n), BPX_OK);
+    check_query_refused(world, &q);
+    CHECK_STATUS(bpx_world_load_extents(world, minima, n), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(world, centres), BPX_OK);
+    check_query_sees(world, &q, other, n);
+
+    // Centres on the device: the boxes are made there, so queries are refused the same way.
+    check_set_context("queries: centre buffer");
+    CHECK_STATUS(bpx_opencl_set_centres_buffer(world, centre_buffer, n), BPX_OK);
+    check_query_refused(world, &q);
+    CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+    pairs = bpx_world_pairs(world, &count);
+    CHECK_PAIRS_EQ(want_other.pairs, want_other.count, pairs, count);
+    check_query_refused(world, &q);
+    check_set_context("queries: host centres after the centre buffer");
+    CHECK_STATUS(bpx_world_update_centres(world, centres), BPX_OK);
+    check_query_sees(world, &q, other, n);
+    CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+    pairs = bpx_world_pairs(world, &count);
+    CHECK_PAIRS_EQ(want_other.pairs, want_other.count, pairs, count);
+    clReleaseMemObject(box_buffer);
+    clReleaseMemObject(centre_buffer);
+done:
+    bpx_world_destroy(world);
+    pair_list_free(&want);
+    pair_list_free(&want_other);
+    free(boxes);
+    free(other);
+    free(minima);
+    free(centres);
+}
+
+// ---------------------------------------------------------------------------------------------
 // Devices, selection, and the errors of making a world
 
 static void expect_unavailable(const bpx_world_def *def, const char *what)
@@ -1040,6 +1185,7 @@ int main(int argc, char **argv)
     test_memory_limit();
     test_updater();
     test_device_buffer();
+    test_device_queries();
     test_device_centres();
     test_determinism();
     test_objects_released();
