@@ -128,4 +128,42 @@ static inline void reference_pairs(const bpx_box *boxes, uint32_t n, pair_list *
     pairs_of(boxes, n, BPX_BACKEND_REFERENCE, out);
 }
 
+// ---------------------------------------------------------------------------------------------
+// Queries while the boxes or centres are in a device buffer
+
+/// A query and a batch of one are refused with BAD_STATE, naming the reason, writing nothing.
+static inline void check_query_refused(bpx_world *world, const bpx_query *q)
+{
+    bpx_hit hit = {7, 0.5f};
+    size_t count = 99, offsets[2] = {5, 5}, total = 99;
+    CHECK_STATUS(bpx_world_query(world, q, &hit, 1, &count), BPX_ERR_BAD_STATE);
+    CHECK(count == 99 && hit.id == 7);
+    const bpx_error *e = bpx_world_error(world);
+    CHECK(e->status == BPX_ERR_BAD_STATE && e->index == UINT32_MAX && e->axis == -1);
+    CHECK_MSG(strstr(e->message, "device buffer") && strstr(e->message, "set host boxes"),
+              "message: %s", e->message);
+    CHECK_STATUS(bpx_world_query_batch(world, q, 1, offsets, &hit, 1, &total), BPX_ERR_BAD_STATE);
+    CHECK(offsets[0] == 5 && offsets[1] == 5 && total == 99 && hit.id == 7);
+    CHECK_MSG(strstr(bpx_world_error(world)->message, "device buffer"), "message: %s",
+              bpx_world_error(world)->message);
+}
+
+/// The query answers with the ids of boxes[0 .. n) that overlap its region, in id order.
+static inline void check_query_sees(bpx_world *world, const bpx_query *q, const bpx_box *boxes,
+                                    uint32_t n)
+{
+    size_t count = 0, total = 0, want = 0;
+    bpx_status s = bpx_world_query(world, q, NULL, 0, &count);
+    CHECK_MSG(s == BPX_OK || s == BPX_ERR_CAPACITY, "query: %s (%s)", check_status_name(s),
+              bpx_world_error(world)->message);
+    const bpx_hit *hits = bpx_world_query_hits(world, NULL, NULL, &total);
+    bool same = total == count;
+    for (uint32_t i = 0; i < n; i++)
+        if (bpx_overlap(&boxes[i], &q->box)) {
+            same &= want < total && hits[want].id == i;
+            want++;
+        }
+    CHECK_MSG(same && want == total && want > 0, "%zu hits, want %zu", total, want);
+}
+
 #endif

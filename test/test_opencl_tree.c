@@ -3,9 +3,11 @@
 // scenes, the tree forced and chosen by the auto rule, against prune with the tests per box
 // bounded; the tree (and sort and sweep) giving way to brute force's windows when its keys pass
 // the memory limit; and the centres already on the device (bpx_opencl_set_centres_buffer) on
-// every path. Skipped (77) without OpenCL in the build or without a platform.
+// every path, queries refused meanwhile. Skipped (77) without OpenCL in the build or without a
+// platform.
 #include <math.h>
 
+#include "error_util.h"
 #include "opencl_util.h"
 
 #if BPX_TEST_OPENCL
@@ -149,7 +151,8 @@ static void test_fallback(void)
 
 // The centres already on the device (bpx_opencl_set_centres_buffer): every path, streamed
 // blocks too, against the reference of the same boxes made on the host; the caller changing
-// them between cycles on the world's queue; each error, the world unchanged after it.
+// them between cycles on the world's queue; each error, the world unchanged after it; queries
+// refused until host centres come back.
 static void test_device_centres(void)
 {
     enum { n = 3001 };
@@ -158,12 +161,7 @@ static void test_device_centres(void)
     float *minima = check_alloc(sizeof(float) * 3 * n);
     float *centres = check_alloc(sizeof(float) * 3 * n);
     CHECK(scene_generate(SCENE_MIXED_SIZES, n, 12, boxes) == 0);
-    for (uint32_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
-            minima[3 * i + a] = -half;
-            centres[3 * i + a] = boxes[i].min[a] + half;
-        }
+    extents_of(boxes, n, minima, centres);
     pair_list want = {0};
     static const path centre_paths[] = {{"auto", BPX_OPENCL_AUTO, 0, 0},
                                         {"brute", BPX_OPENCL_BRUTE, 0, 0},
@@ -214,6 +212,9 @@ static void test_device_centres(void)
                 CHECK_EQ_U64(bpx_world_stats(world).bytes_in, 0); // nothing crossed the link
         }
         clFinish(queue); // the last write's host memory is reused below
+        // The boxes are made on the device: queries are refused (until host centres come).
+        const bpx_query q = bpx_query_box(equivalent[0]);
+        check_query_refused(world, &q);
 
         // A centre whose box overflows: named with its object and axis; the world keeps the
         // previous centres.
@@ -235,8 +236,10 @@ static void test_device_centres(void)
         size_t count = 0;
         const bpx_pair *pairs = bpx_world_pairs(world, &count);
         CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
-        // Host centres take over again.
+        // Host centres take over again, and queries see their boxes.
+        check_query_refused(world, &q);
         CHECK_STATUS(bpx_world_update_centres(world, centres), BPX_OK);
+        check_query_sees(world, &q, equivalent, n);
         CHECK_STATUS(bpx_world_collide(world), BPX_OK);
         pairs = bpx_world_pairs(world, &count);
         CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
