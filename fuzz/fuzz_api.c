@@ -22,6 +22,7 @@
 #include <bpx/bpx.h>
 
 #include "fuzz_check.h"
+#include "world_oracle.h" // test/
 
 enum {
     MAX_N = 640,  // boxes in a world: past auto's brute limit (128), small enough to check
@@ -218,14 +219,6 @@ static bpx_status boxes_problem(const bpx_box *boxes, uint32_t n, uint32_t *inde
     return BPX_OK;
 }
 
-static bool overlap(const bpx_box *a, const bpx_box *b)
-{
-    for (int k = 0; k < 3; k++)
-        if (!(a->min[k] <= b->max[k] && b->min[k] <= a->max[k]))
-            return false;
-    return true;
-}
-
 // Algorithm 1 over the model's live boxes, with the filters; sorted by (i, j) as it is made.
 static size_t reference_pairs(const model *m, bpx_pair **out)
 {
@@ -236,9 +229,7 @@ static size_t reference_pairs(const model *m, bpx_pair **out)
         if (m->dead[i])
             continue;
         for (uint32_t j = i + 1; j < m->n; j++) {
-            if (m->dead[j] || !overlap(&m->boxes[i], &m->boxes[j]))
-                continue;
-            if (!((m->category[i] & m->mask[j]) && (m->category[j] & m->mask[i])))
+            if (m->dead[j] || !oracle_pair(m->boxes, m->category, m->mask, i, j))
                 continue;
             if (count == capacity) {
                 capacity *= 2;
@@ -249,27 +240,6 @@ static size_t reference_pairs(const model *m, bpx_pair **out)
         }
     }
     *out = pairs;
-    return count;
-}
-
-static bool pair_less(bpx_pair a, bpx_pair b)
-{
-    return a.i < b.i || (a.i == b.i && a.j < b.j);
-}
-
-// began = now - before or ended = before - now (which = 0 / 1), into *out.
-static size_t difference(const bpx_pair *a, size_t na, const bpx_pair *b, size_t nb,
-                         bpx_pair *out)
-{
-    size_t x = 0, y = 0, count = 0;
-    while (x < na) {
-        if (y == nb || pair_less(a[x], b[y]))
-            out[count++] = a[x++];
-        else if (pair_less(b[y], a[x]))
-            y++;
-        else
-            x++, y++;
-    }
     return count;
 }
 
@@ -592,9 +562,9 @@ static void model_collided(run *r, bpx_pair *want, size_t want_count)
         size_t before_count = m->have_previous ? m->previous_count : 0;
         bpx_pair *diff = malloc((want_count + before_count + 1) * sizeof *diff);
         FUZZ_CHECK(diff != NULL, "out of memory");
-        size_t began = difference(want, want_count, before, before_count, diff);
+        size_t began = oracle_difference(want, want_count, before, before_count, diff);
         check_same_pairs("began", ev.began, ev.began_count, diff, began);
-        size_t ended = difference(before, before_count, want, want_count, diff);
+        size_t ended = oracle_difference(before, before_count, want, want_count, diff);
         check_same_pairs("ended", ev.ended, ev.ended_count, diff, ended);
         free(diff);
     }
@@ -742,7 +712,7 @@ static void op_find_pairs(run *r, bpx_backend backend)
     bpx_pair want[4];
     for (uint32_t i = 0; i < live_count; i++)
         for (uint32_t j = i + 1; j < live_count; j++)
-            if (overlap(&live[i], &live[j])) {
+            if (oracle_overlap(&live[i], &live[j])) {
                 if (want_count < 4)
                     want[want_count] = (bpx_pair){i, j};
                 want_count++;

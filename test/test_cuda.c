@@ -4,7 +4,8 @@
 // against the reference) and at small n against the reference; the same bytes on a second
 // world; device-resident round trips (boxes in device memory, pairs left on the device, then
 // read back and compared); a pair buffer too small (CAPACITY with the needed count, then room);
-// invalid device boxes; and the calls refused where they do not apply.
+// invalid device boxes; queries refused while the boxes are on the device; and the calls
+// refused where they do not apply.
 //
 // Without a CUDA device (or without CUDA in the build) the test reports itself skipped (77).
 #include <math.h>
@@ -269,6 +270,52 @@ static void test_device_errors(void)
     cudaFree(bad);
     free(boxes);
 }
+
+// Queries while the boxes are in device memory: refused (BAD_STATE, nothing written), the
+// cycles unaffected, until set_boxes brings host boxes back; then they see those.
+static void test_device_queries(void)
+{
+    enum { n = 2000 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    bpx_hit *got = check_alloc(sizeof(bpx_hit) * n), *want = check_alloc(sizeof(bpx_hit) * n);
+    scene_uniform_density(n, 1.0f, 4, boxes);
+    bpx_box *d_boxes = to_device(boxes, n);
+    bpx_world *cuda = cuda_world(false), *oracle = oracle_world(n);
+    bpx_box region = boxes[n / 2]; // the boxes around one
+    for (int a = 0; a < 3; a++)
+        region.min[a] -= 2.0f, region.max[a] += 2.0f;
+    const bpx_query q = bpx_query_box(region);
+    CHECK_STATUS(bpx_world_set_boxes(oracle, boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+    CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
+    for (int cycle = 0; cycle < 2; cycle++) {
+        bpx_hit hit = {7, 0.5f};
+        size_t count = 99, offsets[2] = {5, 5}, total = 99;
+        CHECK_STATUS(bpx_world_query(cuda, &q, &hit, 1, &count), BPX_ERR_BAD_STATE);
+        CHECK_STATUS(bpx_world_query_batch(cuda, &q, 1, offsets, &hit, 1, &total),
+                     BPX_ERR_BAD_STATE);
+        CHECK(count == 99 && total == 99 && offsets[0] == 5 && offsets[1] == 5 && hit.id == 7);
+        const bpx_error *e = bpx_world_error(cuda);
+        CHECK_MSG(e->status == BPX_ERR_BAD_STATE && e->index == UINT32_MAX && e->axis == -1 &&
+                      strstr(e->message, "device buffer"),
+                  "error: %s", e->message);
+        CHECK_STATUS(bpx_world_collide(cuda), BPX_OK); // the world runs on
+        same_pairs(cuda, oracle, "collide after a refused query");
+    }
+    // Host boxes again: the queries see them.
+    CHECK_STATUS(bpx_world_set_boxes(cuda, boxes, n), BPX_OK);
+    size_t got_count = 0, want_count = 0;
+    CHECK_STATUS(bpx_world_query(cuda, &q, got, n, &got_count), BPX_OK);
+    CHECK_STATUS(bpx_world_query(oracle, &q, want, n, &want_count), BPX_OK);
+    CHECK(want_count > 0 && got_count == want_count &&
+          memcmp(got, want, sizeof(bpx_hit) * want_count) == 0);
+    bpx_world_destroy(cuda);
+    bpx_world_destroy(oracle);
+    cudaFree(d_boxes);
+    free(boxes);
+    free(got);
+    free(want);
+}
 #endif
 
 int main(void)
@@ -292,6 +339,7 @@ int main(void)
 #if BPX_TEST_CUDA
     test_device_resident();
     test_device_errors();
+    test_device_queries();
 #endif
     return check_finish("test_cuda", 1);
 }

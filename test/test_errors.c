@@ -497,13 +497,7 @@ static void test_updater_errors(const bpx_box *boxes)
 {
     float minima[3 * base_n];
     float centres[3 * base_n];
-    for (uint32_t i = 0; i < base_n; i++) {
-        for (int a = 0; a < 3; a++) {
-            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
-            minima[3 * i + a] = -half;
-            centres[3 * i + a] = boxes[i].min[a] + half;
-        }
-    }
+    extents_of(boxes, base_n, minima, centres);
     bpx_world *w = new_world(2);
     if (!w) {
         return;

@@ -3,6 +3,7 @@
 // allocation of the model and of a world on the model backend (no crash, no leak).
 #include <math.h>
 
+#include "error_util.h"
 #include "model_util.h"
 #include "scenes.h"
 
@@ -159,36 +160,10 @@ static void test_errors(void)
 // Allocation failure: every allocation of the model and of a world on the model backend may
 // fail; each call then returns OK or OUT_OF_MEMORY, and nothing leaks.
 
-static long long fa_budget = -1; // successful allocations left; negative: unlimited
-static long long fa_live;
-
-static void *fa_alloc(size_t size, size_t alignment, void *user)
-{
-    (void)user;
-    if (fa_budget >= 0 && fa_budget-- == 0)
-        return NULL;
-    size_t rounded = (size + alignment - 1) / alignment * alignment;
-    void *p = aligned_alloc(alignment, rounded ? rounded : alignment);
-    fa_live += p != NULL;
-    return p;
-}
-
-static void fa_free(void *memory, void *user)
-{
-    (void)user;
-    fa_live -= memory != NULL;
-    free(memory);
-}
-
-static bool ok_or_oom(bpx_status s)
-{
-    return s == BPX_OK || s == BPX_ERR_OUT_OF_MEMORY;
-}
-
 static bool alloc_run(long long budget, const bpx_box *boxes, const float *minima,
                       const float *centres, uint32_t n, const pair_list *want)
 {
-    fa_budget = budget;
+    budget_left = budget;
     bool all_ok = true;
     bpx_model_config config = bpx_model_default_config();
     config.store = BPX_MODEL_STORE_STREAM;
@@ -230,7 +205,7 @@ static bool alloc_run(long long budget, const bpx_box *boxes, const float *minim
             CHECK_MSG(ok_or_oom(s), "collide: %s", check_status_name(s));
             all_ok &= s == BPX_OK;
         }
-        fa_budget = -1; // memory back: the world recovers
+        budget_left = -1; // memory back: the world recovers
         CHECK_STATUS(bpx_world_set_boxes(world, boxes, n), BPX_OK);
         CHECK_STATUS(bpx_world_collide(world), BPX_OK);
         size_t count = 0;
@@ -238,7 +213,7 @@ static bool alloc_run(long long budget, const bpx_box *boxes, const float *minim
         CHECK_PAIRS_EQ(want->pairs, want->count, pairs, count);
         bpx_world_destroy(world);
     }
-    fa_budget = -1;
+    budget_left = -1;
     return all_ok;
 }
 
@@ -249,26 +224,21 @@ static void test_allocation_failure(void)
     float *minima = check_alloc(sizeof(float) * 3 * n);
     float *centres = check_alloc(sizeof(float) * 3 * n);
     CHECK(scene_generate(SCENE_DENSE, n, 31, boxes) == 0);
-    for (uint32_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
-            minima[3 * i + a] = -half;
-            centres[3 * i + a] = boxes[i].min[a] + half;
-        }
+    extents_of(boxes, n, minima, centres);
     pair_list want = {0};
     bpx_world *reference = reference_world();
     if (reference)
         reference_pairs(reference, boxes, n, &want);
     bpx_world_destroy(reference);
     int64_t start = bpx_allocated_bytes();
-    bpx_set_allocator(fa_alloc, fa_free, NULL);
+    bpx_set_allocator(budget_alloc, budget_free, &budget_tag);
     long long budget = 0;
     for (; budget < 10000; budget++) {
         check_set_context("model: allocation failure after %lld allocations", budget);
         bool done = alloc_run(budget, boxes, minima, centres, n, &want);
         CHECK_MSG(bpx_allocated_bytes() == start, "allocated %lld bytes, started at %lld",
                   (long long)bpx_allocated_bytes(), (long long)start);
-        CHECK_EQ_U64(fa_live, 0);
+        CHECK_EQ_U64(budget_live, 0);
         if (done)
             break;
     }

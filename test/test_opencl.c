@@ -1,10 +1,12 @@
 // The opencl backend beyond what the suites that loop over every backend check: each comparator
-// path (brute force, sort and sweep, streamed blocks) on every scene kind against the reference,
-// the pair buffer growing and re-emitting, pairs read out in windows, the updater on the device
-// (only the centres cross), boxes already on the device, the per-cycle transfer figures, device
-// listing and selection, and each error that can be provoked: no such platform or device, kernel
-// build failure (with its log), refused build options, device memory below the need, invalid
-// boxes in a device buffer. The host twin of the kernels (kernels/twin.h) is checked too.
+// path (brute force, sort and sweep, the tree, streamed blocks) on every scene kind against the
+// reference, the pair buffer growing and re-emitting, pairs read out in windows, the updater on
+// the device (only the centres cross), boxes already on the device (queries refused while they
+// are there), the per-cycle transfer figures, device listing and selection, and each error that
+// can be provoked: no such platform or device, kernel build failure (with its log), refused
+// build options, device memory below the need, invalid boxes in a device buffer. The host twins
+// of the kernels (kernels/twin.h) are checked too. The tree's own cases, the fallbacks past the
+// memory limit and the centres on the device are in test_opencl_tree.c.
 //
 // `test_opencl --expect-no-platform` is run with an empty ICD vendor directory: the backend must
 // then report "no OpenCL platform" and refuse to make a world. Without OpenCL in the build, or
@@ -13,103 +15,13 @@
 #include <math.h>
 #include <time.h>
 
-#include <bpx/opencl.h>
-
-#include "pairs_util.h"
-#include "scenes.h"
+#include "error_util.h"
+#include "opencl_util.h"
 
 #if BPX_TEST_OPENCL
-#define CL_TARGET_OPENCL_VERSION 120
-#include <CL/cl.h>
-
-#include "opencl/opencl_internal.h"
-
-static const char *name_or(const char *s)
-{
-    return s ? s : "?";
-}
-
-// ---------------------------------------------------------------------------------------------
-// Logger
-
-static char log_text[1 << 16];
-static int log_errors;
-
-static void capture_log(int level, const char *message, void *user)
-{
-    (void)user;
-    if (level == 0)
-        log_errors++;
-    size_t used = strlen(log_text);
-    snprintf(log_text + used, sizeof log_text - used, "%s\n", message);
-}
-
-static void log_reset(void)
-{
-    log_text[0] = '\0';
-    log_errors = 0;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Helpers
-
-static bpx_world_def opencl_def(void)
-{
-    bpx_world_def def = bpx_default_world_def();
-    def.backend = BPX_BACKEND_OPENCL;
-    return def;
-}
-
-static bpx_world *make(const bpx_world_def *def)
-{
-    bpx_world *world = NULL;
-    bpx_status s = bpx_world_create(def, &world);
-    CHECK_MSG(s == BPX_OK, "create: %s", check_status_name(s));
-    return s == BPX_OK ? world : NULL;
-}
-
-static bpx__opencl_counters counters(const bpx_world *world)
-{
-    bpx__opencl_counters c;
-    memset(&c, 0, sizeof c);
-    CHECK(bpx__opencl_get_counters(world, &c));
-    return c;
-}
-
-// set_boxes + collide on world, byte for byte against want.
-static void check_world(bpx_world *world, const bpx_box *boxes, uint32_t n, const pair_list *want)
-{
-    CHECK_STATUS(bpx_world_set_boxes(world, boxes, n), BPX_OK);
-    bpx_status s = bpx_world_collide(world);
-    CHECK_MSG(s == BPX_OK, "collide: %s (%s)", check_status_name(s),
-              bpx_world_error(world)->message);
-    size_t count = 0;
-    const bpx_pair *pairs = bpx_world_pairs(world, &count);
-    CHECK_PAIRS_EQ(want->pairs, want->count, pairs, count);
-    CHECK_EQ_U64(bpx_world_stats(world).pair_count, want->count);
-}
-
-static void reference_pairs(const bpx_box *boxes, uint32_t n, pair_list *out)
-{
-    size_t count = 0;
-    bpx_pair probe;
-    bpx_status s = bpx_find_pairs(boxes, n, BPX_BACKEND_REFERENCE, &probe, 0, &count, NULL);
-    CHECK(s == BPX_OK || s == BPX_ERR_CAPACITY);
-    pair_list_reserve(out, count ? count : 1);
-    CHECK_STATUS(
-        bpx_find_pairs(boxes, n, BPX_BACKEND_REFERENCE, out->pairs, count, &out->count, NULL),
-        BPX_OK);
-}
 
 // ---------------------------------------------------------------------------------------------
 // Every scene kind through every path
-
-typedef struct path {
-    const char *name;
-    int method;
-    uint32_t block_boxes;
-    uint32_t pair_capacity;
-} path;
 
 static const path paths[] = {
     {"brute", BPX_OPENCL_BRUTE, 0, 0},
@@ -203,115 +115,6 @@ static void test_paths(void)
 }
 
 // ---------------------------------------------------------------------------------------------
-// The tree: inert (removed) boxes among live ones, and large scenes through the auto rule
-
-static void pairs_of(const bpx_box *boxes, uint32_t n, bpx_backend backend, pair_list *out)
-{
-    size_t count = 0;
-    bpx_pair probe;
-    bpx_status s = bpx_find_pairs(boxes, n, backend, &probe, 0, &count, NULL);
-    CHECK(s == BPX_OK || s == BPX_ERR_CAPACITY);
-    pair_list_reserve(out, count ? count : 1);
-    CHECK_STATUS(bpx_find_pairs(boxes, n, backend, out->pairs, count, &out->count, NULL), BPX_OK);
-}
-
-static void test_tree(void)
-{
-    // Removed ids are inert boxes (min +inf, max -inf): no centre, the last Morton code, empty
-    // bounds. Both worlds see the same adds, removes and moves.
-    enum { n = 3000 };
-    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
-    uint32_t *ids = check_alloc(sizeof(uint32_t) * n);
-    uint32_t *gone = check_alloc(sizeof(uint32_t) * n);
-    CHECK(scene_generate(SCENE_MIXED_SIZES, n, 31, boxes) == 0);
-    bpx_world_def def = opencl_def();
-    def.opencl_method = BPX_OPENCL_TREE;
-    bpx_world *tree = make(&def);
-    bpx_world_def ref_def = bpx_default_world_def();
-    ref_def.backend = BPX_BACKEND_REFERENCE;
-    bpx_world *ref = make(&ref_def);
-    if (tree && ref) {
-        CHECK_STATUS(bpx_world_add_boxes(tree, boxes, n, ids), BPX_OK);
-        CHECK_STATUS(bpx_world_add_boxes(ref, boxes, n, ids), BPX_OK);
-        uint32_t removed = 0;
-        for (uint32_t i = 0; i < n; i += 3)
-            gone[removed++] = ids[i];
-        for (int step = 0; step < 3; step++) {
-            check_set_context("tree with inert boxes, step %d", step);
-            if (step == 1) {
-                CHECK_STATUS(bpx_world_remove_boxes(tree, gone, removed), BPX_OK);
-                CHECK_STATUS(bpx_world_remove_boxes(ref, gone, removed), BPX_OK);
-            }
-            if (step == 2) { // the survivors move: every box of the first third shifts
-                scene_rng r;
-                scene_rng_seed(&r, 32);
-                scene_move(boxes, n, 0.5f, &r);
-                uint32_t moved = 0;
-                for (uint32_t i = 1; i < n / 3; i += 3)
-                    gone[moved++] = ids[i];
-                bpx_box *to = check_alloc(sizeof(bpx_box) * moved);
-                for (uint32_t k = 0; k < moved; k++)
-                    to[k] = boxes[3 * k + 1];
-                CHECK_STATUS(bpx_world_move_boxes(tree, gone, to, moved), BPX_OK);
-                CHECK_STATUS(bpx_world_move_boxes(ref, gone, to, moved), BPX_OK);
-                free(to);
-            }
-            CHECK_STATUS(bpx_world_collide(tree), BPX_OK);
-            CHECK_STATUS(bpx_world_collide(ref), BPX_OK);
-            size_t got = 0, want = 0;
-            const bpx_pair *g = bpx_world_pairs(tree, &got);
-            const bpx_pair *w = bpx_world_pairs(ref, &want);
-            CHECK_PAIRS_EQ(w, want, g, got);
-        }
-        CHECK(counters(tree).tree_cycles == 3);
-    }
-    bpx_world_destroy(tree);
-    bpx_world_destroy(ref);
-    free(boxes);
-    free(ids);
-    free(gone);
-
-    // Large scenes that matter for the tree (constant density, heavy-tailed sizes, one shared x,
-    // identical centres), forced, against prune; and the auto rule taking the tree past
-    // TREE_MIN_N on the scene it is meant for.
-    static const struct {
-        scene_kind kind;
-        uint32_t n;
-        int method;
-    } big[] = {{SCENE_UNIFORM_DENSITY, 40000, BPX_OPENCL_AUTO},
-               {SCENE_MIXED_SIZES, 40000, BPX_OPENCL_TREE},
-               {SCENE_SHARED_COORD, 20000, BPX_OPENCL_TREE},
-               {SCENE_IDENTICAL, 20000, BPX_OPENCL_TREE}};
-    bpx_box *many = check_alloc(sizeof(bpx_box) * 40000);
-    pair_list want = {0};
-    bpx_world *world = NULL;
-    for (size_t k = 0; k < sizeof big / sizeof big[0]; k++) {
-        check_set_context("scene=%s n=%u method=%d", scene_kind_name(big[k].kind), big[k].n,
-                          big[k].method);
-        def = opencl_def();
-        def.opencl_method = big[k].method;
-        world = make(&def);
-        if (!world)
-            continue;
-        CHECK(scene_generate(big[k].kind, big[k].n, 40 + k, many) == 0);
-        pairs_of(many, big[k].n, BPX_BACKEND_PRUNE, &want);
-        check_world(world, many, big[k].n, &want);
-        CHECK(counters(world).tree_cycles == 1);
-        // Each box tests a few dozen nodes and a few per pair, not a share of the set.
-        uint64_t tests = bpx_world_stats(world).pair_tests;
-        printf("  tree: %s n=%u: %zu pairs, %.1f tests per box\n", scene_kind_name(big[k].kind),
-               big[k].n, want.count, (double)tests / big[k].n);
-        CHECK_MSG(tests > 0 && tests < (uint64_t)big[k].n * 200 + 16 * want.count, "%llu tests",
-                  (unsigned long long)tests);
-        bpx_world_destroy(world);
-    }
-    world = NULL;
-    bpx_world_destroy(world);
-    pair_list_free(&want);
-    free(many);
-}
-
-// ---------------------------------------------------------------------------------------------
 // Pair buffer: grow and emit again; past the memory limit, windows
 
 static void pair_buffer_case(uint32_t n, uint64_t memory_limit)
@@ -351,25 +154,6 @@ static void pair_buffer_case(uint32_t n, uint64_t memory_limit)
     if (world) {
         check_world(world, boxes, n, &want);
         CHECK(counters(world).pair_windows > 0);
-        bpx_world_destroy(world);
-    }
-    // Sort and sweep cannot hold those pairs either: it gives way to brute force's windows.
-    check_set_context("n=%u sweep falls back under a memory limit", n);
-    def.opencl_method = BPX_OPENCL_SWEEP;
-    world = make(&def);
-    if (world) {
-        check_world(world, boxes, n, &want);
-        CHECK(counters(world).sweep_fallbacks > 0);
-        bpx_world_destroy(world);
-    }
-    // Nor can the tree's keys: the same.
-    check_set_context("n=%u tree falls back under a memory limit", n);
-    def.opencl_method = BPX_OPENCL_TREE;
-    world = make(&def);
-    if (world) {
-        check_world(world, boxes, n, &want);
-        CHECK(counters(world).tree_fallbacks > 0);
-        check_world(world, boxes, n, &want); // and again, from the state the fallback left
         bpx_world_destroy(world);
     }
     pair_list_free(&want);
@@ -443,12 +227,7 @@ static void test_updater(void)
     float *minima = check_alloc(sizeof(float) * 3 * n);
     float *centres = check_alloc(sizeof(float) * 3 * n);
     CHECK(scene_generate(SCENE_DENORMAL, n, 9, boxes) == 0);
-    for (uint32_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
-            minima[3 * i + a] = -half;
-            centres[3 * i + a] = boxes[i].min[a] + half;
-        }
+    extents_of(boxes, n, minima, centres);
     bpx_world_def def = opencl_def();
     bpx_world *world = make(&def);
     if (!world)
@@ -617,6 +396,96 @@ done:
 }
 
 // ---------------------------------------------------------------------------------------------
+// Queries while the boxes live in a device buffer: refused (BAD_STATE) until host boxes come
+// back (set_boxes, or load_extents and update_centres). The centres' buffer: test_opencl_tree.
+
+static void test_device_queries(void)
+{
+    enum { n = 600 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    bpx_box *other = check_alloc(sizeof(bpx_box) * n);
+    float *minima = check_alloc(sizeof(float) * 3 * n);
+    float *centres = check_alloc(sizeof(float) * 3 * n);
+    CHECK(scene_generate(SCENE_MIXED_SIZES, n, 13, boxes) == 0);
+    CHECK(scene_generate(SCENE_MIXED_SIZES, n, 14, other) == 0);
+    // The middle of the scene (about a third of each axis), and the extents of `other`.
+    bpx_box region = boxes[0];
+    for (uint32_t i = 1; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            region.min[a] = fminf(region.min[a], boxes[i].min[a]);
+            region.max[a] = fmaxf(region.max[a], boxes[i].max[a]);
+        }
+    for (int a = 0; a < 3; a++) {
+        float span = region.max[a] - region.min[a];
+        region.min[a] += span / 3, region.max[a] -= span / 3;
+    }
+    const bpx_query q = bpx_query_box(region);
+    extents_of(other, n, minima, centres);
+    for (uint32_t i = 0; i < n; i++) // the updater's boxes, which may round differently
+        for (int a = 0; a < 3; a++) {
+            other[i].min[a] = centres[3 * i + a] + minima[3 * i + a];
+            other[i].max[a] = centres[3 * i + a] - minima[3 * i + a];
+        }
+    pair_list want = {0};
+    reference_pairs(boxes, n, &want);
+    bpx_world_def def = opencl_def();
+    bpx_world *world = make(&def);
+    void *context = NULL;
+    if (!world || bpx_opencl_world_handles(world, &context, NULL, NULL) != BPX_OK)
+        goto done;
+    cl_int err;
+    cl_mem box_buffer = clCreateBuffer(context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR,
+                                       sizeof(bpx_box) * n, boxes, &err);
+    CHECK(box_buffer != NULL);
+
+    // Host boxes: queries work (and build the tree, which must not outlive what follows).
+    check_set_context("queries: host boxes first");
+    CHECK_STATUS(bpx_world_set_boxes(world, other, n), BPX_OK);
+    check_query_sees(world, &q, other, n);
+
+    // A box buffer: refused, before and after a cycle, which the refusal does not disturb.
+    check_set_context("queries: box buffer");
+    CHECK_STATUS(bpx_opencl_set_boxes_buffer(world, box_buffer, n), BPX_OK);
+    check_query_refused(world, &q);
+    CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+    size_t count = 0;
+    const bpx_pair *pairs = bpx_world_pairs(world, &count);
+    CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
+    check_query_refused(world, &q);
+    // A refused set_boxes_buffer leaves the device boxes (and the refusal) in place.
+    CHECK_STATUS(bpx_opencl_set_boxes_buffer(world, box_buffer, n + 1), BPX_ERR_INVALID_ARGUMENT);
+    check_query_refused(world, &q);
+    CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+    pairs = bpx_world_pairs(world, &count);
+    CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
+
+    // Host boxes again (set_boxes): queries see them, not the tree of the first host boxes.
+    check_set_context("queries: host boxes after the box buffer");
+    CHECK_STATUS(bpx_world_set_boxes(world, boxes, n), BPX_OK);
+    check_query_sees(world, &q, boxes, n);
+    CHECK_STATUS(bpx_world_collide(world), BPX_OK);
+    pairs = bpx_world_pairs(world, &count);
+    CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
+
+    // The two-phase mode brings host boxes back too: load_extents, then update_centres.
+    check_set_context("queries: load_extents after the box buffer");
+    CHECK_STATUS(bpx_opencl_set_boxes_buffer(world, box_buffer, n), BPX_OK);
+    check_query_refused(world, &q);
+    CHECK_STATUS(bpx_world_load_extents(world, minima, n), BPX_OK);
+    CHECK_STATUS(bpx_world_update_centres(world, centres), BPX_OK);
+    check_query_sees(world, &q, other, n);
+
+    clReleaseMemObject(box_buffer);
+done:
+    bpx_world_destroy(world);
+    pair_list_free(&want);
+    free(boxes);
+    free(other);
+    free(minima);
+    free(centres);
+}
+
+// ---------------------------------------------------------------------------------------------
 // Devices, selection, and the errors of making a world
 
 static void expect_unavailable(const bpx_world_def *def, const char *what)
@@ -775,27 +644,6 @@ static void test_objects_released(void)
 
 // Host allocation failure at every allocation the backend makes: OUT_OF_MEMORY or success,
 // never a crash, and nothing left allocated.
-static long long budget_left; // allocations that may still succeed; negative: unlimited
-static int budget_tag;
-
-static void *budget_alloc(size_t size, size_t alignment, void *user)
-{
-    if (user != &budget_tag || (budget_left >= 0 && budget_left-- == 0))
-        return NULL;
-    return aligned_alloc(alignment, (size + alignment - 1) / alignment * alignment);
-}
-
-static void budget_free(void *memory, void *user)
-{
-    (void)user;
-    free(memory);
-}
-
-static bool ok_or_oom(bpx_status s)
-{
-    return s == BPX_OK || s == BPX_ERR_OUT_OF_MEMORY;
-}
-
 static void test_allocation_failure(void)
 {
     enum { n = 300 };
@@ -803,12 +651,7 @@ static void test_allocation_failure(void)
     float *minima = check_alloc(sizeof(float) * 3 * n);
     float *centres = check_alloc(sizeof(float) * 3 * n);
     CHECK(scene_generate(SCENE_DENSE, n, 8, boxes) == 0);
-    for (uint32_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
-            minima[3 * i + a] = -half;
-            centres[3 * i + a] = boxes[i].min[a] + half;
-        }
+    extents_of(boxes, n, minima, centres);
     pair_list want = {0};
     reference_pairs(boxes, n, &want);
     int64_t start = bpx_allocated_bytes();
@@ -856,119 +699,6 @@ static void test_allocation_failure(void)
     free(centres);
 }
 
-// The centres already on the device (bpx_opencl_set_centres_buffer): every path, streamed
-// blocks too, against the reference of the same boxes made on the host; the caller changing
-// them between cycles on the world's queue; each error, the world unchanged after it.
-static void test_device_centres(void)
-{
-    enum { n = 3001 };
-    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
-    bpx_box *equivalent = check_alloc(sizeof(bpx_box) * n);
-    float *minima = check_alloc(sizeof(float) * 3 * n);
-    float *centres = check_alloc(sizeof(float) * 3 * n);
-    CHECK(scene_generate(SCENE_MIXED_SIZES, n, 12, boxes) == 0);
-    for (uint32_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
-            minima[3 * i + a] = -half;
-            centres[3 * i + a] = boxes[i].min[a] + half;
-        }
-    pair_list want = {0};
-    static const path centre_paths[] = {{"auto", BPX_OPENCL_AUTO, 0, 0},
-                                        {"brute", BPX_OPENCL_BRUTE, 0, 0},
-                                        {"sweep", BPX_OPENCL_SWEEP, 0, 0},
-                                        {"tree", BPX_OPENCL_TREE, 0, 0},
-                                        {"streamed-640", BPX_OPENCL_BRUTE, 640, 0}};
-    for (size_t p = 0; p < sizeof centre_paths / sizeof centre_paths[0]; p++) {
-        check_set_context("device centres, path %s", centre_paths[p].name);
-        bpx_world_def def = opencl_def();
-        def.opencl_method = centre_paths[p].method;
-        def.opencl_block_boxes = centre_paths[p].block_boxes;
-        bpx_world *world = make(&def);
-        if (!world)
-            continue;
-        void *context = NULL, *queue = NULL;
-        CHECK_STATUS(bpx_opencl_world_handles(world, &context, &queue, NULL), BPX_OK);
-        cl_int err;
-        cl_mem buffer = clCreateBuffer(context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR,
-                                       sizeof(float) * 3 * n, centres, &err);
-        CHECK(buffer != NULL);
-        // Before load_extents: no minima to add to.
-        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, buffer, n), BPX_ERR_BAD_STATE);
-        CHECK_STATUS(bpx_world_load_extents(world, minima, n), BPX_OK);
-        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, buffer, n - 1), BPX_ERR_INVALID_ARGUMENT);
-        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, NULL, n), BPX_ERR_NULL_ARGUMENT);
-        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, buffer, n), BPX_OK);
-        clReleaseMemObject(buffer); // the world keeps its own reference
-        scene_rng motion;
-        scene_rng_seed(&motion, 12);
-        for (int cycle = 0; cycle < 3; cycle++) {
-            if (cycle > 0) { // the caller moves the objects on the device, on the world's queue
-                for (uint32_t i = 0; i < 3 * n; i++)
-                    centres[i] += scene_rng_range(&motion, -0.5f, 0.5f);
-                CHECK(clEnqueueWriteBuffer(queue, buffer, CL_FALSE, 0, sizeof(float) * 3 * n,
-                                           centres, 0, NULL, NULL) == CL_SUCCESS);
-            }
-            for (uint32_t i = 0; i < n; i++)
-                for (int a = 0; a < 3; a++) {
-                    equivalent[i].min[a] = centres[3 * i + a] + minima[3 * i + a];
-                    equivalent[i].max[a] = centres[3 * i + a] - minima[3 * i + a];
-                }
-            reference_pairs(equivalent, n, &want);
-            CHECK_STATUS(bpx_world_collide(world), BPX_OK);
-            size_t count = 0;
-            const bpx_pair *pairs = bpx_world_pairs(world, &count);
-            CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
-            if (centre_paths[p].block_boxes == 0)
-                CHECK_EQ_U64(bpx_world_stats(world).bytes_in, 0); // nothing crossed the link
-        }
-        clFinish(queue); // the last write's host memory is reused below
-
-        // A centre whose box overflows: named with its object and axis; the world keeps the
-        // previous centres.
-        check_set_context("device centres errors, path %s", centre_paths[p].name);
-        float *bad_centres = check_alloc(sizeof(float) * 3 * n);
-        memcpy(bad_centres, centres, sizeof(float) * 3 * n);
-        bad_centres[3 * 2345 + 2] = INFINITY;
-        bad_centres[3 * 2999 + 0] = NAN;
-        cl_mem bad = clCreateBuffer(context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR,
-                                    sizeof(float) * 3 * n, bad_centres, &err);
-        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, bad, n), BPX_ERR_NOT_FINITE);
-        CHECK(bpx_world_error(world)->index == 2345 && bpx_world_error(world)->axis == 2);
-        clReleaseMemObject(bad);
-        cl_mem small =
-            clCreateBuffer(context, CL_MEM_READ_WRITE, sizeof(float) * 3 * (n - 1), NULL, &err);
-        CHECK_STATUS(bpx_opencl_set_centres_buffer(world, small, n), BPX_ERR_INVALID_ARGUMENT);
-        clReleaseMemObject(small);
-        CHECK_STATUS(bpx_world_collide(world), BPX_OK);
-        size_t count = 0;
-        const bpx_pair *pairs = bpx_world_pairs(world, &count);
-        CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
-        // Host centres take over again.
-        CHECK_STATUS(bpx_world_update_centres(world, centres), BPX_OK);
-        CHECK_STATUS(bpx_world_collide(world), BPX_OK);
-        pairs = bpx_world_pairs(world, &count);
-        CHECK_PAIRS_EQ(want.pairs, want.count, pairs, count);
-        free(bad_centres);
-        bpx_world_destroy(world);
-    }
-    // Not an opencl world; general mode.
-    check_set_context("device centres, other backends");
-    bpx_world_def def = bpx_default_world_def();
-    def.backend = BPX_BACKEND_BRUTE;
-    bpx_world *other = make(&def);
-    int dummy;
-    if (other)
-        CHECK_STATUS(bpx_opencl_set_centres_buffer(other, &dummy, 1), BPX_ERR_BACKEND_UNAVAILABLE);
-    bpx_world_destroy(other);
-    CHECK_STATUS(bpx_opencl_set_centres_buffer(NULL, &dummy, 1), BPX_ERR_NULL_ARGUMENT);
-    pair_list_free(&want);
-    free(boxes);
-    free(equivalent);
-    free(minima);
-    free(centres);
-}
-
 // Repeated cycles and different block sizes give the same bytes.
 static void test_determinism(void)
 {
@@ -1007,9 +737,7 @@ int main(int argc, char **argv)
 #else
     bool expect_no_platform = argc > 1 && strcmp(argv[1], "--expect-no-platform") == 0;
     bpx_set_logger(capture_log, NULL);
-    bpx_backend_info info = bpx_backend_query(BPX_BACKEND_OPENCL);
-    printf("test_opencl: opencl %s: %s\n", info.available ? "available" : "unavailable",
-           info.available ? info.detail : name_or(info.reason));
+    bpx_backend_info info = opencl_info("test_opencl");
     if (expect_no_platform) {
         if (strcmp(name_or(info.reason), "not in this build") == 0)
             return check_finish("test_opencl", 0);
@@ -1025,22 +753,15 @@ int main(int argc, char **argv)
         CHECK(bpx_backend_query(BPX_BACKEND_BRUTE).available);
         return check_finish("test_opencl", 1);
     }
-    if (!info.available) {
-        // Skipped only when there is no OpenCL at all; any other reason is a failure.
-        const char *reason = name_or(info.reason);
-        if (strcmp(reason, "not in this build") == 0 || strcmp(reason, "no OpenCL platform") == 0)
-            return check_finish("test_opencl", 0);
-        CHECK_MSG(info.available, "opencl unavailable: %s", reason);
-        return check_finish("test_opencl", 1);
-    }
+    if (!info.available)
+        return opencl_unavailable("test_opencl", info);
     test_devices_and_selection();
     test_paths();
-    test_tree();
     test_pair_buffer();
     test_memory_limit();
     test_updater();
     test_device_buffer();
-    test_device_centres();
+    test_device_queries();
     test_determinism();
     test_objects_released();
     test_allocation_failure();

@@ -66,11 +66,6 @@ static void fa_free(void *memory, void *user)
     free(p - align);
 }
 
-static bool ok_or_oom(bpx_status s)
-{
-    return s == BPX_OK || s == BPX_ERR_OUT_OF_MEMORY;
-}
-
 // One full run with the first `budget` allocations succeeding; returns whether every call
 // succeeded (the run needed no more than `budget` allocations).
 static bool alloc_run(long long budget, int workers, const bpx_box *boxes, uint32_t n,
@@ -135,13 +130,7 @@ static void test_allocation_failure(void)
     CHECK(scene_generate(SCENE_DENSE, n, seed, boxes) == 0);
     float *minima = check_alloc(sizeof(float) * 3 * n);
     float *centres = check_alloc(sizeof(float) * 3 * n);
-    for (uint32_t i = 0; i < n; i++) {
-        for (int a = 0; a < 3; a++) {
-            float half = (boxes[i].max[a] - boxes[i].min[a]) * 0.5f;
-            minima[3 * i + a] = -half;
-            centres[3 * i + a] = boxes[i].min[a] + half;
-        }
-    }
+    extents_of(boxes, n, minima, centres);
     pair_list want = {0};
     pair_list_brute(&want, boxes, n);
 

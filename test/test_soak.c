@@ -28,6 +28,7 @@
 #include <unistd.h>
 
 #include "check.h"
+#include "world_oracle.h"
 
 enum {
     MAX_IDS = 4096,
@@ -183,14 +184,6 @@ static void change_filters(soak *s)
     CHECK_STATUS(bpx_world_set_filters(s->world, ids, categories, masks, count), BPX_OK);
 }
 
-static bool overlap(const bpx_box *a, const bpx_box *b)
-{
-    for (int k = 0; k < 3; k++)
-        if (!(a->min[k] <= b->max[k] && b->min[k] <= a->max[k]))
-            return false;
-    return true;
-}
-
 // Algorithm 1 over the model's live ids, filters applied, in (i, j) order.
 static size_t reference(const soak *s, uint32_t n)
 {
@@ -199,32 +192,11 @@ static size_t reference(const soak *s, uint32_t n)
         if (!s->live[i])
             continue;
         for (uint32_t j = i + 1; j < n; j++)
-            if (s->live[j] && overlap(&s->box[i], &s->box[j]) &&
-                (s->category[i] & s->mask[j]) && (s->category[j] & s->mask[i])) {
+            if (s->live[j] && oracle_pair(s->box, s->category, s->mask, i, j)) {
                 if (count < MAX_PAIRS)
                     s->want[count] = (bpx_pair){i, j};
                 count++;
             }
-    }
-    return count;
-}
-
-static bool pair_less(bpx_pair a, bpx_pair b)
-{
-    return a.i < b.i || (a.i == b.i && a.j < b.j);
-}
-
-static size_t difference(const bpx_pair *a, size_t na, const bpx_pair *b, size_t nb,
-                         bpx_pair *out)
-{
-    size_t x = 0, y = 0, count = 0;
-    while (x < na) {
-        if (y == nb || pair_less(a[x], b[y]))
-            out[count++] = a[x++];
-        else if (pair_less(b[y], a[x]))
-            y++;
-        else
-            x++, y++;
     }
     return count;
 }
@@ -312,10 +284,10 @@ int main(int argc, char **argv)
                       "cycle %llu: %zu pairs, the reference %zu", (unsigned long long)c, count,
                       want);
             if (s.have_previous) {
-                size_t began = difference(s.want, want, s.previous, s.previous_count, s.diff);
+                size_t began = oracle_difference(s.want, want, s.previous, s.previous_count, s.diff);
                 CHECK_MSG(same(ev.began, ev.began_count, s.diff, began),
                           "cycle %llu: began differs", (unsigned long long)c);
-                size_t ended = difference(s.previous, s.previous_count, s.want, want, s.diff);
+                size_t ended = oracle_difference(s.previous, s.previous_count, s.want, want, s.diff);
                 CHECK_MSG(same(ev.ended, ev.ended_count, s.diff, ended),
                           "cycle %llu: ended differs", (unsigned long long)c);
             }

@@ -30,7 +30,8 @@ extern "C" {
 /// MIN_GREATER_THAN_MAX, naming the first bad box and its axis). The world then reads them in
 /// place at every collide until the next set_boxes / load_extents / update_centres /
 /// bpx_cuda_set_boxes_device; a box that turns invalid later is reported by the cycle that
-/// reads it (bpx_world_collide, or bpx_cuda_finish after bpx_cuda_collide_device).
+/// reads it (bpx_world_collide, or bpx_cuda_finish after bpx_cuda_collide_device). Until then
+/// queries (include/bpx/query.h) are refused with BAD_STATE: the host has no copy of the boxes.
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, BACKEND_UNAVAILABLE (not a cuda world), BAD_STATE
 /// (boxes added and removed one by one), NOT_FINITE, MIN_GREATER_THAN_MAX, DEVICE,
 /// DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.

@@ -46,7 +46,8 @@ BPX_API bpx_status bpx_opencl_world_handles(bpx_world *world, void **context, vo
 /// first bad box; the axis is that box's first bad one). The world retains the buffer and reads
 /// it at each bpx_world_collide* until the next set_boxes / load_extents / update_centres /
 /// set_boxes_buffer; the caller may change its contents between cycles (on the world's queue, or
-/// finished before the collide call) but must not make the boxes invalid.
+/// finished before the collide call) but must not make the boxes invalid. Until then queries
+/// (include/bpx/query.h) are refused with BAD_STATE: the host has no copy of these boxes.
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, BACKEND_UNAVAILABLE (not an opencl world),
 /// INVALID_ARGUMENT (buffer smaller than n boxes or from another context), NOT_FINITE,
 /// MIN_GREATER_THAN_MAX, DEVICE, DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.
@@ -65,7 +66,8 @@ BPX_API bpx_status bpx_opencl_set_boxes_buffer(bpx_world *world, void *buffer, u
 /// load_extents / update_centres / set_boxes_buffer / set_centres_buffer. The caller may change
 /// the centres between cycles: with commands on the world's queue (bpx_opencl_world_handles;
 /// in order, so the next collide sees them), or on another queue finished before the collide
-/// call. Centres changed later are not checked again: they must keep every box finite.
+/// call. Centres changed later are not checked again: they must keep every box finite. Until
+/// then queries (include/bpx/query.h) are refused with BAD_STATE, as with set_boxes_buffer.
 /// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE (not an opencl world, or a device without
 /// single-precision subnormals, whose updater would round differently from the host's),
 /// BAD_STATE (no extents loaded, or objects removed by id), INVALID_ARGUMENT (n other than the

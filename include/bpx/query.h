@@ -94,8 +94,10 @@ BPX_API bpx_query bpx_query_sweep(bpx_box box, const float translation[3], float
 /// Runs one query on the calling thread. *count receives the number of hits. If it exceeds
 /// capacity, returns CAPACITY and writes nothing to hits; the hits are still readable with
 /// bpx_world_query_hits() without running the query again. hits may be NULL with capacity 0.
-/// Errors: NULL_ARGUMENT, BAD_STATE (the boxes live in a device buffer: opencl/cuda device
-/// input), OUT_OF_MEMORY, and the query errors above. On error nothing is written.
+/// Errors: NULL_ARGUMENT, BAD_STATE (the boxes live on a device: from
+/// bpx_opencl_set_boxes_buffer, bpx_opencl_set_centres_buffer or bpx_cuda_set_boxes_device until
+/// the next bpx_world_set_boxes, load_extents or update_centres, whose host boxes queries then
+/// see), OUT_OF_MEMORY, and the query errors above. On error nothing is written.
 BPX_API bpx_status bpx_world_query(bpx_world *world, const bpx_query *query, bpx_hit *hits,
                                    size_t capacity, size_t *count);
 

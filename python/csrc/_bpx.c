@@ -8,11 +8,9 @@
 // Every call that does real work runs with the GIL released. A world is used by one thread at
 // a time (bpx.h), so each World holds a lock that its methods take; a second Python thread
 // calling the same World waits for the first instead of racing it.
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
-#include <pythread.h>
-
-#include <bpx/bpx.h>
+//
+// The query methods of World are in query.c; _bpx.h is what the two files share.
+#include "_bpx.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -39,7 +37,7 @@ static uintptr_t last_input_address;
 
 // Raises the bpx.Error subclass for err's status, with err's message, box index and axis.
 // where names the Python call ("World.set_boxes") so the message says what failed.
-static PyObject *raise_error(const char *where, const bpx_error *err)
+PyObject *raise_error(const char *where, const bpx_error *err)
 {
     PyObject *index = err->index == UINT32_MAX ? Py_NewRef(Py_None)
                                                : PyLong_FromUnsignedLong(err->index);
@@ -62,7 +60,7 @@ static PyObject *raise_error(const char *where, const bpx_error *err)
 
 // Raises an error that bpx itself did not report (a bad buffer, a closed world), as the
 // bpx.Error subclass of status.
-static PyObject *raise_status(const char *where, bpx_status status, const char *message)
+PyObject *raise_status(const char *where, bpx_status status, const char *message)
 {
     bpx_error err = {.status = status, .index = UINT32_MAX, .axis = -1};
     snprintf(err.message, sizeof err.message, "%s", message);
@@ -75,8 +73,8 @@ static PyObject *raise_status(const char *where, bpx_status status, const char *
 // Borrows obj's memory as a C-contiguous array of 4-byte items of the given kind ('f' float32,
 // 'I' uint32), items_per_row to a row. The Python layer converts everything before it gets
 // here; these checks keep a direct call with anything else from reading out of bounds.
-static int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_row,
-                    Py_buffer *view, uint32_t *rows)
+int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_row, Py_buffer *view,
+             uint32_t *rows)
 {
     if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) != 0)
         return -1;
@@ -109,7 +107,7 @@ static int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t item
 }
 
 // A bytearray of size bytes, uninitialised, for bpx to write into; NumPy wraps it as it is.
-static PyObject *new_bytes(size_t size, char **data)
+PyObject *new_bytes(size_t size, char **data)
 {
     if (size > (size_t)PY_SSIZE_T_MAX)
         return PyErr_NoMemory();
@@ -329,15 +327,9 @@ static PyObject *py_simd_widths(PyObject *module, PyObject *unused)
 // ---------------------------------------------------------------------------------------------
 // World
 
-typedef struct {
-    PyObject_HEAD
-    bpx_world *world;
-    PyThread_type_lock lock;
-} WorldObject;
-
 // Takes the world's lock, waiting with the GIL released if another thread has it. Fails with
 // bpx.StateError once the world is closed.
-static int world_enter(WorldObject *self, const char *where)
+int world_enter(WorldObject *self, const char *where)
 {
     if (!self->lock) {
         raise_status(where, BPX_ERR_BAD_STATE, "the world is not initialised");
@@ -356,7 +348,7 @@ static int world_enter(WorldObject *self, const char *where)
     return 0;
 }
 
-static void world_leave(WorldObject *self)
+void world_leave(WorldObject *self)
 {
     PyThread_release_lock(self->lock);
 }
@@ -737,202 +729,6 @@ static PyObject *World_box_count(WorldObject *self, PyObject *unused)
     return PyLong_FromUnsignedLong(n);
 }
 
-// ---------------------------------------------------------------------------------------------
-// Queries (include/bpx/query.h)
-
-// The floats of one query, per kind, in the buffer the Python layer builds (bpx/_world.py):
-//   BOX    box min x, y, z, max x, y, z                                             6
-//   SPHERE centre x, y, z, radius                                                   4
-//   RAY    origin x, y, z, direction x, y, z, max_fraction                          7
-//   SWEEP  box min x, y, z, max x, y, z, translation x, y, z, max_fraction          10
-static const Py_ssize_t query_floats[BPX_QUERY_KIND_COUNT] = {6, 4, 7, 10};
-
-static const char *const query_names[2][BPX_QUERY_KIND_COUNT] = {
-    {"World.query_box", "World.query_sphere", "World.ray_cast", "World.sweep"},
-    {"World.query_box_batch", "World.query_sphere_batch", "World.ray_cast_batch",
-     "World.sweep_batch"}};
-
-// Raises a query's error. bpx names the query by its index ("query 5: origin x is nan"); a
-// single query's message drops "query 0: " and its index, the method's name being enough.
-static PyObject *raise_query_error(const char *where, const bpx_error *error, int batch)
-{
-    bpx_error err = *error;
-    static const char prefix[] = "query 0: ";
-    if (!batch && err.index == 0) {
-        err.index = UINT32_MAX;
-        if (strncmp(err.message, prefix, sizeof prefix - 1) == 0)
-            memmove(err.message, err.message + sizeof prefix - 1,
-                    strlen(err.message) - (sizeof prefix - 1) + 1);
-    }
-    return raise_error(where, &err);
-}
-
-typedef struct query_fill {
-    bpx_query_kind kind;
-    bool closest;
-    const float *params;
-    const uint32_t *categories, *masks; // 1 value (for every query) or one per query
-    uint32_t category_count, mask_count;
-} query_fill;
-
-static void fill_queries(const query_fill *f, bpx_query *queries, uint32_t count)
-{
-    Py_ssize_t stride = query_floats[f->kind];
-    for (uint32_t k = 0; k < count; k++) {
-        const float *p = f->params + (size_t)k * (size_t)stride;
-        bpx_query *q = &queries[k];
-        memset(q, 0, sizeof *q);
-        q->kind = f->kind;
-        q->closest = f->closest;
-        q->filter.category = f->categories[f->category_count == 1 ? 0 : k];
-        q->filter.mask = f->masks[f->mask_count == 1 ? 0 : k];
-        switch (f->kind) {
-        case BPX_QUERY_BOX:
-            memcpy(&q->box, p, sizeof q->box);
-            break;
-        case BPX_QUERY_SPHERE:
-            memcpy(q->centre, p, sizeof q->centre);
-            q->radius = p[3];
-            break;
-        case BPX_QUERY_RAY:
-            memcpy(q->origin, p, sizeof q->origin);
-            memcpy(q->direction, p + 3, sizeof q->direction);
-            q->max_fraction = p[6];
-            break;
-        default: // BPX_QUERY_SWEEP
-            memcpy(&q->box, p, sizeof q->box);
-            memcpy(q->direction, p + 6, sizeof q->direction);
-            q->max_fraction = p[9];
-            break;
-        }
-    }
-}
-
-// World.query(kind, closest, params, categories, masks, batch)
-//   -> (ids, fractions or None)                     batch false: exactly one query
-//   -> (offsets, ids, fractions or None)            batch true: CSR over the queries
-// ids are uint32, fractions float32 (rays and sweeps only), offsets size_t (count + 1). bpx runs
-// the queries into its own buffer (capacity 0: CAPACITY with the total, nothing written), the
-// hits are read back with bpx_world_query_hits and split into ids and fractions, with the GIL
-// released throughout and the world's lock held, which keeps bpx's hits valid meanwhile.
-static PyObject *World_query(WorldObject *self, PyObject *args)
-{
-    int kind, closest, batch;
-    PyObject *params_obj, *categories_obj, *masks_obj;
-    if (!PyArg_ParseTuple(args, "ipOOOp", &kind, &closest, &params_obj, &categories_obj,
-                          &masks_obj, &batch))
-        return NULL;
-    if (kind < 0 || kind >= BPX_QUERY_KIND_COUNT)
-        return raise_status("World.query", BPX_ERR_INVALID_ARGUMENT, "unknown query kind");
-    const char *where = query_names[batch][kind];
-    if (world_enter(self, where) != 0)
-        return NULL;
-    Py_buffer views[3];
-    uint32_t counts[3];
-    PyObject *objs[3] = {params_obj, categories_obj, masks_obj};
-    int got = 0;
-    for (; got < 3; got++)
-        if (get_rows(where, objs[got], got ? 'I' : 'f', got ? 1 : query_floats[kind], &views[got],
-                     &counts[got]) != 0)
-            break;
-    PyObject *result = NULL, *offsets_out = NULL, *ids_out = NULL, *fractions_out = NULL;
-    bpx_query *queries = NULL;
-    uint32_t count = got == 3 ? counts[0] : 0;
-    if (got < 3)
-        goto done;
-    if (!batch && count != 1) {
-        raise_status(where, BPX_ERR_INVALID_ARGUMENT, "expected one query");
-        goto done;
-    }
-    if (counts[1] != 1 && counts[1] != count) {
-        char message[96];
-        snprintf(message, sizeof message, "%u categories for %u queries", counts[1], count);
-        raise_status(where, BPX_ERR_INVALID_ARGUMENT, message);
-        goto done;
-    }
-    if (counts[2] != 1 && counts[2] != count) {
-        char message[96];
-        snprintf(message, sizeof message, "%u masks for %u queries", counts[2], count);
-        raise_status(where, BPX_ERR_INVALID_ARGUMENT, message);
-        goto done;
-    }
-    queries = PyMem_RawMalloc(count ? (size_t)count * sizeof(bpx_query) : 1);
-    if (!queries) {
-        PyErr_NoMemory();
-        goto done;
-    }
-    size_t single_offsets[2];
-    size_t *offsets = single_offsets;
-    if (batch) {
-        char *data = NULL;
-        offsets_out = new_bytes(((size_t)count + 1) * sizeof(size_t), &data);
-        if (!offsets_out)
-            goto done;
-        offsets = (size_t *)data;
-    }
-    query_fill fill = {(bpx_query_kind)kind, closest != 0, views[0].buf, views[1].buf,
-                       views[2].buf, counts[1], counts[2]};
-    size_t total = 0;
-    bpx_status status;
-    Py_BEGIN_ALLOW_THREADS
-    fill_queries(&fill, queries, count);
-    if (batch)
-        status = bpx_world_query_batch(self->world, queries, count, offsets, NULL, 0, &total);
-    else
-        status = bpx_world_query(self->world, queries, NULL, 0, &total);
-    Py_END_ALLOW_THREADS
-    if (status != BPX_OK && status != BPX_ERR_CAPACITY) {
-        raise_query_error(where, bpx_world_error(self->world), batch);
-        goto done;
-    }
-    char *ids = NULL, *fractions = NULL;
-    ids_out = new_bytes(total * sizeof(uint32_t), &ids);
-    if (!ids_out)
-        goto done;
-    int with_fractions = kind == BPX_QUERY_RAY || kind == BPX_QUERY_SWEEP;
-    if (with_fractions && !(fractions_out = new_bytes(total * sizeof(float), &fractions)))
-        goto done;
-    size_t read = 0;
-    const bpx_hit *hits = bpx_world_query_hits(self->world, NULL, NULL, &read);
-    if (read != total || (total && !hits)) {
-        raise_status(where, BPX_ERR_INVALID_ARGUMENT, "the hits could not be read back");
-        goto done;
-    }
-    Py_BEGIN_ALLOW_THREADS
-    for (size_t h = 0; h < total; h++)
-        ((uint32_t *)ids)[h] = hits[h].id;
-    for (size_t h = 0; fractions && h < total; h++)
-        ((float *)fractions)[h] = hits[h].fraction;
-    Py_END_ALLOW_THREADS
-    PyObject *none = Py_None;
-    if (batch)
-        result = PyTuple_Pack(3, offsets_out, ids_out, fractions_out ? fractions_out : none);
-    else
-        result = PyTuple_Pack(2, ids_out, fractions_out ? fractions_out : none);
-done:
-    Py_XDECREF(offsets_out);
-    Py_XDECREF(ids_out);
-    Py_XDECREF(fractions_out);
-    PyMem_RawFree(queries);
-    for (int k = 0; k < got; k++)
-        PyBuffer_Release(&views[k]);
-    world_leave(self);
-    return result;
-}
-
-static PyObject *World_query_stats(WorldObject *self, PyObject *unused)
-{
-    (void)unused;
-    if (world_enter(self, "World.query_stats") != 0)
-        return NULL;
-    bpx_query_stats s = bpx_world_query_stats(self->world);
-    world_leave(self);
-    return Py_BuildValue("{s:K,s:K,s:k,s:k,s:K}", "builds", (unsigned long long)s.builds,
-                         "refits", (unsigned long long)s.refits, "nodes",
-                         (unsigned long)s.nodes, "boxes", (unsigned long)s.boxes,
-                         "last_update_ns", (unsigned long long)s.last_update_ns);
-}
-
 static PyMethodDef World_methods[] = {
     {"close", (PyCFunction)World_close, METH_NOARGS, "Destroys the C world; idempotent."},
     {"load_extents", (PyCFunction)World_load_extents, METH_O, "bpx_world_load_extents"},
@@ -1009,10 +805,7 @@ PyMODINIT_FUNC PyInit__bpx(void)
     if (PyModule_AddObject(module, "World", (PyObject *)&WorldType) < 0 ||
         PyModule_AddStringConstant(module, "version", bpx_version()) < 0 ||
         PyModule_AddIntConstant(module, "MAX_BOXES", BPX_MAX_BOXES) < 0 ||
-        PyModule_AddIntConstant(module, "QUERY_BOX", BPX_QUERY_BOX) < 0 ||
-        PyModule_AddIntConstant(module, "QUERY_SPHERE", BPX_QUERY_SPHERE) < 0 ||
-        PyModule_AddIntConstant(module, "QUERY_RAY", BPX_QUERY_RAY) < 0 ||
-        PyModule_AddIntConstant(module, "QUERY_SWEEP", BPX_QUERY_SWEEP) < 0) {
+        add_query_constants(module) < 0) {
         Py_DECREF(&WorldType);
         Py_DECREF(module);
         return NULL;

@@ -108,29 +108,24 @@ int key_bits(uint32_t n)
     return bits;
 }
 
-bpx_status reserve_boxes(bpx_cuda *cu, uint32_t n)
+// Room for n boxes' 6 float arrays in *arrays, device memory or (pinned) host memory, grown
+// geometrically; what they held is not kept.
+bpx_status reserve_box_arrays(float **arrays, uint32_t *capacity, uint32_t n, bool pinned)
 {
-    if (n <= cu->box_capacity)
+    if (n <= *capacity)
         return BPX_OK;
-    uint32_t capacity = (uint32_t)grown(cu->box_capacity, n);
-    float *boxes = nullptr;
-    CU(cudaMalloc(&boxes, sizeof(float) * 6 * (size_t)capacity));
-    cudaFree(cu->boxes);
-    cu->boxes = boxes;
-    cu->box_capacity = capacity;
-    return BPX_OK;
-}
-
-bpx_status reserve_staging(bpx_cuda *cu, uint32_t n)
-{
-    if (n <= cu->staging_capacity)
-        return BPX_OK;
-    uint32_t capacity = (uint32_t)grown(cu->staging_capacity, n);
-    float *staging = nullptr;
-    CU(cudaMallocHost(&staging, sizeof(float) * 6 * (size_t)capacity));
-    cudaFreeHost(cu->staging);
-    cu->staging = staging;
-    cu->staging_capacity = capacity;
+    uint32_t grown_to = (uint32_t)grown(*capacity, n);
+    size_t bytes = sizeof(float) * 6 * (size_t)grown_to;
+    float *fresh = nullptr;
+    cudaError_t e = pinned ? cudaMallocHost(&fresh, bytes) : cudaMalloc(&fresh, bytes);
+    if (e != cudaSuccess)
+        return fail(e, pinned ? "cudaMallocHost (box staging)" : "cudaMalloc (boxes)");
+    if (pinned)
+        cudaFreeHost(*arrays);
+    else
+        cudaFree(*arrays);
+    *arrays = fresh;
+    *capacity = grown_to;
     return BPX_OK;
 }
 
@@ -230,7 +225,8 @@ bpx_status upload(bpx_cuda *cu, cudaStream_t s, const float *const lo[3], const 
 {
     const float *src[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
     if (n <= staged_max) {
-        if (bpx_status st = reserve_staging(cu, n); st != BPX_OK)
+        if (bpx_status st = reserve_box_arrays(&cu->staging, &cu->staging_capacity, n, true);
+            st != BPX_OK)
             return st;
         for (int a = 0; a < 6; a++)
             memcpy(cu->staging + (size_t)a * n, src[a], sizeof(float) * n);
@@ -413,7 +409,7 @@ void bpx__cuda_close(bpx_cuda *cu)
 static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3],
                            const float *const hi[3], uint32_t n)
 {
-    if (bpx_status st = reserve_boxes(cu, n); st != BPX_OK)
+    if (bpx_status st = reserve_box_arrays(&cu->boxes, &cu->box_capacity, n, false); st != BPX_OK)
         return st;
     CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, s));
     if (!cu->user_boxes)

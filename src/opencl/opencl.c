@@ -374,6 +374,7 @@ bpx_status bpx_opencl_set_centres_buffer(bpx_world *w, void *buffer, uint32_t n)
         clReleaseMemObject(st->user_buffer);
     st->user_buffer = mem;
     st->source = SOURCE_CENTRES_BUFFER;
+    w->boxes_on_device = true; // the host's boxes are the last host centres': no queries
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }

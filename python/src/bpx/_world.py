@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any, NamedTuple, Optional, Union
+from typing import Any, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
@@ -247,13 +247,23 @@ class World:
         self,
         kind: int,
         closest: bool,
-        params: Params,
-        category: np.ndarray,
-        mask: np.ndarray,
+        what: str,
+        columns: Tuple[np.ndarray, ...],
+        category: Any,
+        mask: Any,
         batch: bool,
     ) -> tuple:
+        """Runs one query, or a batch of k, of one kind. columns are its floats, side by side:
+        (k, m) or (k,) arrays in the kind's order, k = 1 for one query. category and mask: a
+        number, or with a batch (k,). Returns the C layer's (ids, fractions), or with a batch
+        (offsets, ids, fractions)."""
+        count = columns[0].shape[0]
+        params = Params(count, sum(1 if c.ndim == 1 else c.shape[1] for c in columns))
+        for column in columns:
+            params.put(column)
+        cat, msk = filter_arrays(category, mask, what, count if batch else None)
         with converted_note(params.overflowed):
-            return self._c.query(kind, closest, params.rows, category, mask, batch)
+            return self._c.query(kind, closest, params.rows, cat, msk, batch)
 
     def query_box(self, box: Any, *, category: Any = ALL, mask: Any = ALL) -> np.ndarray:
         """Ids of the boxes that overlap a box region, sorted: (k,) uint32.
@@ -273,10 +283,8 @@ class World:
             StateError: a closed world, or boxes in a device buffer.
         """
         what = "World.query_box"
-        params = Params(1, 6)
-        params.put(one_box(box, f"{what}: box"))
-        cat, msk = filter_arrays(category, mask, what, None)
-        ids, _ = self._query(_bpx.QUERY_BOX, False, params, cat, msk, False)
+        columns = (one_box(box, f"{what}: box"),)
+        ids, _ = self._query(_bpx.QUERY_BOX, False, what, columns, category, mask, False)
         return np.frombuffer(ids, np.uint32)
 
     def query_sphere(
@@ -297,11 +305,8 @@ class World:
             InvalidArgumentError: a negative radius, a wrong shape, a bad category or mask.
         """
         what = "World.query_sphere"
-        params = Params(1, 4)
-        params.put(one_vec3(centre, f"{what}: centre"))
-        params.put(one_scalar(radius, f"{what}: radius"))
-        cat, msk = filter_arrays(category, mask, what, None)
-        ids, _ = self._query(_bpx.QUERY_SPHERE, False, params, cat, msk, False)
+        columns = (one_vec3(centre, f"{what}: centre"), one_scalar(radius, f"{what}: radius"))
+        ids, _ = self._query(_bpx.QUERY_SPHERE, False, what, columns, category, mask, False)
         return np.frombuffer(ids, np.uint32)
 
     def ray_cast(
@@ -339,12 +344,12 @@ class World:
             max_fraction > 0, a wrong shape, a bad category or mask.
         """
         what = "World.ray_cast"
-        params = Params(1, 7)
-        params.put(one_vec3(origin, f"{what}: origin"))
-        params.put(one_vec3(direction, f"{what}: direction"))
-        params.put(one_scalar(max_fraction, f"{what}: max_fraction"))
-        cat, msk = filter_arrays(category, mask, what, None)
-        ids, fractions = self._query(_bpx.QUERY_RAY, not all, params, cat, msk, False)
+        columns = (
+            one_vec3(origin, f"{what}: origin"),
+            one_vec3(direction, f"{what}: direction"),
+            one_scalar(max_fraction, f"{what}: max_fraction"),
+        )
+        ids, fractions = self._query(_bpx.QUERY_RAY, not all, what, columns, category, mask, False)
         return _hits(ids, fractions, bool(all))
 
     def sweep(
@@ -380,12 +385,14 @@ class World:
             As ``ray_cast``, and MinGreaterThanMaxError for a box with min > max.
         """
         what = "World.sweep"
-        params = Params(1, 10)
-        params.put(one_box(box, f"{what}: box"))
-        params.put(one_vec3(translation, f"{what}: translation"))
-        params.put(one_scalar(max_fraction, f"{what}: max_fraction"))
-        cat, msk = filter_arrays(category, mask, what, None)
-        ids, fractions = self._query(_bpx.QUERY_SWEEP, not all, params, cat, msk, False)
+        columns = (
+            one_box(box, f"{what}: box"),
+            one_vec3(translation, f"{what}: translation"),
+            one_scalar(max_fraction, f"{what}: max_fraction"),
+        )
+        ids, fractions = self._query(
+            _bpx.QUERY_SWEEP, not all, what, columns, category, mask, False
+        )
         return _hits(ids, fractions, bool(all))
 
     # Batches: many queries of one kind in one call, on the world's threads
@@ -405,11 +412,8 @@ class World:
             ``ids[offsets[j]:offsets[j + 1]]`` (also ``.query(j)``, ``.split()``, ``.counts``).
         """
         what = "World.query_box_batch"
-        array = many_boxes(boxes, f"{what}: boxes")
-        params = Params(array.shape[0], 6)
-        params.put(array)
-        cat, msk = filter_arrays(category, mask, what, array.shape[0])
-        offsets, ids, _ = self._query(_bpx.QUERY_BOX, False, params, cat, msk, True)
+        columns = (many_boxes(boxes, f"{what}: boxes"),)
+        offsets, ids, _ = self._query(_bpx.QUERY_BOX, False, what, columns, category, mask, True)
         return BatchIds(np.frombuffer(offsets, np.intp), np.frombuffer(ids, np.uint32))
 
     def query_sphere_batch(
@@ -421,11 +425,10 @@ class World:
         what = "World.query_sphere_batch"
         centre_array = many_vec3(centres, f"{what}: centres")
         count = centre_array.shape[0]
-        params = Params(count, 4)
-        params.put(centre_array)
-        params.put(many_scalars(radii, f"{what}: radii", count))
-        cat, msk = filter_arrays(category, mask, what, count)
-        offsets, ids, _ = self._query(_bpx.QUERY_SPHERE, False, params, cat, msk, True)
+        columns = (centre_array, many_scalars(radii, f"{what}: radii", count))
+        offsets, ids, _ = self._query(
+            _bpx.QUERY_SPHERE, False, what, columns, category, mask, True
+        )
         return BatchIds(np.frombuffer(offsets, np.intp), np.frombuffer(ids, np.uint32))
 
     def ray_cast_batch(
@@ -450,13 +453,14 @@ class World:
         what = "World.ray_cast_batch"
         origin_array = many_vec3(origins, f"{what}: origins")
         count = origin_array.shape[0]
-        params = Params(count, 7)
-        params.put(origin_array)
-        params.put(many_vec3(directions, f"{what}: directions", count))
-        params.put(many_scalars(max_fractions, f"{what}: max_fractions", count))
-        cat, msk = filter_arrays(category, mask, what, count)
-        offsets, ids, fractions = self._query(_bpx.QUERY_RAY, not all, params, cat, msk, True)
-        return _batch_hits(offsets, ids, fractions)
+        columns = (
+            origin_array,
+            many_vec3(directions, f"{what}: directions", count),
+            many_scalars(max_fractions, f"{what}: max_fractions", count),
+        )
+        return _batch_hits(
+            *self._query(_bpx.QUERY_RAY, not all, what, columns, category, mask, True)
+        )
 
     def sweep_batch(
         self,
@@ -474,13 +478,14 @@ class World:
         what = "World.sweep_batch"
         box_array = many_boxes(boxes, f"{what}: boxes")
         count = box_array.shape[0]
-        params = Params(count, 10)
-        params.put(box_array)
-        params.put(many_vec3(translations, f"{what}: translations", count))
-        params.put(many_scalars(max_fractions, f"{what}: max_fractions", count))
-        cat, msk = filter_arrays(category, mask, what, count)
-        offsets, ids, fractions = self._query(_bpx.QUERY_SWEEP, not all, params, cat, msk, True)
-        return _batch_hits(offsets, ids, fractions)
+        columns = (
+            box_array,
+            many_vec3(translations, f"{what}: translations", count),
+            many_scalars(max_fractions, f"{what}: max_fractions", count),
+        )
+        return _batch_hits(
+            *self._query(_bpx.QUERY_SWEEP, not all, what, columns, category, mask, True)
+        )
 
     @property
     def query_stats(self) -> QueryStats:
