@@ -27,20 +27,28 @@
 //   lies in the rank's own region cost only the copies near borders; an application that keeps
 //   its objects on the rank bpx_mpi_world_home_ranks names (moving the few that crossed a border,
 //   as particle codes do) sends the least. A box passed elsewhere is sent whole every cycle.
-// - Ids must be unique over all ranks. Two boxes with the same id that meet on a rank (always
-//   so when one rank passes an id twice) give BPX_ERR_INVALID_ARGUMENT.
+// - Ids must be unique over all ranks. Two boxes with the same id that reach one rank (always
+//   so when they overlap, or lie in one region) give BPX_ERR_INVALID_ARGUMENT; copies far apart
+//   in different regions are not seen together and go unnoticed.
+// - Where the data is: a pair is often reported on a rank that passed neither object (its
+//   corner's rank). bpx_mpi_world_pair_ranks tells, per pair, the ranks that passed a and b;
+//   fetching what the narrow phase needs from them is the application's job.
 // - Errors are collective: every rank returns the same status, and bpx_mpi_world_error gives
 //   every rank the same message, naming the rank (and id, and position in its input) that found
 //   it; when several ranks fail, the lowest one's error is reported. An input error (NULL
 //   arrays, NaN or infinite coordinate, min > max, count > BPX_MAX_BOXES) leaves the world as it
 //   was. An error found later in the cycle (duplicate id, memory) leaves pairs and events
 //   reading as none (BAD_STATE for events) until a collide succeeds; that one reports events
-//   against the last successful collide. Errors of MPI itself follow the communicator's error
-//   handler (MPI's default aborts).
+//   against the last successful collide. An error of MPI itself aborts: the world's duplicate
+//   communicator has MPI_ERRORS_ARE_FATAL, since a rank that failed a collective could not
+//   keep step with the others.
 // - Threads: MPI is called only from the thread that calls bpx_mpi (MPI_THREAD_FUNNELED is
 //   enough); the rank's bpx world may run worker threads of its own (def.local.worker_count).
-// - Memory: a rank holds its own boxes, the copies it receives, and 16 bytes per pair it
-//   reports (twice with events). Buffers grow and are kept, so steady cycles do not allocate.
+// - Memory: a rank holds the records it sends and receives, about 70 bytes per box it tests
+//   (ids, order, boxes, filters, source ranks), its bpx_world (with every pair the rank finds,
+//   those the corner rule drops included), and 24 bytes per pair it reports, twice (this cycle's
+//   and the last); the root of a gather holds 32 bytes per pair of the whole set. Buffers grow
+//   and are kept, so steady cycles do not allocate.
 #pragma once
 
 #include <mpi.h>
@@ -61,6 +69,12 @@ typedef struct bpx_mpi_pair {
 
 /// Per object collision filter, as bpx_world_set_filters: a and b can pair only if
 /// (category_a & mask_b) && (category_b & mask_a).
+/// The ranks that passed the two objects of a pair (bpx_mpi_world_pair_ranks).
+typedef struct bpx_mpi_pair_ranks {
+    int a;
+    int b;
+} bpx_mpi_pair_ranks;
+
 typedef struct bpx_mpi_filter {
     uint32_t category;
     uint32_t mask;
@@ -70,14 +84,17 @@ typedef struct bpx_mpi_world_def {
     /// The rank's own world: backend, SIMD width, worker threads, task hooks.
     /// local.track_events is ignored (events are kept by bpx_mpi over global ids).
     bpx_world_def local;
-    /// Keep the pair set and report the pairs that began and ended with each collide.
+    /// Keep the pair set and report the pairs that began and ended with each collide. Must be
+    /// the same on every rank (creation fails with INVALID_ARGUMENT otherwise).
     bool track_events;
     /// Recompute the regions when the most loaded rank holds more than this many times the mean
     /// number of boxes (its own inside its region plus the copies it receives). 0 = 1.25. The
     /// first collide always computes them.
     double rebalance_threshold;
     /// Centres each rank contributes to a bisection (0 = 65536 / ranks, at least 32, at most
-    /// 4096). Every rank receives all of them, so the cost of a rebalance grows with this.
+    /// 4096; samples_per_rank x ranks at most 2^24). Every rank receives all of them, so the cost
+    /// of a rebalance grows with this. A rebalance that could not lower the imbalance (all
+    /// centres in one point, say) is not repeated until the imbalance grows past what it was.
     uint32_t samples_per_rank;
 } bpx_mpi_world_def;
 
@@ -145,9 +162,10 @@ BPX_API bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *
 /// Collective (it frees the duplicate communicator). NULL is allowed on every rank.
 BPX_API void bpx_mpi_world_destroy(bpx_mpi_world *world);
 
-/// Collective. One cycle: this rank's count boxes with their global ids (filters may be NULL:
-/// every box pairs with every other, unless another rank passes filters for its boxes), then
-/// the exchange and the pairs. count may be 0 (NULLs allowed then).
+/// Collective. One cycle: this rank's count boxes with their global ids, then the exchange and
+/// the pairs. filters may be NULL: this rank's boxes then have the default filter (category 1,
+/// mask 0xFFFFFFFF), as in a bpx_world. count may be 0 (NULLs allowed then). On an input error
+/// the pairs, events and regions are as they were (the stats describe the failed call).
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES (count, or the boxes a rank tests, past BPX_MAX_BOXES;
 /// copies to send past MPI's int counts), NOT_FINITE, MIN_GREATER_THAN_MAX, INVALID_ARGUMENT
 /// (an id twice), OUT_OF_MEMORY, TOO_MANY_PAIRS (events past MPI's int counts), and those of
@@ -158,6 +176,11 @@ BPX_API bpx_status bpx_mpi_world_collide(bpx_mpi_world *world, const uint64_t *i
 
 /// This rank's pairs from the last successful collide, sorted by (a, b). Owned by the world.
 BPX_API const bpx_mpi_pair *bpx_mpi_world_pairs(const bpx_mpi_world *world, size_t *count);
+
+/// Parallel to bpx_mpi_world_pairs: for each pair, the ranks that passed objects a and b in the
+/// last successful collide. Owned by the world.
+BPX_API const bpx_mpi_pair_ranks *bpx_mpi_world_pair_ranks(const bpx_mpi_world *world,
+                                                           size_t *count);
 
 /// This rank's events of the last collide (def.track_events, else BAD_STATE).
 BPX_API bpx_status bpx_mpi_world_pair_events(const bpx_mpi_world *world,
@@ -176,7 +199,8 @@ BPX_API const bpx_mpi_error *bpx_mpi_world_error(const bpx_mpi_world *world);
 /// The last cycle's figures on this rank.
 BPX_API bpx_mpi_stats bpx_mpi_world_stats(const bpx_mpi_world *world);
 
-/// The region of a rank: lo[k] <= x < hi[k] per axis (infinite at the outside). BAD_STATE
+/// The region of a rank: lo[k] <= x < hi[k] per axis (infinite at the outside; a region can be
+/// empty, lo == hi, when many centres share a coordinate). BAD_STATE
 /// before the first successful collide; INVALID_ARGUMENT for a rank out of range.
 BPX_API bpx_status bpx_mpi_world_region(const bpx_mpi_world *world, int rank, float lo[3],
                                         float hi[3]);
@@ -191,15 +215,16 @@ BPX_API bpx_status bpx_mpi_world_home_ranks(const bpx_mpi_world *world, const bp
 /// that only the objects that crossed a border travel. On entry ids, boxes and payload (NULL
 /// when payload_size is 0) hold this rank's *count objects in arrays with room for capacity;
 /// on return they hold its objects after the move: those that stayed, in their order, then the
-/// arrivals by source rank and their order there, and *count their number.
-/// Errors, the same on every rank, with nothing moved: CAPACITY when any rank lacks room (each
-/// rank's *count then receives the room it needs, and the call can be made again with more),
-/// BAD_STATE before the first collide, NULL_ARGUMENT, INVALID_ARGUMENT (payload_size over 1 MB),
-/// NOT_FINITE or MIN_GREATER_THAN_MAX (a box), OUT_OF_MEMORY, TOO_MANY_BOXES (past MPI's
-/// int counts).
+/// arrivals by source rank and their order there, and *count their number. *needed (may be
+/// NULL) receives the count this rank has, or would have, after the move.
+/// Errors, the same on every rank, with nothing moved and *count unchanged: CAPACITY when any
+/// rank lacks room (*needed tells each rank the room it needs; call again with more),
+/// BAD_STATE before the first collide, NULL_ARGUMENT, INVALID_ARGUMENT (*count > capacity,
+/// payload_size over 1 MB), NOT_FINITE or MIN_GREATER_THAN_MAX (a box), OUT_OF_MEMORY,
+/// TOO_MANY_BOXES (more than 2^31 - 1 objects to send or receive, MPI's int counts).
 BPX_API bpx_status bpx_mpi_world_migrate(bpx_mpi_world *world, uint64_t *ids, bpx_box *boxes,
                                          void *payload, size_t payload_size, size_t capacity,
-                                         size_t *count);
+                                         size_t *count, size_t *needed);
 
 /// Asks the next collide to recompute the regions whatever the balance (collective in effect:
 /// the regions are recomputed if any rank asked).

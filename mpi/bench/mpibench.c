@@ -114,7 +114,8 @@ int main(int argc, char **argv) {
                 boxes[k].max[d] += velocity[k].v[d];
             }
         size_t own = count, moved = count;
-        s = bpx_mpi_world_migrate(world, ids, boxes, velocity, sizeof *velocity, capacity, &moved);
+        s = bpx_mpi_world_migrate(world, ids, boxes, velocity, sizeof *velocity, capacity, &moved,
+                                  NULL);
         if (s != BPX_OK)
             die(bpx_mpi_world_error(world)->message, s);
         count = moved;

@@ -45,11 +45,11 @@ static bpx_status decompose(bpx_mpi_world *w, const bpx_box *boxes, size_t count
     bpx_status status = bpx_mpi__agree(w);
     if (status != BPX_OK)
         return status;
-    rcb_sample *out = w->samples + w->recv_displs[w->rank];
     for (size_t i = 0; i < take; i++) { // evenly strided: the same picks every run
+        rcb_sample *out = &w->samples[(size_t)w->recv_displs[w->rank] + i];
         const bpx_box *b = &boxes[(size_t)((unsigned __int128)i * count / take)];
-        rcb_centre(b, out[i].centre);
-        out[i].weight = (float)((double)count / (double)take);
+        rcb_centre(b, out->centre);
+        out->weight = (float)((double)count / (double)take);
     }
     MPI_Allgatherv(MPI_IN_PLACE, 0, w->sample_type, w->samples, w->recv_counts, w->recv_displs,
                    w->sample_type, w->comm);
@@ -66,21 +66,27 @@ static bool reserve_present(bpx_mpi_world *w, size_t n) {
     (c = cap, bpx_mpi__grow((void **)&w->field, &c, n, sizeof *w->field) == 0)
     bool ok = GROW_PRESENT(ids) && GROW_PRESENT(ids_tmp) && GROW_PRESENT(order) &&
               GROW_PRESENT(order_tmp) && GROW_PRESENT(own_index) && GROW_PRESENT(boxes) &&
-              GROW_PRESENT(category) && GROW_PRESENT(mask) && GROW_PRESENT(inside);
+              GROW_PRESENT(category) && GROW_PRESENT(mask) && GROW_PRESENT(inside) &&
+              GROW_PRESENT(source);
 #undef GROW_PRESENT
     if (ok && n > cap)
         w->present_cap = c; // every array grew to the same capacity (the same rule each)
     return ok;
 }
 
-// The rank a present box came from, for error messages: own boxes first, then by receipt.
+// The rank a present box came from: own boxes first, then the records by sender.
 static int source_rank(const bpx_mpi_world *w, size_t at, size_t own) {
     if (at < own)
         return w->rank;
-    int r = 0;
-    while (r + 1 < w->size && (size_t)w->recv_displs[r + 1] <= at - own)
-        r++;
-    return r;
+    int lo = 0, hi = w->size - 1; // the last rank whose first record is at or before `at`
+    while (lo < hi) {
+        int mid = (lo + hi + 1) / 2;
+        if ((size_t)w->recv_displs[mid] <= at - own)
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    return lo;
 }
 
 typedef struct route_result {
@@ -195,6 +201,7 @@ static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_fil
                 memcpy(&f, rec + 32, sizeof f);
         }
         w->inside[k] = (uint8_t)rcb_inside(&w->tree, w->rank, &w->boxes[k]);
+        w->source[k] = source_rank(w, from, own);
         if (gather_filters) {
             w->category[k] = f.category;
             w->mask[k] = f.mask;
@@ -202,8 +209,7 @@ static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_fil
         if (k > 0 && w->ids[k] == w->ids[k - 1]) {
             bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, w->ids[k], SIZE_MAX, -1,
                           "id %llu is given twice (by ranks %d and %d)",
-                          (unsigned long long)w->ids[k], source_rank(w, w->order[k - 1], own),
-                          source_rank(w, from, own));
+                          (unsigned long long)w->ids[k], w->source[k - 1], w->source[k]);
             return;
         }
     }
@@ -224,7 +230,9 @@ static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_fil
 static void select_pairs(bpx_mpi_world *w) {
     size_t m;
     const bpx_pair *local = bpx_world_pairs(w->local, &m);
-    if (bpx_mpi__grow((void **)&w->next, &w->next_cap, m, sizeof(bpx_mpi_pair))) {
+    size_t cap = w->next_cap;
+    if (bpx_mpi__grow((void **)&w->next_ranks, &cap, m, sizeof(bpx_mpi_pair_ranks)) ||
+        bpx_mpi__grow((void **)&w->next, &w->next_cap, m, sizeof(bpx_mpi_pair))) {
         bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1, "no memory for %zu pairs", m);
         return;
     }
@@ -239,6 +247,7 @@ static void select_pairs(bpx_mpi_world *w) {
             if (!rcb_holds(&w->tree, w->rank, corner))
                 continue;
         }
+        w->next_ranks[kept] = (bpx_mpi_pair_ranks){w->source[i], w->source[j]};
         w->next[kept++] = (bpx_mpi_pair){w->ids[i], w->ids[j]};
     }
     w->next_count = kept;
@@ -287,6 +296,7 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
         if (s != BPX_OK)
             return failed(w, s);
         w->rebalance_asked = w->rebalance_next = false;
+        w->measure_settled = true;
     }
 
     // 3. Route and exchange.
@@ -341,15 +351,25 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
             return failed(w, s);
     }
     bpx_mpi_pair *swap = w->pairs;
+    bpx_mpi_pair_ranks *swap_ranks = w->ranks;
     size_t swap_cap = w->pairs_cap;
     w->pairs = w->next;
+    w->ranks = w->next_ranks;
     w->pairs_cap = w->next_cap;
     w->pair_count = w->next_count;
     w->next = swap;
+    w->next_ranks = swap_ranks;
     w->next_cap = swap_cap;
     w->pairs_valid = true;
     w->events_valid = w->def.track_events;
-    w->rebalance_next = st->imbalance > w->def.rebalance_threshold;
+    // Rebalance past the threshold, but not again and again when bisection cannot do better
+    // (all centres in one point): only once the imbalance grows past what the last one left.
+    if (w->measure_settled) {
+        w->settled_imbalance = st->imbalance;
+        w->measure_settled = false;
+    }
+    w->rebalance_next = st->imbalance > w->def.rebalance_threshold &&
+                        st->imbalance > 1.05 * w->settled_imbalance;
     st->pair_count = w->pair_count;
     st->cycle_count++;
     st->total_ns = bpx_mpi__now_ns() - start;

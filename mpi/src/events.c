@@ -2,6 +2,7 @@
 // a rank alone cannot tell a pair that moved from one that began or ended: each rank sends the
 // change of its own list to the pair's event rank, where a "began here" and an "ended there" of
 // the same pair cancel out.
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -21,7 +22,7 @@ static int compare_records(const void *p, const void *q) {
 }
 
 // Walks the two sorted lists; with out == NULL it counts per destination, else it writes.
-static void diff(bpx_mpi_world *w, event_record *out) {
+static void diff(bpx_mpi_world *w, event_record *out, bool *overflow) {
     const bpx_mpi_pair *old = w->pairs, *now = w->next;
     size_t i = 0, j = 0, n_old = w->pair_count, n_now = w->next_count;
     while (i < n_old || j < n_now) {
@@ -38,14 +39,17 @@ static void diff(bpx_mpi_world *w, event_record *out) {
         int to = bpx_mpi_event_rank(p->a, p->b, w->size);
         if (out)
             out[w->cursor[to]++] = (event_record){p->a, p->b, began, 0};
-        else
+        else if (w->send_counts[to] < INT_MAX)
             w->send_counts[to]++;
+        else
+            *overflow = true;
     }
 }
 
 bpx_status bpx_mpi__events(bpx_mpi_world *w) {
     memset(w->send_counts, 0, sizeof(int) * (size_t)w->size);
-    diff(w, NULL);
+    bool overflow = false;
+    diff(w, NULL, &overflow);
     MPI_Alltoall(w->send_counts, 1, MPI_INT, w->recv_counts, 1, MPI_INT, w->comm);
     size_t send_total = 0, recv_total = 0;
     for (int r = 0; r < w->size; r++) {
@@ -54,7 +58,7 @@ bpx_status bpx_mpi__events(bpx_mpi_world *w) {
         send_total += (size_t)w->send_counts[r];
         recv_total += (size_t)w->recv_counts[r];
     }
-    if (send_total > 0x7fffffff || recv_total > 0x7fffffff)
+    if (overflow || send_total > INT_MAX || recv_total > INT_MAX)
         bpx_mpi__fail(w, BPX_ERR_TOO_MANY_PAIRS, 0, SIZE_MAX, -1,
                       "%zu events to send, %zu to receive: past MPI's int counts", send_total,
                       recv_total);
@@ -70,7 +74,7 @@ bpx_status bpx_mpi__events(bpx_mpi_world *w) {
     if (status != BPX_OK)
         return status;
     memcpy(w->cursor, w->send_displs, sizeof(int) * (size_t)w->size);
-    diff(w, w->ev_send);
+    diff(w, w->ev_send, &overflow);
     MPI_Alltoallv(w->ev_send, w->send_counts, w->send_displs, w->event_type, w->ev_recv,
                   w->recv_counts, w->recv_displs, w->event_type, w->comm);
     w->stats.bytes_sent += send_total * sizeof(event_record);

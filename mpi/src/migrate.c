@@ -41,7 +41,8 @@ static bpx_status check(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *bo
 }
 
 bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes, void *payload,
-                                 size_t payload_size, size_t capacity, size_t *count) {
+                                 size_t payload_size, size_t capacity, size_t *count,
+                                 size_t *needed) {
     memset(&w->error, 0, sizeof w->error);
     w->error.rank = -1;
     bpx_status status = check(w, ids, boxes, payload, payload_size, capacity, count);
@@ -73,7 +74,9 @@ bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes
         arriving += (size_t)w->recv_counts[r];
     size_t after = n - leaving + arriving;
     if (w->error.status == BPX_OK) {
-        if (leaving * record > INT_MAX || arriving * record > INT_MAX)
+        if (leaving > INT_MAX || arriving > INT_MAX ||
+            (leaving > 0 && record > SIZE_MAX / leaving) ||
+            (arriving > 0 && record > SIZE_MAX / arriving))
             bpx_mpi__fail(w, BPX_ERR_TOO_MANY_BOXES, 0, SIZE_MAX, -1,
                           "%zu objects out and %zu in are past MPI's int counts", leaving,
                           arriving);
@@ -86,11 +89,10 @@ bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes
                           "no memory to move %zu and receive %zu objects", leaving, arriving);
     }
     bpx_status mine = w->error.status;
-    if ((status = bpx_mpi__agree(w)) != BPX_OK) {
-        if (status == BPX_ERR_CAPACITY && (mine == BPX_OK || mine == BPX_ERR_CAPACITY))
-            *count = after; // every rank learns the room it needs
+    if (needed && (mine == BPX_OK || mine == BPX_ERR_CAPACITY))
+        *needed = after; // with CAPACITY, every rank learns the room it needs
+    if ((status = bpx_mpi__agree(w)) != BPX_OK)
         return status;
-    }
 
     // Pack the leavers by destination, keep the stayers in order at the front, then unpack.
     size_t sent = 0, received = 0;

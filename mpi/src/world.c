@@ -124,7 +124,8 @@ static void free_buffers(bpx_mpi_world *w) {
                        w->cursor,      w->touched,     w->samples,     w->send,        w->recv,
                        w->ids,         w->ids_tmp,     w->order,       w->order_tmp,
                        w->own_index,   w->boxes,
-                       w->category,    w->mask,        w->inside,      w->pairs,       w->next,
+                       w->category,    w->mask,        w->inside,      w->source,
+                       w->pairs,       w->next,        w->ranks,       w->next_ranks,
                        w->ev_send,     w->ev_recv,     w->began,       w->ended,
                        w->gathered,    w->gather_tmp,  w->home};
     for (size_t i = 0; i < sizeof buffers / sizeof buffers[0]; i++)
@@ -154,9 +155,10 @@ static bpx_status check_def(bpx_mpi_world *w, const bpx_mpi_world_def *def) {
                       def->rebalance_threshold);
         return w->error.status;
     }
-    if (def->samples_per_rank > 1u << 20) {
+    if ((uint64_t)def->samples_per_rank * (uint64_t)w->size > 1u << 24) {
         bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, 0, SIZE_MAX, -1,
-                      "samples_per_rank %u is over 2^20", def->samples_per_rank);
+                      "samples_per_rank %u x %d ranks is over 2^24 samples",
+                      def->samples_per_rank, w->size);
         return w->error.status;
     }
     return BPX_OK;
@@ -210,6 +212,14 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
     }
     // Nothing collective before this point: a rank that failed still agrees with the others.
     bpx_status status = bpx_mpi__agree(e);
+    if (status == BPX_OK) { // events change which collectives a cycle makes: all or none
+        int events = w->def.track_events, first;
+        MPI_Allreduce(&events, &first, 1, MPI_INT, MPI_MIN, comm);
+        if (first != events)
+            bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, 0, SIZE_MAX, -1,
+                          "def.track_events is true here and false on another rank");
+        status = bpx_mpi__agree(w);
+    }
     if (err)
         *err = e->error;
     if (status != BPX_OK) {
@@ -221,6 +231,7 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
         return status;
     }
     MPI_Comm_dup(comm, &w->comm);
+    MPI_Comm_set_errhandler(w->comm, MPI_ERRORS_ARE_FATAL);
     w->record_type[0] = bytes_type(BPX_MPI_RECORD_BYTES);
     w->record_type[1] = bytes_type(BPX_MPI_RECORD_FILTER_BYTES);
     w->pair_type = bytes_type((int)sizeof(bpx_mpi_pair));
@@ -248,6 +259,12 @@ const bpx_mpi_pair *bpx_mpi_world_pairs(const bpx_mpi_world *w, size_t *count) {
     if (count)
         *count = w->pairs_valid ? w->pair_count : 0;
     return w->pairs_valid ? w->pairs : NULL;
+}
+
+const bpx_mpi_pair_ranks *bpx_mpi_world_pair_ranks(const bpx_mpi_world *w, size_t *count) {
+    if (count)
+        *count = w->pairs_valid ? w->pair_count : 0;
+    return w->pairs_valid ? w->ranks : NULL;
 }
 
 bpx_status bpx_mpi_world_pair_events(const bpx_mpi_world *w, bpx_mpi_pair_events *events) {

@@ -29,6 +29,8 @@ struct bpx_mpi_world {
     bool rebalance_asked; // by bpx_mpi_world_rebalance, for the next collide
     bool rebalance_next;  // the last cycle's imbalance passed the threshold
     bool local_filtered;  // the local world holds filters from an earlier cycle
+    double settled_imbalance; // the imbalance just after the last decomposition (0: none yet)
+    bool measure_settled;     // the next successful cycle sets it
 
     MPI_Datatype record_type[2]; // 32 and 40 bytes
     MPI_Datatype pair_type, event_type, sample_type;
@@ -49,10 +51,12 @@ struct bpx_mpi_world {
     bpx_box *boxes;
     uint32_t *category, *mask;
     uint8_t *inside; // the box lies wholly in this rank's region: its pairs' corners do too
+    int *source;     // the rank that passed the box
     size_t present_cap;
 
     // This rank's pairs: the last successful cycle's, and the next one's being made.
     bpx_mpi_pair *pairs, *next;
+    bpx_mpi_pair_ranks *ranks, *next_ranks; // who passed each pair's objects (same capacities)
     size_t pair_count, pairs_cap, next_count, next_cap;
     bool pairs_valid;
 

@@ -94,8 +94,23 @@ typedef struct run {
     bpx_box *boxes;
     bpx_mpi_filter *filters;
     int *home;
+    int *owner;          // per object: the rank that passed it this cycle
+    bpx_mpi_pair *index; // (id, object) sorted by id, to find an object by its id
+    size_t index_count;
     scene_rng rng;
 } run;
+
+static size_t object_of(const run *r, uint64_t id) {
+    size_t lo = 0, hi = r->index_count;
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        if (r->index[mid].a < id)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo < r->index_count && r->index[lo].a == id ? (size_t)r->index[lo].b : SIZE_MAX;
+}
 
 // This rank's share of the scene this cycle.
 static size_t take_share(run *r, const scene *s, ownership how) {
@@ -111,6 +126,7 @@ static size_t take_share(run *r, const scene *s, ownership how) {
         case OWN_HOME: owner = r->home[k]; break;
         default: owner = ranks == 1 ? 0 : (int)(k % (size_t)(ranks - 1)); break;
         }
+        r->owner[k] = owner;
         if (owner != rank)
             continue;
         r->ids[count] = object_id(k);
@@ -134,10 +150,11 @@ static void cycle(run *r, scene *s, ownership how, int root) {
               bpx_mpi_world_error(r->world)->message);
     bpx_world *ref = s->reference;
     CHECK_STATUS(bpx_world_set_boxes(ref, s->boxes, (uint32_t)s->n), BPX_OK);
-    if (s->filters) {
+    { // the reference gets the defaults when the scene has no filters (this cycle)
         uint32_t *cat = check_alloc(s->n * 4), *mask = check_alloc(s->n * 4);
         for (size_t k = 0; k < s->n; k++)
-            cat[k] = s->filters[k].category, mask[k] = s->filters[k].mask;
+            cat[k] = s->filters ? s->filters[k].category : 1,
+            mask[k] = s->filters ? s->filters[k].mask : 0xFFFFFFFFu;
         CHECK_STATUS(bpx_world_set_filters(ref, NULL, cat, mask, (uint32_t)s->n), BPX_OK);
         free(cat);
         free(mask);
@@ -154,6 +171,14 @@ static void cycle(run *r, scene *s, ownership how, int root) {
     CHECK_STATUS(bpx_mpi_world_region(r->world, rank, lo, hi), BPX_OK);
     for (size_t k = 1; k < mine_count; k++)
         CHECK(compare_pairs(&mine[k - 1], &mine[k]) < 0);
+    // Each pair names the ranks that passed its objects.
+    size_t ranks_count;
+    const bpx_mpi_pair_ranks *from = bpx_mpi_world_pair_ranks(r->world, &ranks_count);
+    CHECK_EQ_U64(ranks_count, mine_count);
+    for (size_t k = 0; k < mine_count && from; k++) {
+        size_t a = object_of(r, mine[k].a), b = object_of(r, mine[k].b);
+        CHECK(a < s->n && b < s->n && from[k].a == r->owner[a] && from[k].b == r->owner[b]);
+    }
     bpx_mpi_stats st = bpx_mpi_world_stats(r->world);
     CHECK_EQ_U64(st.total_pair_count, want_count);
     CHECK_EQ_U64(st.pair_count, mine_count);
@@ -203,13 +228,19 @@ static run run_open(const scene *s, bpx_mpi_world_def def, uint64_t seed) {
     r.boxes = check_alloc(cap * sizeof *r.boxes);
     r.filters = check_alloc(cap * sizeof *r.filters);
     r.home = check_alloc(cap * sizeof *r.home);
+    r.owner = check_alloc(cap * sizeof *r.owner);
+    r.index = check_alloc(cap * sizeof *r.index);
+    r.index_count = cap;
+    for (size_t k = 0; k < cap; k++)
+        r.index[k] = (bpx_mpi_pair){object_id(k), k};
+    qsort(r.index, cap, sizeof *r.index, compare_pairs);
     scene_rng_seed(&r.rng, seed);
     return r;
 }
 
 static void run_close(run *r) {
     bpx_mpi_world_destroy(r->world);
-    free(r->ids), free(r->boxes), free(r->filters), free(r->home);
+    free(r->ids), free(r->boxes), free(r->filters), free(r->home), free(r->owner), free(r->index);
 }
 
 static scene scene_make(size_t n, bool filters, bool events, uint64_t seed) {
@@ -485,7 +516,7 @@ static void test_migrate(void) {
     scene_uniform_density((uint32_t)n, 1.0f, 23, s.boxes);
     run r = run_open(&s, bpx_mpi_default_world_def(), 23);
     size_t count = 0;
-    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &count),
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &count, NULL),
                  BPX_ERR_BAD_STATE);
     cycle(&r, &s, OWN_NOT_LAST, 0);
     typedef struct payload {
@@ -498,17 +529,30 @@ static void test_migrate(void) {
     for (size_t k = 0; k < count; k++)
         data[k] = (payload){r.ids[k], {r.boxes[k].min[0], (float)k, -1.0f}};
     memcpy(ids_before, r.ids, count * sizeof *r.ids);
+    // The room each rank will need: the objects whose centre its region holds.
+    CHECK_STATUS(bpx_mpi_world_home_ranks(r.world, s.boxes, n, r.home), BPX_OK);
+    size_t at_home = 0;
+    for (size_t k = 0; k < n; k++)
+        at_home += r.home[k] == rank;
     if (ranks > 1) { // the last rank has nothing and no room: nobody moves anything
-        size_t room = rank == ranks - 1 ? 0 : n, asked = count;
-        bpx_status got =
-            bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, room, &asked);
+        size_t room = rank == ranks - 1 ? 0 : n, asked = count, needed = 0;
+        bpx_status got = bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data,
+                                               room, &asked, &needed);
         check_collective(r.world, got, BPX_ERR_CAPACITY, ranks - 1, 0);
         CHECK(memcmp(ids_before, r.ids, count * sizeof *r.ids) == 0);
-        CHECK(asked >= (rank == ranks - 1 ? 1 : 0) && asked <= n);
+        CHECK_EQ_U64(asked, count);
+        CHECK_EQ_U64(needed, at_home);
     }
-    size_t moved = count;
-    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &moved),
+    size_t over = n + 1; // more objects than room: refused everywhere
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &over,
+                                       NULL),
+                 BPX_ERR_INVALID_ARGUMENT);
+    size_t moved = count, needed = 0;
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &moved,
+                                       &needed),
                  BPX_OK);
+    CHECK_EQ_U64(moved, at_home);
+    CHECK_EQ_U64(needed, at_home);
     // Each object is at home, its payload with it; together they are every object once.
     CHECK_STATUS(bpx_mpi_world_home_ranks(r.world, r.boxes, moved, r.home), BPX_OK);
     for (size_t k = 0; k < moved; k++) {
@@ -538,17 +582,107 @@ static void test_migrate(void) {
     bpx_world_pairs(s.reference, &want_pairs);
     CHECK_EQ_U64(bpx_mpi_world_stats(r.world).total_pair_count, want_pairs);
     // A bad box on one rank: refused everywhere, nothing moved.
+    float kept_min = moved > 0 ? r.boxes[0].min[0] : 0.0f;
     if (rank == 0 && moved > 0)
         r.boxes[0].min[0] = NAN;
     size_t again = moved;
     bpx_status got =
-        bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &again);
+        bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &again, NULL);
     CHECK_MSG(got == BPX_ERR_NOT_FINITE || (got == BPX_OK && ranks == 1 && moved == 0), "%s",
               check_status_name(got));
     CHECK(again == moved);
+    if (rank == 0 && moved > 0)
+        r.boxes[0].min[0] = kept_min;
+    // No payload at all; everyone already home: nothing travels.
+    again = moved;
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &again, NULL),
+                 BPX_OK);
+    CHECK(again == moved && bpx_mpi_world_stats(r.world).migrated_sent == 0);
     free(mine), free(all), free(want), free(data), free(ids_before);
     run_close(&r);
     scene_free(&s);
+}
+
+// Filters switched on and off between cycles (the rank's world must drop the old ones).
+static void test_filters_toggle(void) {
+    size_t n = 600;
+    check_set_context("filters toggled ranks=%d", ranks);
+    scene s = scene_make(n, true, true, 29);
+    scene_uniform_density((uint32_t)n, 1.0f, 29, s.boxes);
+    bpx_mpi_filter *filters = s.filters;
+    bpx_mpi_world_def def = bpx_mpi_default_world_def();
+    def.track_events = true;
+    run r = run_open(&s, def, 29);
+    for (int c = 0; c < 6; c++) {
+        s.filters = c % 3 == 1 ? NULL : filters;
+        cycle(&r, &s, c % 2 ? OWN_RANDOM : OWN_ROUND_ROBIN, 0);
+    }
+    s.filters = filters;
+    run_close(&r);
+    scene_free(&s);
+}
+
+// The regions follow the boxes by themselves once the load drifts past the threshold, and a
+// bisection that cannot help (every centre in one point) is not repeated every cycle.
+static void test_auto_rebalance(void) {
+    size_t n = 1200;
+    check_set_context("auto rebalance ranks=%d", ranks);
+    scene s = scene_make(n, false, true, 31);
+    scene_uniform_density((uint32_t)n, 1.0f, 31, s.boxes);
+    bpx_mpi_world_def def = bpx_mpi_default_world_def();
+    def.track_events = true;
+    run r = run_open(&s, def, 31);
+    cycle(&r, &s, OWN_ROUND_ROBIN, 0);
+    CHECK_EQ_U64(bpx_mpi_world_stats(r.world).decomposition_count, 1);
+    // Half the boxes pile up as points on the centre of a box wholly inside rank 0's region.
+    float lo[3], hi[3], at[3] = {0, 0, 0};
+    CHECK_STATUS(bpx_mpi_world_region(r.world, 0, lo, hi), BPX_OK);
+    for (size_t i = 0; i < n; i++) {
+        const bpx_box *b = &s.boxes[i];
+        bool inside = true;
+        for (int k = 0; k < 3; k++)
+            inside = inside && lo[k] <= b->min[k] && b->max[k] < hi[k];
+        if (inside) {
+            for (int k = 0; k < 3; k++)
+                at[k] = 0.5f * b->min[k] + 0.5f * b->max[k];
+            break;
+        }
+    }
+    for (size_t i = 0; i < n / 2; i++) // distinct ids on one point: allowed
+        s.boxes[i] = (bpx_box){{at[0], at[1], at[2]}, {at[0], at[1], at[2]}};
+    cycle(&r, &s, OWN_HOME, 0);
+    double piled = bpx_mpi_world_stats(r.world).imbalance;
+    cycle(&r, &s, OWN_HOME, 0);
+    if (ranks > 1) { // one rank holds half the boxes: (ranks + 1) / 2 times the mean
+        CHECK_MSG(piled > 1.4, "imbalance %.3f", piled);
+        CHECK_EQ_U64(bpx_mpi_world_stats(r.world).decomposition_count, 2);
+    }
+    for (int c = 0; c < 3; c++) // all in one point: one rank holds them whatever the cuts
+        cycle(&r, &s, OWN_HOME, 0);
+    uint64_t settled = bpx_mpi_world_stats(r.world).decomposition_count;
+    for (size_t i = 0; i < n; i++)
+        s.boxes[i] = s.boxes[0];
+    for (int c = 0; c < 4; c++)
+        cycle(&r, &s, OWN_HOME, 0);
+    CHECK(bpx_mpi_world_stats(r.world).decomposition_count <= settled + 1);
+    run_close(&r);
+    scene_free(&s);
+}
+
+// A definition that changes the cycle's collectives must agree over ranks.
+static void test_mismatched_def(void) {
+    if (ranks == 1)
+        return;
+    check_set_context("mismatched def ranks=%d", ranks);
+    bpx_mpi_world_def def = bpx_mpi_default_world_def();
+    def.track_events = rank == 0;
+    bpx_mpi_world *w = (bpx_mpi_world *)1;
+    bpx_mpi_error err;
+    CHECK_STATUS(bpx_mpi_world_create(MPI_COMM_WORLD, &def, &w, &err), BPX_ERR_INVALID_ARGUMENT);
+    CHECK(w == NULL && strstr(err.message, "track_events") != NULL);
+    def = bpx_mpi_default_world_def();
+    def.samples_per_rank = (1u << 24) / (uint32_t)ranks + 1;
+    CHECK_STATUS(bpx_mpi_world_create(MPI_COMM_WORLD, &def, &w, &err), BPX_ERR_INVALID_ARGUMENT);
 }
 
 int main(int argc, char **argv) {
@@ -563,6 +697,9 @@ int main(int argc, char **argv) {
     test_clustered();
     test_huge_and_borders();
     test_migrate();
+    test_filters_toggle();
+    test_auto_rebalance();
+    test_mismatched_def();
     int local[2] = {check_failures, check_count}, total[2];
     MPI_Reduce(local, total, 2, MPI_INT, MPI_SUM, 0, MPI_COMM_WORLD);
     int code = 0;
