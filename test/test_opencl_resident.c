@@ -173,8 +173,8 @@ static uint64_t read_back(bpx_world *world, pair_list *got, size_t *capacity)
     pair_list_reserve(got, have ? have : 1);
     got->count = have;
     if (have)
-        CHECK(clEnqueueReadBuffer(queue, pairs, CL_TRUE, 0, have * sizeof(bpx_pair), got->pairs,
-                                  0, NULL, NULL) == CL_SUCCESS);
+        CHECK(clEnqueueReadBuffer(queue, pairs, CL_TRUE, 0, have * sizeof(bpx_pair), got->pairs, 0,
+                                  NULL, NULL) == CL_SUCCESS);
     return found;
 }
 
@@ -195,8 +195,8 @@ static bpx_status device_cycle(bpx_world *world, const pair_list *want)
     size_t capacity = 0;
     CHECK_STATUS(bpx_opencl_device_pairs(world, &pairs, &count, &capacity), BPX_OK);
     cl_command_queue queue = queue_of(world);
-    cl_mem out = clCreateBuffer(context_of(world), CL_MEM_READ_WRITE, 3 * sizeof(cl_uint), NULL,
-                                NULL);
+    cl_mem out =
+        clCreateBuffer(context_of(world), CL_MEM_READ_WRITE, 3 * sizeof(cl_uint), NULL, NULL);
     CHECK(out != NULL);
     cl_uint zero = 0, seen[3] = {0, 0, 0};
     cl_ulong capacity_arg = capacity;
@@ -277,7 +277,7 @@ typedef struct scene {
 } scene;
 
 static const scene scenes[] = {
-    {"random", SCENE_UNIFORM_DENSITY}, {"dense", SCENE_DENSE},
+    {"random", SCENE_UNIFORM_DENSITY},   {"dense", SCENE_DENSE},
     {"heavy-tailed", SCENE_MIXED_SIZES}, {"shared-x", SCENE_SHARED_COORD},
     {"all-overlap", SCENE_ALL_OVERLAP},  {"touching", SCENE_TOUCHING},
     {"signed-zero", SCENE_SIGNED_ZERO},
@@ -359,8 +359,8 @@ static void run_case(const scene *sc, uint32_t n, const path *p, source from)
     bpx__opencl_counters after = counters(world);
     CHECK(path_cycles(&before, &after, p->method, n) >= CYCLES);
     CHECK_EQ_U64(after.tree_fallbacks + after.sweep_fallbacks, 0);
-    CHECK_EQ_U64(bpx_world_stats(world).cycle_count, after.brute_cycles + after.tree_cycles +
-                                                         after.sweep_cycles);
+    CHECK_EQ_U64(bpx_world_stats(world).cycle_count,
+                 after.brute_cycles + after.tree_cycles + after.sweep_cycles);
 done:
     if (buffer)
         clReleaseMemObject(buffer);
@@ -440,8 +440,8 @@ static void test_capacity(void)
         CHECK_STATUS(device_cycle(world, &want_all), BPX_ERR_CAPACITY);
         CHECK_STATUS(device_cycle(world, &want_all), BPX_OK);
         // And back: the room stays, the sort covers the last count and a quarter more.
-        CHECK(clEnqueueWriteBuffer(queue_of(world), buffer, CL_TRUE, 0, sizeof(bpx_box) * n,
-                                   sparse, 0, NULL, NULL) == CL_SUCCESS);
+        CHECK(clEnqueueWriteBuffer(queue_of(world), buffer, CL_TRUE, 0, sizeof(bpx_box) * n, sparse,
+                                   0, NULL, NULL) == CL_SUCCESS);
         CHECK_STATUS(device_cycle(world, &want_sparse), BPX_OK);
         CHECK_STATUS(device_cycle(world, &want_sparse), BPX_OK);
         clReleaseMemObject(buffer);
@@ -466,7 +466,8 @@ static void test_memory_limit(void)
     // The first room (65536 pairs) fits as brute force's pairs (8 bytes each) but not as the
     // tree's keys, sorted keys and pairs (24 bytes each).
     for (int method = BPX_OPENCL_SWEEP; method <= BPX_OPENCL_TREE; method++) {
-        check_set_context("memory limit: %s gives way", method == BPX_OPENCL_TREE ? "tree" : "sweep");
+        check_set_context("memory limit: %s gives way",
+                          method == BPX_OPENCL_TREE ? "tree" : "sweep");
         bpx_world_def def = def_for(method);
         def.opencl_memory_limit = 1200 * 1024;
         bpx_world *world = make(&def);
@@ -650,8 +651,7 @@ static void test_errors(void)
     if (world) {
         CHECK_STATUS(bpx_world_set_boxes(world, boxes, n), BPX_OK);
         CHECK_STATUS(bpx_opencl_collide_device(world), BPX_ERR_BACKEND_UNAVAILABLE);
-        CHECK_STATUS(bpx_opencl_device_pairs(world, NULL, NULL, NULL),
-                     BPX_ERR_BACKEND_UNAVAILABLE);
+        CHECK_STATUS(bpx_opencl_device_pairs(world, NULL, NULL, NULL), BPX_ERR_BACKEND_UNAVAILABLE);
         CHECK_STATUS(bpx_opencl_finish(world, NULL), BPX_ERR_BACKEND_UNAVAILABLE);
         bpx_world_destroy(world);
     }

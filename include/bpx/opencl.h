@@ -1,10 +1,11 @@
 // bpx: broad-phase collision detection. SPDX-License-Identifier: MIT
 //
 // The OpenCL backend's own calls: listing devices, handing the world boxes or centres that are
-// already on the device, and cycles whose pairs stay there. The backend itself is chosen like any other (bpx_world_def.backend =
-// BPX_BACKEND_OPENCL) and configured with the opencl_* fields of bpx_world_def. Every function
-// here exists in every build; without OpenCL support they return BPX_ERR_BACKEND_UNAVAILABLE.
-// OpenCL handles cross this header as void pointers, so including it needs no OpenCL headers.
+// already on the device, and cycles whose pairs stay there. The backend itself is chosen like any
+// other (bpx_world_def.backend = BPX_BACKEND_OPENCL) and configured with the opencl_* fields of
+// bpx_world_def. Every function here exists in every build; without OpenCL support they return
+// BPX_ERR_BACKEND_UNAVAILABLE. OpenCL handles cross this header as void pointers, so including it
+// needs no OpenCL headers.
 #pragma once
 
 #include "bpx.h"

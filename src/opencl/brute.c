@@ -29,6 +29,25 @@ typedef struct rows_cols {
     cl_uint padded_rows, ia, padded_cols, jb;
 } rows_cols;
 
+// The arguments bpx_brute_count and bpx_brute_emit start with: the rows, the columns, each
+// row's count and stash, each group's sum and long-row flag.
+enum { ROW_ARGS = 11 };
+static void row_args(cl_state *st, const rows_cols *rc, kernel_arg *args)
+{
+    const kernel_arg shared[ROW_ARGS] = {ARG(rc->lo),
+                                         ARG(rc->hi),
+                                         ARG(rc->ia),
+                                         ARG(rc->lo_b),
+                                         ARG(rc->hi_b),
+                                         ARG(rc->padded_cols),
+                                         ARG(rc->jb),
+                                         ARG(st->row_count.mem),
+                                         ARG(st->stash.mem),
+                                         ARG(st->group_sum.mem),
+                                         ARG(st->group_long.mem)};
+    memcpy(args, shared, sizeof shared);
+}
+
 // Each row's hits counted, the groups' sums scanned, the total into reg[slot].
 static bpx_status count_rows(cl_state *st, const rows_cols *rc, cl_mem reg, cl_uint slot)
 {
@@ -40,18 +59,9 @@ static bpx_status count_rows(cl_state *st, const rows_cols *rc, cl_mem reg, cl_u
     TRY(bpx__cl_dbuf_reserve(st, &st->group_sum, groups * sizeof(cl_ulong)));
     TRY(bpx__cl_dbuf_reserve(st, &st->group_long, groups * sizeof(cl_uint)));
     cl_uint groups_arg = (cl_uint)groups;
-    const kernel_arg count_args[] = {ARG(rc->lo),
-                                     ARG(rc->hi),
-                                     ARG(rc->ia),
-                                     ARG(rc->lo_b),
-                                     ARG(rc->hi_b),
-                                     ARG(rc->padded_cols),
-                                     ARG(rc->jb),
-                                     ARG(st->row_count.mem),
-                                     ARG(st->stash.mem),
-                                     ARG(st->group_sum.mem),
-                                     ARG(st->group_long.mem)};
-    TRY(bpx__cl_launch(st, K_BRUTE_COUNT, rc->padded_rows, tile, 11, count_args));
+    kernel_arg count_args[ROW_ARGS];
+    row_args(st, rc, count_args);
+    TRY(bpx__cl_launch(st, K_BRUTE_COUNT, rc->padded_rows, tile, ROW_ARGS, count_args));
     const kernel_arg sums_args[] = {ARG(st->group_sum.mem), ARG(groups_arg), ARG(reg), ARG(slot)};
     TRY(bpx__cl_launch(st, K_SCAN_SUMS, st->dev->scan_wg, st->dev->scan_wg, 4, sums_args));
     // Tests made, as the kernel walks them: each group from its first tile to the end.
@@ -67,21 +77,12 @@ static bpx_status count_rows(cl_state *st, const rows_cols *rc, cl_mem reg, cl_u
 // The pairs whose place lies in [window, window + capacity) into st->pairs (after count_rows).
 static bpx_status emit_rows(cl_state *st, const rows_cols *rc, cl_ulong window, cl_ulong capacity)
 {
-    const kernel_arg emit_args[] = {ARG(rc->lo),
-                                    ARG(rc->hi),
-                                    ARG(rc->ia),
-                                    ARG(rc->lo_b),
-                                    ARG(rc->hi_b),
-                                    ARG(rc->padded_cols),
-                                    ARG(rc->jb),
-                                    ARG(st->row_count.mem),
-                                    ARG(st->stash.mem),
-                                    ARG(st->group_sum.mem),
-                                    ARG(st->group_long.mem),
-                                    ARG(st->pairs.mem),
-                                    ARG(window),
-                                    ARG(capacity)};
-    return bpx__cl_launch(st, K_BRUTE_EMIT, rc->padded_rows, st->tile, 14, emit_args);
+    kernel_arg emit_args[ROW_ARGS + 3];
+    row_args(st, rc, emit_args);
+    emit_args[ROW_ARGS] = ARG(st->pairs.mem);
+    emit_args[ROW_ARGS + 1] = ARG(window);
+    emit_args[ROW_ARGS + 2] = ARG(capacity);
+    return bpx__cl_launch(st, K_BRUTE_EMIT, rc->padded_rows, st->tile, ROW_ARGS + 3, emit_args);
 }
 
 // Every pair of rc appended to out in (i, j) order.
@@ -128,8 +129,7 @@ static rows_cols whole_set(const cl_state *st, uint32_t padded)
 }
 
 // bpx_brute_small over n boxes into st->pairs up to capacity; the total into reg[slot].
-static bpx_status launch_small(cl_state *st, cl_uint n, cl_ulong capacity, cl_mem reg,
-                               cl_uint slot)
+static bpx_status launch_small(cl_state *st, cl_uint n, cl_ulong capacity, cl_mem reg, cl_uint slot)
 {
     const kernel_arg args[] = {ARG(st->lo.mem), ARG(st->hi.mem), ARG(n),   ARG(st->pairs.mem),
                                ARG(capacity),   ARG(reg),        ARG(slot)};

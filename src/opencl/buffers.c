@@ -178,10 +178,10 @@ bpx_status bpx__cl_fill(cl_state *st, cl_mem mem, unsigned char byte, size_t siz
 {
     if (size == 0)
         return BPX_OK;
-    CL_CHECK(st,
-             clEnqueueFillBuffer(st->queue, mem, &byte, 1, 0, size, 0, NULL,
-                                 event_slot(st, EV_DEVICE)),
-             "clEnqueueFillBuffer");
+    CL_CHECK(
+        st,
+        clEnqueueFillBuffer(st->queue, mem, &byte, 1, 0, size, 0, NULL, event_slot(st, EV_DEVICE)),
+        "clEnqueueFillBuffer");
     event_commit(st);
     return BPX_OK;
 }
@@ -269,10 +269,10 @@ void bpx__cl_state_free(cl_state *st)
                     &st->offsets,     &st->sums,        &st->hist,         &st->hist_offsets,
                     &st->pi[0],       &st->pi[1],       &st->pj[0],        &st->pj[1],
                     &st->leaf_parent, &st->node_parent, &st->nodes,        &st->flags,
-                    &st->tree_small,  &st->walk_tests,  &st->pair_keys[0], &st->pair_keys[1],
-                    &st->resident_count};
+                    &st->tree_small,  &st->walk_tests,  &st->pair_keys[0], &st->pair_keys[1]};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; k++)
         bpx__cl_dbuf_release(st, bufs[k]);
+    bpx__cl_dbuf_release(st, &st->resident_count);
     if (st->user_buffer)
         clReleaseMemObject(st->user_buffer);
     for (int k = 0; k < K_COUNT; k++)

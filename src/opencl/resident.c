@@ -41,8 +41,8 @@ void bpx__cl_resident_settle(bpx_world *w, cl_state *st)
     memcpy(&found, st->resident_host.host, sizeof found);
     st->resident = RESIDENT_DONE;
     st->resident_found = found;
-    st->resident_status = err != CL_SUCCESS          ? BPX_ERR_DEVICE
-                          : found == UINT64_MAX      ? BPX_ERR_TOO_MANY_PAIRS
+    st->resident_status = err != CL_SUCCESS               ? BPX_ERR_DEVICE
+                          : found == UINT64_MAX           ? BPX_ERR_TOO_MANY_PAIRS
                           : found > st->resident_capacity ? BPX_ERR_CAPACITY
                                                           : BPX_OK;
     if (err != CL_SUCCESS)

@@ -28,8 +28,8 @@ static bpx_status count_positions(cl_state *st, bpx_world *w, cl_mem *index)
     TRY(bpx__cl_dbuf_reserve(st, &st->sorted_hi, (size_t)padded * 16));
     cl_uint padded_arg = padded;
     const kernel_arg gather_args[] = {
-        ARG(st->lo.mem),        ARG(st->hi.mem),       ARG(*index), ARG(n_arg), ARG(padded_arg),
-        ARG(st->sorted_lo.mem), ARG(st->sorted_hi.mem)};
+        ARG(st->lo.mem), ARG(st->hi.mem),        ARG(*index),           ARG(n_arg),
+        ARG(padded_arg), ARG(st->sorted_lo.mem), ARG(st->sorted_hi.mem)};
     TRY(bpx__cl_launch(st, K_SWEEP_GATHER, padded, 0, 7, gather_args));
     TRY(bpx__cl_dbuf_reserve(st, &st->counts, (size_t)padded * sizeof(cl_uint)));
     TRY(bpx__cl_dbuf_reserve(st, &st->offsets, (size_t)n * sizeof(cl_ulong)));
@@ -58,8 +58,7 @@ static bpx_status reserve_pairs(cl_state *st, uint64_t pairs)
 // Each position's pairs written from its offset (those at `capacity` or beyond dropped), put
 // in (i, j) order by two stable radix sorts of the first `count` (by j, then by i) and packed
 // into st->pairs.
-static bpx_status order(cl_state *st, uint32_t n, cl_mem index, cl_ulong capacity,
-                        uint32_t count)
+static bpx_status order(cl_state *st, uint32_t n, cl_mem index, cl_ulong capacity, uint32_t count)
 {
     cl_uint n_arg = n, padded_arg = (cl_uint)round_up(n, st->tile);
     const kernel_arg write_args[] = {
