@@ -8,7 +8,8 @@
 # Files: env.txt (machine, driver, toolkit, commit), tests.log, gpubench.md/.csv (cuda
 # device-resident and over the link against the host's grid on every thread, n = 500 .. 10M),
 # table2.md (the paper's Table 2 with the communication share of cuda and opencl), scale.md/.csv
-# (bpx bench's scale rows for cuda, opencl, grid and sap).
+# (bpx bench's scale rows for cuda, opencl, grid and sap), clresident.md (the opencl tree's
+# cycle with pairs out to the host against its device-resident cycle, bpx_clscale --mode).
 set -u
 cd "$(dirname "$0")/../.."
 device=$(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1 |
@@ -56,4 +57,9 @@ stamp "scale rows" | tee -a "$out/tests.log"
 "$build/bpx" bench --backend cuda,opencl,grid,sap --sizes 10000,100000,1000000 \
     --scene uniform,heavy --seconds 1 --csv "$out/scale.csv" >"$out/scale.md" 2>&1
 grep -E "^\|" "$out/scale.md" | head -40
+
+stamp "opencl device-resident" | tee -a "$out/tests.log"
+"$build/bench/opencl/bpx_clscale" --sizes 100000,1000000,10000000 --scene uniform,heavy \
+    --method tree --mode host,resident --cycles 7 >"$out/clresident.md" 2>&1
+cat "$out/clresident.md"
 stamp "done" | tee -a "$out/tests.log"

@@ -1,10 +1,11 @@
 // bpx: broad-phase collision detection. SPDX-License-Identifier: MIT
 //
-// The OpenCL backend's own calls: listing devices, and handing the world boxes or centres that
-// are already on the device. The backend itself is chosen like any other (bpx_world_def.backend =
-// BPX_BACKEND_OPENCL) and configured with the opencl_* fields of bpx_world_def. Every function
-// here exists in every build; without OpenCL support they return BPX_ERR_BACKEND_UNAVAILABLE.
-// OpenCL handles cross this header as void pointers, so including it needs no OpenCL headers.
+// The OpenCL backend's own calls: listing devices, handing the world boxes or centres that are
+// already on the device, and cycles whose pairs stay there. The backend itself is chosen like any
+// other (bpx_world_def.backend = BPX_BACKEND_OPENCL) and configured with the opencl_* fields of
+// bpx_world_def. Every function here exists in every build; without OpenCL support they return
+// BPX_ERR_BACKEND_UNAVAILABLE. OpenCL handles cross this header as void pointers, so including it
+// needs no OpenCL headers.
 #pragma once
 
 #include "bpx.h"
@@ -74,6 +75,63 @@ BPX_API bpx_status bpx_opencl_set_boxes_buffer(bpx_world *world, void *buffer, u
 /// loaded count, a buffer smaller than n centres or from another context), NOT_FINITE, DEVICE,
 /// DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.
 BPX_API bpx_status bpx_opencl_set_centres_buffer(bpx_world *world, void *buffer, uint32_t n);
+
+// ---------------------------------------------------------------------------------------------
+// Cycles that never leave the device
+//
+// bpx_opencl_collide_device runs the cycle and leaves its pairs, sorted by (i, j), and their
+// count in device memory for the caller's next kernel; with set_boxes_buffer or
+// set_centres_buffer nothing crosses the link but the 8-byte count.
+//
+// Ownership, queues and synchronisation:
+// - The world owns the pair buffer and the count buffer (cl_mem in the world's context). They
+//   are handed out without a reference: valid until the next bpx_opencl_collide_device,
+//   bpx_world_collide* or bpx_world_destroy, which may replace or overwrite them (retain one to
+//   keep the object longer; its content is the world's to change). Call
+//   bpx_opencl_device_pairs after each bpx_opencl_collide_device.
+// - The cycle runs on the world's in-order command queue (bpx_opencl_world_handles): commands
+//   the caller enqueues there after bpx_opencl_collide_device see the pairs and the count; the
+//   next cycle, enqueued after them, overwrites the buffers only when they are done. Work on
+//   another queue must wait for the cycle first (an event of a marker enqueued on the world's
+//   queue), and must be done before the next cycle is enqueued.
+// - No host round trip inside the cycle: buffers are sized from the previous cycle's count
+//   before anything is enqueued, and the count follows the pairs to pinned host memory. The
+//   next bpx_opencl_collide_device waits for that copy (the previous cycle only, not the
+//   caller's commands behind it); so do bpx_opencl_finish, bpx_world_collide*,
+//   bpx_world_update_centres and bpx_opencl_set_*_buffer. Nothing else waits.
+// - Every path runs device-resident: brute force (the small-set kernel and the tiled one), the
+//   tree, and the sweep when forced. The tree and the sweep sort the whole room (their pairs
+//   past the count are padding); when their buffers pass the memory limit, brute force takes
+//   the cycle, as on the host. Boxes streamed in blocks (opencl_block_boxes below n, or more
+//   boxes than fit under the memory limit) are refused: BAD_STATE.
+// - A world is used by one host thread at a time, like every world.
+
+/// Enqueues one whole cycle on the world's queue and returns without waiting for it. The boxes
+/// are the world's current ones (from the host, from centres, or from a device buffer).
+/// Errors (of the enqueueing; the cycle's outcome is bpx_opencl_finish's): NULL_ARGUMENT,
+/// BACKEND_UNAVAILABLE (not an opencl world), BAD_STATE (filters or events in use: they need
+/// the host's pairs; boxes streamed in blocks; a device buffer in a world with objects removed
+/// by id), DEVICE_MEMORY (room for the pairs passes the memory limit), DEVICE, OUT_OF_MEMORY.
+/// The world's host pairs (bpx_world_pairs) are no longer the last cycle's.
+BPX_API bpx_status bpx_opencl_collide_device(bpx_world *world);
+
+/// The last device-resident cycle's buffers: *pairs_buffer (a cl_mem) holds *capacity pairs
+/// (bpx_pair, two uint32 each), of which the first count are the cycle's when count <=
+/// capacity, count being the cl_ulong at the start of *count_buffer (a cl_mem). When count >
+/// capacity the room was short: the buffer is not the pair set, bpx_opencl_finish says
+/// CAPACITY, and the next cycle has room. Does not wait. Any pointer may be NULL.
+/// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE, BAD_STATE (no bpx_opencl_collide_device since
+/// the world was made or since its last bpx_world_collide*).
+BPX_API bpx_status bpx_opencl_device_pairs(bpx_world *world, void **pairs_buffer,
+                                           void **count_buffer, size_t *capacity);
+
+/// Waits for the last bpx_opencl_collide_device and tells how it went, as often as asked until
+/// the next cycle: OK with *count (may be NULL) pairs; CAPACITY with *count the pairs found
+/// (the room was short; run the cycle again: it has room); TOO_MANY_PAIRS (2^32 pairs or more);
+/// DEVICE (the device failed). Also sets bpx_world_stats (pair_count, the transfer and device
+/// times, bytes in and out; pair_tests for brute force only).
+/// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE, BAD_STATE (no device-resident cycle, as above).
+BPX_API bpx_status bpx_opencl_finish(bpx_world *world, size_t *count);
 
 #ifdef __cplusplus
 }

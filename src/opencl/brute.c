@@ -22,64 +22,81 @@ static bpx_status reserve_pair_window(cl_state *st)
     }
 }
 
-// Rows (keys lo/hi, padded_rows, numbered from ia) against columns (lo_b/hi_b, padded_cols,
-// numbered from jb): every pair with j > i, appended to out in (i, j) order.
-static bpx_status brute_block(cl_state *st, cl_mem lo, cl_mem hi, uint32_t padded_rows, uint32_t ia,
-                              cl_mem lo_b, cl_mem hi_b, uint32_t padded_cols, uint32_t jb,
-                              bpx_pair_list *out)
+// Rows (keys lo/hi, padded_rows of them, numbered from ia) against columns (lo_b/hi_b,
+// padded_cols, numbered from jb): every pair with j > i.
+typedef struct rows_cols {
+    cl_mem lo, hi, lo_b, hi_b;
+    cl_uint padded_rows, ia, padded_cols, jb;
+} rows_cols;
+
+// The arguments bpx_brute_count and bpx_brute_emit start with: the rows, the columns, each
+// row's count and stash, each group's sum and long-row flag.
+enum { ROW_ARGS = 11 };
+static void row_args(cl_state *st, const rows_cols *rc, kernel_arg *args)
+{
+    const kernel_arg shared[ROW_ARGS] = {ARG(rc->lo),
+                                         ARG(rc->hi),
+                                         ARG(rc->ia),
+                                         ARG(rc->lo_b),
+                                         ARG(rc->hi_b),
+                                         ARG(rc->padded_cols),
+                                         ARG(rc->jb),
+                                         ARG(st->row_count.mem),
+                                         ARG(st->stash.mem),
+                                         ARG(st->group_sum.mem),
+                                         ARG(st->group_long.mem)};
+    memcpy(args, shared, sizeof shared);
+}
+
+// Each row's hits counted, the groups' sums scanned, the total into reg[slot].
+static bpx_status count_rows(cl_state *st, const rows_cols *rc, cl_mem reg, cl_uint slot)
 {
     unsigned tile = st->tile;
-    size_t groups = padded_rows / tile;
-    TRY(bpx__cl_dbuf_reserve(st, &st->row_count, (size_t)padded_rows * sizeof(cl_uint)));
-    TRY(bpx__cl_dbuf_reserve(st, &st->stash, (size_t)padded_rows * BPX_CL_STASH * sizeof(cl_uint)));
+    size_t groups = rc->padded_rows / tile;
+    TRY(bpx__cl_dbuf_reserve(st, &st->row_count, (size_t)rc->padded_rows * sizeof(cl_uint)));
+    TRY(bpx__cl_dbuf_reserve(st, &st->stash,
+                             (size_t)rc->padded_rows * BPX_CL_STASH * sizeof(cl_uint)));
     TRY(bpx__cl_dbuf_reserve(st, &st->group_sum, groups * sizeof(cl_ulong)));
     TRY(bpx__cl_dbuf_reserve(st, &st->group_long, groups * sizeof(cl_uint)));
-    cl_uint ia_arg = ia, jb_arg = jb, cols_arg = padded_cols, groups_arg = (cl_uint)groups;
-    cl_uint slot = 0;
-    const kernel_arg count_args[] = {ARG(lo),
-                                     ARG(hi),
-                                     ARG(ia_arg),
-                                     ARG(lo_b),
-                                     ARG(hi_b),
-                                     ARG(cols_arg),
-                                     ARG(jb_arg),
-                                     ARG(st->row_count.mem),
-                                     ARG(st->stash.mem),
-                                     ARG(st->group_sum.mem),
-                                     ARG(st->group_long.mem)};
-    TRY(bpx__cl_launch(st, K_BRUTE_COUNT, padded_rows, tile, 11, count_args));
-    const kernel_arg sums_args[] = {ARG(st->group_sum.mem), ARG(groups_arg), ARG(st->registers.mem),
-                                    ARG(slot)};
+    cl_uint groups_arg = (cl_uint)groups;
+    kernel_arg count_args[ROW_ARGS];
+    row_args(st, rc, count_args);
+    TRY(bpx__cl_launch(st, K_BRUTE_COUNT, rc->padded_rows, tile, ROW_ARGS, count_args));
+    const kernel_arg sums_args[] = {ARG(st->group_sum.mem), ARG(groups_arg), ARG(reg), ARG(slot)};
     TRY(bpx__cl_launch(st, K_SCAN_SUMS, st->dev->scan_wg, st->dev->scan_wg, 4, sums_args));
     // Tests made, as the kernel walks them: each group from its first tile to the end.
     for (size_t g = 0; g < groups; g++) {
-        uint64_t first = (uint64_t)ia + g * tile + 1;
-        uint64_t start = first <= jb ? 0 : (first - jb) / tile * tile;
-        if (start < padded_cols)
-            st->tests += (padded_cols - start) * (uint64_t)tile;
+        uint64_t first = (uint64_t)rc->ia + g * tile + 1;
+        uint64_t start = first <= rc->jb ? 0 : (first - rc->jb) / tile * tile;
+        if (start < rc->padded_cols)
+            st->tests += (rc->padded_cols - start) * (uint64_t)tile;
     }
+    return BPX_OK;
+}
 
+// The pairs whose place lies in [window, window + capacity) into st->pairs (after count_rows).
+static bpx_status emit_rows(cl_state *st, const rows_cols *rc, cl_ulong window, cl_ulong capacity)
+{
+    kernel_arg emit_args[ROW_ARGS + 3];
+    row_args(st, rc, emit_args);
+    emit_args[ROW_ARGS] = ARG(st->pairs.mem);
+    emit_args[ROW_ARGS + 1] = ARG(window);
+    emit_args[ROW_ARGS + 2] = ARG(capacity);
+    return bpx__cl_launch(st, K_BRUTE_EMIT, rc->padded_rows, st->tile, ROW_ARGS + 3, emit_args);
+}
+
+// Every pair of rc appended to out in (i, j) order.
+static bpx_status brute_block(cl_state *st, const rows_cols *rc, bpx_pair_list *out)
+{
+    cl_uint slot = 0;
+    TRY(count_rows(st, rc, st->registers.mem, slot));
     // Emit at once into the buffer there is (the count is not known yet), then read the
     // register: when the buffer was too small, grow it (or, past the memory limit, read the
     // pairs out in windows) and emit again. No pair is lost either way.
     if (st->pairs.size == 0)
         TRY(reserve_pair_window(st));
     cl_ulong window = 0, capacity = st->pairs.size / sizeof(bpx_pair);
-    const kernel_arg emit_args[] = {ARG(lo),
-                                    ARG(hi),
-                                    ARG(ia_arg),
-                                    ARG(lo_b),
-                                    ARG(hi_b),
-                                    ARG(cols_arg),
-                                    ARG(jb_arg),
-                                    ARG(st->row_count.mem),
-                                    ARG(st->stash.mem),
-                                    ARG(st->group_sum.mem),
-                                    ARG(st->group_long.mem),
-                                    ARG(st->pairs.mem),
-                                    ARG(window),
-                                    ARG(capacity)};
-    TRY(bpx__cl_launch(st, K_BRUTE_EMIT, padded_rows, tile, 14, emit_args));
+    TRY(emit_rows(st, rc, window, capacity));
     uint64_t total;
     TRY(bpx__cl_read_register(st, slot, &total));
     if (total > capacity) {
@@ -89,7 +106,7 @@ static bpx_status brute_block(cl_state *st, cl_mem lo, cl_mem hi, uint32_t padde
         if (grown == BPX_OK) {
             st->counters.emit_reruns++;
             capacity = st->pairs.size / sizeof(bpx_pair);
-            TRY(bpx__cl_launch(st, K_BRUTE_EMIT, padded_rows, tile, 14, emit_args));
+            TRY(emit_rows(st, rc, window, capacity));
         } else if (grown != BPX_ERR_DEVICE_MEMORY) {
             return grown;
         }
@@ -101,8 +118,22 @@ static bpx_status brute_block(cl_state *st, cl_mem lo, cl_mem hi, uint32_t padde
         if (window >= total)
             return BPX_OK;
         st->counters.pair_windows++;
-        TRY(bpx__cl_launch(st, K_BRUTE_EMIT, padded_rows, tile, 14, emit_args));
+        TRY(emit_rows(st, rc, window, capacity));
     }
+}
+
+// The whole set against itself (keys in st->lo / st->hi, padded).
+static rows_cols whole_set(const cl_state *st, uint32_t padded)
+{
+    return (rows_cols){st->lo.mem, st->hi.mem, st->lo.mem, st->hi.mem, padded, 0, padded, 0};
+}
+
+// bpx_brute_small over n boxes into st->pairs up to capacity; the total into reg[slot].
+static bpx_status launch_small(cl_state *st, cl_uint n, cl_ulong capacity, cl_mem reg, cl_uint slot)
+{
+    const kernel_arg args[] = {ARG(st->lo.mem), ARG(st->hi.mem), ARG(n),   ARG(st->pairs.mem),
+                               ARG(capacity),   ARG(reg),        ARG(slot)};
+    return bpx__cl_launch(st, K_BRUTE_SMALL, st->dev->small_wg, st->dev->small_wg, 7, args);
 }
 
 // Everything on the device at once.
@@ -111,8 +142,8 @@ bpx_status bpx__cl_brute_all(cl_state *st, bpx_world *w, bpx_block *block)
     uint32_t padded = (uint32_t)round_up(w->n, st->tile);
     TRY(bpx__cl_upload_keys(st, w, 0, w->n, padded, 0, &st->lo, &st->hi));
     st->counters.brute_cycles++;
-    return brute_block(st, st->lo.mem, st->hi.mem, padded, 0, st->lo.mem, st->hi.mem, padded, 0,
-                       &block->hits);
+    rows_cols rc = whole_set(st, padded);
+    return brute_block(st, &rc, &block->hits);
 }
 
 // Small sets: one bpx__cl_launch (bpx_brute_small), then the count and the pairs read back
@@ -126,11 +157,7 @@ bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block)
     if (st->pairs.size == 0)
         TRY(reserve_pair_window(st));
     cl_ulong capacity = st->pairs.size / sizeof(bpx_pair);
-    cl_uint n_arg = n, slot = 0;
-    const kernel_arg args[] = {ARG(st->lo.mem),    ARG(st->hi.mem), ARG(n_arg),
-                               ARG(st->pairs.mem), ARG(capacity),   ARG(st->registers.mem),
-                               ARG(slot)};
-    TRY(bpx__cl_launch(st, K_BRUTE_SMALL, st->dev->small_wg, st->dev->small_wg, 7, args));
+    TRY(launch_small(st, n, capacity, st->registers.mem, 0));
     st->tests += (uint64_t)n * (n - 1) / 2;
     st->counters.brute_cycles++;
     uint64_t guess = st->last_pairs + st->last_pairs / 4 + 64;
@@ -154,7 +181,7 @@ bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block)
             return grown;
         st->counters.emit_reruns++;
         capacity = total;
-        TRY(bpx__cl_launch(st, K_BRUTE_SMALL, st->dev->small_wg, st->dev->small_wg, 7, args));
+        TRY(launch_small(st, n, capacity, st->registers.mem, 0));
     }
     if (total > first) // the guess was short: read them all
         return bpx__cl_read_pairs(st, st->pairs.mem, (size_t)total, &block->hits);
@@ -216,8 +243,8 @@ bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
                 lo_b = st->lo_b.mem;
                 hi_b = st->hi_b.mem;
             }
-            TRY(brute_block(st, st->lo.mem, st->hi.mem, padded_rows, ia, lo_b, hi_b, padded_cols,
-                            jb, stage));
+            rows_cols rc = {st->lo.mem, st->hi.mem, lo_b, hi_b, padded_rows, ia, padded_cols, jb};
+            TRY(brute_block(st, &rc, stage));
         }
         // Stable counting sort of the row block's pairs by row.
         uint32_t *start = st->row_hist;
@@ -235,4 +262,24 @@ bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
     }
     st->counters.brute_cycles++;
     return BPX_OK;
+}
+
+// A device-resident cycle (resident.c): the whole set, its pairs into st->pairs (room for at
+// least `need`; *capacity gets the room) and its count into `count`, nothing read back.
+bpx_status bpx__cl_brute_resident(cl_state *st, bpx_world *w, uint64_t need, cl_mem count,
+                                  cl_ulong *capacity)
+{
+    uint32_t n = w->n;
+    uint32_t padded = (uint32_t)round_up(n, st->tile);
+    TRY(bpx__cl_dbuf_reserve(st, &st->pairs, need * sizeof(bpx_pair)));
+    *capacity = st->pairs.size / sizeof(bpx_pair);
+    TRY(bpx__cl_upload_keys(st, w, 0, n, padded, 0, &st->lo, &st->hi));
+    st->counters.brute_cycles++;
+    if (n <= st->dev->small_n && !st->small_off) {
+        st->tests += (uint64_t)n * (n - 1) / 2;
+        return launch_small(st, n, *capacity, count, 0);
+    }
+    rows_cols rc = whole_set(st, padded);
+    TRY(count_rows(st, &rc, count, 0));
+    return emit_rows(st, &rc, 0, *capacity);
 }

@@ -13,7 +13,7 @@ static const char *const kernel_names[K_COUNT] = {
     "bpx_sweep_count",   "bpx_sweep_write",      "bpx_sweep_interleave", "bpx_brute_small",
     "bpx_radix_count64", "bpx_radix_scatter64",  "bpx_tree_reset",       "bpx_tree_bounds",
     "bpx_tree_codes",    "bpx_tree_build",       "bpx_tree_refit",       "bpx_tree_walk",
-    "bpx_tree_unpack",   "bpx_validate_centres",
+    "bpx_tree_unpack",   "bpx_validate_centres", "bpx_tree_count",
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -173,6 +173,30 @@ bpx_status bpx__cl_write_buffer(cl_state *st, cl_mem mem, size_t offset, size_t 
     return BPX_OK;
 }
 
+// Sets `size` bytes of mem to `byte` on the device (nothing crosses the link).
+bpx_status bpx__cl_fill(cl_state *st, cl_mem mem, unsigned char byte, size_t size)
+{
+    if (size == 0)
+        return BPX_OK;
+    CL_CHECK(
+        st,
+        clEnqueueFillBuffer(st->queue, mem, &byte, 1, 0, size, 0, NULL, event_slot(st, EV_DEVICE)),
+        "clEnqueueFillBuffer");
+    event_commit(st);
+    return BPX_OK;
+}
+
+// Copies `size` bytes from src at src_offset to the start of dst, on the device.
+bpx_status bpx__cl_copy(cl_state *st, cl_mem src, size_t src_offset, cl_mem dst, size_t size)
+{
+    CL_CHECK(st,
+             clEnqueueCopyBuffer(st->queue, src, dst, src_offset, 0, size, 0, NULL,
+                                 event_slot(st, EV_DEVICE)),
+             "clEnqueueCopyBuffer");
+    event_commit(st);
+    return BPX_OK;
+}
+
 // Reads device memory into host memory, waiting for it, or (bpx__cl_read_later) only enqueued: the
 // host memory is filled once the queue has run that far (clFinish).
 static bpx_status read_some(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host,
@@ -234,7 +258,7 @@ void bpx__cl_state_free(cl_state *st)
         clFinish(st->queue);
         bpx__cl_events_flush(st);
     }
-    pinned *pins[] = {&st->up, &st->up_centres, &st->down, &st->reg};
+    pinned *pins[] = {&st->up, &st->up_centres, &st->down, &st->reg, &st->resident_host};
     for (size_t k = 0; k < sizeof pins / sizeof pins[0]; k++)
         pinned_release(st, pins[k]);
     dbuf *bufs[] = {&st->registers,   &st->check,       &st->input,        &st->minima,
@@ -248,6 +272,7 @@ void bpx__cl_state_free(cl_state *st)
                     &st->tree_small,  &st->walk_tests,  &st->pair_keys[0], &st->pair_keys[1]};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; k++)
         bpx__cl_dbuf_release(st, bufs[k]);
+    bpx__cl_dbuf_release(st, &st->resident_count);
     if (st->user_buffer)
         clReleaseMemObject(st->user_buffer);
     for (int k = 0; k < K_COUNT; k++)

@@ -49,7 +49,7 @@ static uint32_t block_capacity(const cl_state *st, uint64_t bytes_per_box)
 }
 
 // The sort and sweep's and the tree's own buffers (a whole-set cycle keeps them for the next).
-static void release_sweep_buffers(cl_state *st)
+void bpx__cl_release_sweep_buffers(cl_state *st)
 {
     dbuf *sweep_set[] = {&st->keys[0],     &st->keys[1],      &st->values[0],   &st->values[1],
                          &st->sorted_lo,   &st->sorted_hi,    &st->counts,      &st->offsets,
@@ -60,29 +60,50 @@ static void release_sweep_buffers(cl_state *st)
         bpx__cl_dbuf_release(st, sweep_set[k]);
 }
 
+// BAD_STATE for boxes from a device buffer in a world whose objects were added and removed one
+// by one; host centres give way to the host's boxes there (removed objects are inert in those
+// only).
+bpx_status bpx__cl_check_source(cl_state *st, const bpx_world *w)
+{
+    if ((st->source == SOURCE_BUFFER || st->source == SOURCE_CENTRES_BUFFER) && w->dead)
+        return BPX_ERR_BAD_STATE;
+    if (st->source == SOURCE_CENTRES && w->dead)
+        st->source = SOURCE_HOST;
+    return BPX_OK;
+}
+
+// Whether the cycle streams the boxes in blocks: opencl_block_boxes (rounded to whole tiles,
+// *forced; 0 when unset) below n, or more boxes than fit on the device at once under the limit.
+bool bpx__cl_streamed(const cl_state *st, const bpx_world *w, uint32_t *forced)
+{
+    *forced = w->def.opencl_block_boxes;
+    if (*forced) {
+        *forced = *forced / st->tile * st->tile;
+        if (*forced < st->tile)
+            *forced = st->tile;
+    }
+    return (*forced != 0 && *forced < w->n) || block_capacity(st, BYTES_PER_BOX) < w->n;
+}
+
+// The whole-set path: opencl_method, or the auto rule.
+int bpx__cl_method(const cl_state *st, const bpx_world *w)
+{
+    if (w->def.opencl_method != BPX_OPENCL_AUTO)
+        return w->def.opencl_method;
+    return w->n < TREE_MIN_N || st->last_pairs > (uint64_t)DENSE_PAIRS_PER_BOX * w->n
+               ? BPX_OPENCL_BRUTE
+               : BPX_OPENCL_TREE;
+}
+
 static bpx_status run_cycle(cl_state *st, bpx_world *w, bpx_block *block)
 {
     uint32_t n = w->n;
     if (n == 0)
         return BPX_OK;
-    if ((st->source == SOURCE_BUFFER || st->source == SOURCE_CENTRES_BUFFER) && w->dead)
-        return BPX_ERR_BAD_STATE; // add/remove/move_boxes on a world fed from a device buffer
-    if (st->source == SOURCE_CENTRES && w->dead)
-        st->source = SOURCE_HOST; // removed objects are inert in the host's boxes only
-    uint32_t forced = w->def.opencl_block_boxes;
-    if (forced) {
-        forced = forced / st->tile * st->tile;
-        if (forced < st->tile)
-            forced = st->tile;
-    }
-    uint32_t fit_all = block_capacity(st, BYTES_PER_BOX);
-    bool whole = (forced == 0 || forced >= n) && fit_all >= n;
-    if (whole) {
-        int method = w->def.opencl_method;
-        if (method == BPX_OPENCL_AUTO)
-            method = n < TREE_MIN_N || st->last_pairs > (uint64_t)DENSE_PAIRS_PER_BOX * n
-                         ? BPX_OPENCL_BRUTE
-                         : BPX_OPENCL_TREE;
+    TRY(bpx__cl_check_source(st, w)); // add/remove/move_boxes on a world fed from a buffer
+    uint32_t forced;
+    if (!bpx__cl_streamed(st, w, &forced)) {
+        int method = bpx__cl_method(st, w);
         if (method != BPX_OPENCL_BRUTE) {
             bpx_status status = method == BPX_OPENCL_TREE ? bpx__cl_tree_all(st, w, block)
                                                           : bpx__cl_sweep_all(st, w, block);
@@ -95,14 +116,14 @@ static bpx_status run_cycle(cl_state *st, bpx_world *w, bpx_block *block)
             else
                 st->counters.sweep_fallbacks++;
             clFinish(st->queue);
-            release_sweep_buffers(st); // brute force may need the room
+            bpx__cl_release_sweep_buffers(st); // brute force may need the room
         }
         if (n <= st->dev->small_n && !st->small_off)
             return bpx__cl_brute_small(st, w, block);
         return bpx__cl_brute_all(st, w, block);
     }
     // Streaming: free what a whole-set cycle kept, then blocks as large as the limit allows.
-    release_sweep_buffers(st);
+    bpx__cl_release_sweep_buffers(st);
     uint32_t block_boxes = block_capacity(st, BYTES_PER_STREAMED_BOX);
     if (block_boxes < st->tile && st->pairs.size) {
         // A pair buffer grown in an earlier cycle leaves no room: start again from a window.
@@ -125,6 +146,8 @@ static bpx_status opencl_compare(bpx_world *w)
 {
     cl_state *st = NULL;
     TRY(bpx__cl_state_get(w, &st));
+    bpx__cl_resident_settle(w, st); // a device-resident cycle still in flight
+    st->resident = RESIDENT_NONE;   // this cycle may write over its pairs
     if (w->planned_n != w->n)
         TRY(bpx__emitter_plan(w, true));
     bpx_block *block = &w->blocks[0];
@@ -141,6 +164,7 @@ static bpx_status opencl_compare(bpx_world *w)
     }
     block->tests = st->tests;
     st->last_pairs = block->hits.count;
+    st->pairs_known = status == BPX_OK;
     w->stats.transfer_in_ns = st->ns[EV_IN];
     w->stats.transfer_out_ns = st->ns[EV_OUT];
     w->stats.device_ns = st->ns[EV_DEVICE];
@@ -166,6 +190,7 @@ static void opencl_boxes_set(bpx_world *w, const float *centres)
     // goes wrong here only means the host's boxes are sent instead.
     if (!st && bpx__cl_state_get(w, &st) != BPX_OK)
         return;
+    bpx__cl_resident_settle(w, st); // its upload may still read the staging memory
     if (st->user_buffer)
         clReleaseMemObject(st->user_buffer);
     st->user_buffer = NULL;
@@ -205,7 +230,7 @@ bool bpx__opencl_get_counters(const bpx_world *w, bpx__opencl_counters *out)
     return true;
 }
 
-static bpx_status opencl_world_state(bpx_world *w, cl_state **st)
+bpx_status bpx__cl_world_state(bpx_world *w, cl_state **st)
 {
     if (w->backend != &bpx__opencl_backend)
         return bpx__error(&w->error, BPX_ERR_BACKEND_UNAVAILABLE, UINT32_MAX, -1,
@@ -223,7 +248,7 @@ bpx_status bpx_opencl_world_handles(bpx_world *w, void **context, void **queue, 
         return BPX_ERR_NULL_ARGUMENT;
     bpx__error_clear(&w->error);
     cl_state *st = NULL;
-    TRY(opencl_world_state(w, &st));
+    TRY(bpx__cl_world_state(w, &st));
     if (context)
         *context = st->dev->context;
     if (queue)
@@ -244,7 +269,8 @@ bpx_status bpx_opencl_set_boxes_buffer(bpx_world *w, void *buffer, uint32_t n)
     if (!buffer)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "buffer is NULL");
     cl_state *st = NULL;
-    TRY(opencl_world_state(w, &st));
+    TRY(bpx__cl_world_state(w, &st));
+    bpx__cl_resident_settle(w, st); // the checks below flush the queue's events
     if (w->dead)
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
                           "set_boxes_buffer: the world's boxes are managed by add/remove");
@@ -311,7 +337,8 @@ bpx_status bpx_opencl_set_centres_buffer(bpx_world *w, void *buffer, uint32_t n)
     if (!buffer)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "buffer is NULL");
     cl_state *st = NULL;
-    TRY(opencl_world_state(w, &st));
+    TRY(bpx__cl_world_state(w, &st));
+    bpx__cl_resident_settle(w, st); // the checks below flush the queue's events
     if (!w->extents_loaded || w->dead)
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
                           w->dead ? "set_centres_buffer: objects were removed by id"

@@ -37,6 +37,7 @@ if(BPX_OPENCL)
         src/opencl/buffers.c
         src/opencl/device.c
         src/opencl/opencl.c
+        src/opencl/resident.c
         src/opencl/sort.c
         src/opencl/sweep.c
         src/opencl/tree.c

@@ -1,6 +1,7 @@
 // The opencl backend's state (one per world) and the calls its files share: buffers.c (device
 // memory, events, launches, transfers), update.c (the updater), brute.c, sweep.c and tree.c (the
-// comparator's three paths), sort.c (scans and sorts), opencl.c (the cycle and the public calls).
+// comparator's three paths), sort.c (scans and sorts), opencl.c (the cycle and the public calls),
+// resident.c (cycles whose pairs stay on the device).
 
 #pragma once
 
@@ -38,11 +39,14 @@ enum kernel_id {
     K_TREE_WALK,
     K_TREE_UNPACK,
     K_VALIDATE_CENTRES,
+    K_TREE_COUNT,
     K_COUNT
 };
 
 enum {
-    EVENTS_MAX = 128,
+    // Commands whose events a cycle keeps (flushed, a wait, when full): a device-resident cycle
+    // has at most about 140 (the tree at 2^32 boxes: two radix sorts of 32 and 64 bits).
+    EVENTS_MAX = 256,
     DEFAULT_PAIR_CAPACITY = 65536,
     // Auto method: the tree from this many boxes on, unless the last cycle found more than
     // DENSE_PAIRS_PER_BOX pairs per box (then ordering the pairs costs more than brute force's
@@ -66,6 +70,13 @@ typedef enum box_source {
     SOURCE_BUFFER,         // the caller's device buffer of bpx_box (nothing uploaded)
     SOURCE_CENTRES_BUFFER, // the caller's device buffer of centres + minima kept on the device
 } box_source;
+
+// A device-resident cycle's progress (resident.c).
+typedef enum resident_phase {
+    RESIDENT_NONE,    // no device cycle's result (none yet, or a host cycle since)
+    RESIDENT_PENDING, // enqueued; its count is on its way to resident_host
+    RESIDENT_DONE,    // waited for: resident_found and resident_status hold its outcome
+} resident_phase;
 
 typedef struct dbuf {
     cl_mem mem;
@@ -113,10 +124,20 @@ typedef struct cl_state {
     uint64_t ns[EV_CLASSES];
     uint64_t bytes_in, bytes_out, tests;
     uint64_t last_pairs; // the previous cycle's, for the auto method
+    bool pairs_known;    // last_pairs holds a cycle's count (sizes device-resident buffers)
     bool small_off;      // the small-set kernel's pairs did not fit under the memory limit
 
     uint32_t *row_hist; // streaming: per-row counts of one row block (host)
     size_t row_hist_count;
+
+    // Device-resident cycles (resident.c): the caller's count buffer (one cl_ulong), its pinned
+    // copy on the host, and the last such cycle.
+    dbuf resident_count;
+    pinned resident_host;
+    resident_phase resident;
+    cl_ulong resident_capacity; // pairs the cycle could write
+    uint64_t resident_found;    // RESIDENT_DONE: its count
+    bpx_status resident_status; // RESIDENT_DONE: its outcome
 
     bpx__opencl_counters counters;
 } cl_state;
@@ -160,6 +181,8 @@ bpx_status bpx__cl_launch(cl_state *st, int k, size_t global, size_t local, int 
                           const kernel_arg *args);
 bpx_status bpx__cl_write_buffer(cl_state *st, cl_mem mem, size_t offset, size_t size,
                                 const void *host, bool blocking);
+bpx_status bpx__cl_fill(cl_state *st, cl_mem mem, unsigned char byte, size_t size);
+bpx_status bpx__cl_copy(cl_state *st, cl_mem src, size_t src_offset, cl_mem dst, size_t size);
 bpx_status bpx__cl_read_buffer(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host);
 bpx_status bpx__cl_read_later(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host);
 bpx_status bpx__cl_read_register(cl_state *st, cl_uint slot, uint64_t *value);
@@ -175,6 +198,12 @@ bpx_status bpx__cl_brute_all(cl_state *st, bpx_world *w, bpx_block *block);
 bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block);
 bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
                                   uint32_t block_boxes);
+// The device-resident form of each path (resident.c runs them): the whole set, room for at
+// least `need` pairs (DEVICE_MEMORY, before anything is enqueued, past the memory limit),
+// *capacity the pairs the cycle may write into st->pairs, the count to the cl_ulong at `count`.
+// Nothing is read back.
+bpx_status bpx__cl_brute_resident(cl_state *st, bpx_world *w, uint64_t need, cl_mem count,
+                                  cl_ulong *capacity);
 // sort.c: scans and radix sorts.
 unsigned bpx__cl_bits_for(uint32_t max_value);
 bpx_status bpx__cl_sum(cl_state *st, cl_mem in, uint32_t count, cl_uint slot);
@@ -185,5 +214,19 @@ bpx_status bpx__cl_radix_sort64(cl_state *st, dbuf *keys, uint32_t count, unsign
                                 int *result);
 // sweep.c: sort and sweep.
 bpx_status bpx__cl_sweep_all(cl_state *st, bpx_world *w, bpx_block *block);
+bpx_status bpx__cl_sweep_resident(cl_state *st, bpx_world *w, uint64_t need, cl_mem count,
+                                  cl_ulong *capacity);
 // tree.c: the linear BVH.
 bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block);
+bpx_status bpx__cl_tree_resident(cl_state *st, bpx_world *w, uint64_t need, cl_mem count,
+                                 cl_ulong *capacity);
+// opencl.c: what the host's cycle and the device-resident one share.
+bpx_status bpx__cl_world_state(bpx_world *w, cl_state **st);
+bpx_status bpx__cl_check_source(cl_state *st, const bpx_world *w);
+bool bpx__cl_streamed(const cl_state *st, const bpx_world *w, uint32_t *forced);
+int bpx__cl_method(const cl_state *st, const bpx_world *w);
+void bpx__cl_release_sweep_buffers(cl_state *st);
+// resident.c: waits for a pending device-resident cycle and keeps its outcome for
+// bpx_opencl_finish (OK at once when none is pending). Every call that uses the queue's
+// staging or events first settles.
+void bpx__cl_resident_settle(bpx_world *w, cl_state *st);

@@ -26,3 +26,22 @@ bpx_status bpx_opencl_set_centres_buffer(bpx_world *world, void *buffer, uint32_
     (void)buffer, (void)n;
     return world ? BPX_ERR_BACKEND_UNAVAILABLE : BPX_ERR_NULL_ARGUMENT;
 }
+
+bpx_status bpx_opencl_collide_device(bpx_world *world)
+{
+    return world ? BPX_ERR_BACKEND_UNAVAILABLE : BPX_ERR_NULL_ARGUMENT;
+}
+
+bpx_status bpx_opencl_device_pairs(bpx_world *world, void **pairs_buffer, void **count_buffer,
+                                   size_t *capacity)
+{
+    (void)pairs_buffer, (void)count_buffer, (void)capacity;
+    return world ? BPX_ERR_BACKEND_UNAVAILABLE : BPX_ERR_NULL_ARGUMENT;
+}
+
+bpx_status bpx_opencl_finish(bpx_world *world, size_t *count)
+{
+    if (count)
+        *count = 0;
+    return world ? BPX_ERR_BACKEND_UNAVAILABLE : BPX_ERR_NULL_ARGUMENT;
+}

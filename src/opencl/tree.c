@@ -37,10 +37,9 @@ static bpx_status reset(cl_state *st)
     return bpx__cl_launch(st, K_TREE_RESET, 1, 1, 1, args);
 }
 
-// The walks, appending pair keys into pair_keys[0] up to its capacity.
-static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids)
+// The walks, appending pair keys into pair_keys[0] up to `capacity`.
+static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids, cl_ulong capacity)
 {
-    cl_ulong capacity = st->pair_keys[0].size / sizeof(cl_ulong);
     const kernel_arg args[] = {ARG(st->sorted_lo.mem),
                                ARG(st->sorted_hi.mem),
                                ARG(n),
@@ -54,15 +53,12 @@ static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids)
     return bpx__cl_launch(st, K_TREE_WALK, n - 1, 0, 10, args);
 }
 
-bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
+// Everything up to the walks (n >= 2, keys uploaded): the bounds and the pair counter reset,
+// the Morton codes sorted with their boxes (*ids: the box at each position), the keys gathered
+// in that order, the nodes built and refitted. *bits: the bits of a pair key's j.
+static bpx_status build(cl_state *st, uint32_t n, cl_mem *ids, cl_uint *bits)
 {
-    uint32_t n = w->n;
     uint32_t padded = (uint32_t)round_up(n, st->tile);
-    TRY(bpx__cl_upload_keys(st, w, 0, n, padded, 0, &st->lo, &st->hi));
-    if (n < 2) {
-        st->counters.tree_cycles++;
-        return BPX_OK;
-    }
     size_t nodes = (size_t)n - 1;
     for (int k = 0; k < 2; k++) {
         TRY(bpx__cl_dbuf_reserve(st, &st->keys[k], (size_t)n * sizeof(cl_uint)));
@@ -75,8 +71,6 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     TRY(bpx__cl_dbuf_reserve(st, &st->nodes, nodes * 2 * 8 * sizeof(cl_uint)));
     TRY(bpx__cl_dbuf_reserve(st, &st->tree_small, 8 * sizeof(cl_uint)));
     TRY(bpx__cl_dbuf_reserve(st, &st->walk_tests, nodes * sizeof(cl_uint)));
-    if (st->pair_keys[0].size == 0)
-        TRY(reserve_pairs(st, st->first_pair_capacity));
 
     cl_uint n_arg = n;
     cl_mem small = st->tree_small.mem;
@@ -91,13 +85,14 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     TRY(bpx__cl_launch(st, K_TREE_CODES, n, 0, 6, code_args));
     int sorted;
     TRY(bpx__cl_radix_sort(st, st->keys, st->values, n, 32, &sorted));
-    cl_mem codes = st->keys[sorted].mem, ids = st->values[sorted].mem;
+    cl_mem codes = st->keys[sorted].mem;
+    *ids = st->values[sorted].mem;
     // The keys in Morton order: the refit and the walks then read neighbouring boxes.
     TRY(bpx__cl_dbuf_reserve(st, &st->sorted_lo, (size_t)padded * 16));
     TRY(bpx__cl_dbuf_reserve(st, &st->sorted_hi, (size_t)padded * 16));
     cl_uint padded_arg = padded;
     const kernel_arg gather_args[] = {
-        ARG(st->lo.mem),        ARG(st->hi.mem),       ARG(ids), ARG(n_arg), ARG(padded_arg),
+        ARG(st->lo.mem),        ARG(st->hi.mem),       ARG(*ids), ARG(n_arg), ARG(padded_arg),
         ARG(st->sorted_lo.mem), ARG(st->sorted_hi.mem)};
     TRY(bpx__cl_launch(st, K_SWEEP_GATHER, padded, 0, 7, gather_args));
     const kernel_arg build_args[] = {ARG(codes), ARG(n_arg), ARG(st->leaf_parent.mem),
@@ -108,8 +103,36 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
         ARG(st->leaf_parent.mem), ARG(st->node_parent.mem), ARG(st->nodes.mem),
         ARG(st->flags.mem)};
     TRY(bpx__cl_launch(st, K_TREE_REFIT, n, 0, 7, refit_args));
-    cl_uint bits = bpx__cl_bits_for(n - 1);
-    TRY(walk(st, n, bits, ids));
+    *bits = bpx__cl_bits_for(n - 1);
+    return BPX_OK;
+}
+
+// The first `count` pair keys sorted ((i, j) order: 2 * bits bits) and unpacked into st->pairs.
+static bpx_status order(cl_state *st, uint32_t count, cl_uint bits)
+{
+    int by_key;
+    TRY(bpx__cl_radix_sort64(st, st->pair_keys, count, 2 * bits, &by_key));
+    cl_uint count_arg = count;
+    const kernel_arg unpack_args[] = {ARG(st->pair_keys[by_key].mem), ARG(count_arg), ARG(bits),
+                                      ARG(st->pairs.mem)};
+    return bpx__cl_launch(st, K_TREE_UNPACK, count, 0, 4, unpack_args);
+}
+
+bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
+{
+    uint32_t n = w->n;
+    uint32_t padded = (uint32_t)round_up(n, st->tile);
+    TRY(bpx__cl_upload_keys(st, w, 0, n, padded, 0, &st->lo, &st->hi));
+    if (n < 2) {
+        st->counters.tree_cycles++;
+        return BPX_OK;
+    }
+    cl_mem ids;
+    cl_uint bits;
+    TRY(build(st, n, &ids, &bits));
+    if (st->pair_keys[0].size == 0)
+        TRY(reserve_pairs(st, st->first_pair_capacity));
+    TRY(walk(st, n, bits, ids, st->pair_keys[0].size / sizeof(cl_ulong)));
     // The walks' bounds tests (the cycle's statistics) summed into register 3, read back behind
     // the count: one wait for both.
     TRY(bpx__cl_sum(st, st->walk_tests.mem, n - 1, 3));
@@ -118,7 +141,7 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
                            test_register));
     // The count, read once: room for every pair, or more room and the walks again.
     cl_uint found[8];
-    TRY(bpx__cl_read_buffer(st, small, 0, sizeof found, found));
+    TRY(bpx__cl_read_buffer(st, st->tree_small.mem, 0, sizeof found, found));
     cl_ulong tests;
     memcpy(&tests, test_register, sizeof tests); // the in-order queue read it before `found`
     st->tests += tests;
@@ -129,18 +152,38 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     if (total > st->pair_keys[0].size / sizeof(cl_ulong)) {
         TRY(reserve_pairs(st, total));
         TRY(reset(st));
-        TRY(walk(st, n, bits, ids));
+        TRY(walk(st, n, bits, ids, st->pair_keys[0].size / sizeof(cl_ulong)));
         st->counters.emit_reruns++;
     }
     if (total > 0) {
-        int by_key;
-        TRY(bpx__cl_radix_sort64(st, st->pair_keys, (uint32_t)total, 2 * bits, &by_key));
-        cl_uint count_arg = (cl_uint)total;
-        const kernel_arg unpack_args[] = {ARG(st->pair_keys[by_key].mem), ARG(count_arg), ARG(bits),
-                                          ARG(st->pairs.mem)};
-        TRY(bpx__cl_launch(st, K_TREE_UNPACK, (size_t)total, 0, 4, unpack_args));
+        TRY(order(st, (uint32_t)total, bits));
         TRY(bpx__cl_read_pairs(st, st->pairs.mem, (size_t)total, &block->hits));
     }
+    st->counters.tree_cycles++;
+    return BPX_OK;
+}
+
+// A device-resident cycle (resident.c; n >= 2): room for `need` pairs or DEVICE_MEMORY before
+// anything is enqueued. The count cannot come back inside the cycle, so the sort's length is
+// the room (*capacity = need), known now: the key buffer is filled with all-ones keys first,
+// which sort after every pair, and the walks write theirs over the start of it. The count goes
+// to `count` (bpx_tree_count: all ones when the counter wrapped); the pairs past it hold
+// padding.
+bpx_status bpx__cl_tree_resident(cl_state *st, bpx_world *w, uint64_t need, cl_mem count,
+                                 cl_ulong *capacity)
+{
+    uint32_t n = w->n;
+    TRY(reserve_pairs(st, need));
+    *capacity = need;
+    TRY(bpx__cl_upload_keys(st, w, 0, n, (uint32_t)round_up(n, st->tile), 0, &st->lo, &st->hi));
+    cl_mem ids;
+    cl_uint bits;
+    TRY(build(st, n, &ids, &bits));
+    TRY(bpx__cl_fill(st, st->pair_keys[0].mem, 0xFF, need * sizeof(cl_ulong)));
+    TRY(walk(st, n, bits, ids, need));
+    const kernel_arg count_args[] = {ARG(st->tree_small.mem), ARG(count)};
+    TRY(bpx__cl_launch(st, K_TREE_COUNT, 1, 1, 2, count_args));
+    TRY(order(st, (uint32_t)need, bits));
     st->counters.tree_cycles++;
     return BPX_OK;
 }

@@ -133,3 +133,11 @@ __kernel void bpx_tree_unpack(__global const ulong *keys, uint count, uint bits,
         pairs[k] = (uint2)((uint)(key >> bits), (uint)(key & ((1ul << bits) - 1ul)));
     }
 }
+
+/// A device-resident cycle's count (bpx_opencl_collide_device): the walks' counter as the
+/// caller's ulong, all ones when it wrapped (2^32 pairs or more).
+__kernel void bpx_tree_count(__global const uint *small, __global ulong *count)
+{
+    if (get_global_id(0) == 0)
+        *count = small[BPX_TREE_COUNTER + 1] ? ~0ul : (ulong)small[BPX_TREE_COUNTER];
+}
