@@ -8,7 +8,7 @@
 /// Children per node. A child lane is either another node or one box (a leaf lane): a box's
 /// bounds sit in its parent, so testing a node's lanes tests its boxes, exactly.
 #define BPX_BVH_WIDTH 4
-/// Deepest tree: 31 key bits (30 Morton, 1 large) split by bit, then equal keys halved; every
+/// Deepest tree: 30 key bits split by bit, then equal keys halved (32 times at most); every
 /// level of nodes takes at least one of those binary splits.
 #define BPX_BVH_MAX_DEPTH 64
 
