@@ -610,6 +610,8 @@ int main(void)
     got_buf = malloc(sizeof(bpx_hit) * buf_cap);
     int64_t start = bpx_allocated_bytes();
     test_scenes(BPX_SIMD_AUTO);
+    if (bpx_simd_best() == BPX_SIMD_AVX512 && bpx_simd_supported(BPX_SIMD_AVX2))
+        test_scenes(BPX_SIMD_AVX2);
     test_scenes(BPX_SIMD_SCALAR);
     test_parallel_tree();
     test_adversarial_rays();

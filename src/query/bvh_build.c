@@ -196,17 +196,18 @@ static void sort_words(bpx_bvh *t, uint32_t m, const bpx_executor *ex)
 }
 
 // ---------------------------------------------------------------------------------------------
-// Nodes. A node over sorted positions [begin, end) gets up to four children: its range is split
-// at the highest bit in which its first and last keys differ (equal keys: in the middle), then
-// the largest part again, until there are four parts or only single boxes. A single box is a
+// Nodes. A node over sorted positions [begin, end) gets up to BPX_BVH_WIDTH children: its range
+// is split at the highest bit in which its first and last keys differ (equal keys: in the
+// middle), then the largest part again, until there are that many parts or only single boxes. A single box is a
 // leaf lane; a larger part is a child node.
 
-/// The most nodes a subtree over r >= 2 boxes can take: (2r - 1) / 3. A node over r <= 4 boxes
-/// is one node; over r >= 5 it has four parts, j of them nodes over S <= r - 4 + j boxes, so by
-/// induction 1 + (2S - j) / 3 <= (2r - 1) / 3.
+/// The most nodes a subtree over r >= 2 boxes can take: (W r / 2 - 1) / (W - 1) for width W.
+/// A node over r <= W boxes is one node; over more it has W parts, j of them nodes over
+/// S <= r - W + j boxes, so by induction 1 + (W S / 2 - j) / (W - 1) <= (W r / 2 - 1) / (W - 1).
 static size_t most_nodes(uint32_t r)
 {
-    return r < 2 ? 1 : (2 * (size_t)r - 1) / 3;
+    const size_t w = BPX_BVH_WIDTH;
+    return r < 2 ? 1 : (w / 2 * (size_t)r - 1) / (w - 1);
 }
 
 static uint32_t key_at(const uint64_t *words, uint32_t k)

@@ -83,8 +83,12 @@ static bpx_prepared prepare(const bpx_query *q)
 bool bpx__query_run(const bpx_query_view *view, const bpx_query *query, bpx_hit_list *out)
 {
     bpx_prepared p = prepare(query);
+#if BPX_HAVE_AVX512
+    if (view->simd == BPX_SIMD_AVX512)
+        return bpx__traverse_avx512(view, &p, out);
+#endif
 #if BPX_HAVE_AVX2
-    if (view->wide)
+    if (view->simd == BPX_SIMD_AVX2 || view->simd == BPX_SIMD_AVX512)
         return bpx__traverse_avx2(view, &p, out);
 #endif
     return bpx__traverse_scalar(view, &p, out);

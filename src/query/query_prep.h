@@ -34,3 +34,4 @@ void bpx__hits_sort(bpx_hit_list *out, size_t first, bool cast);
 /// The walks, per instruction set.
 bool bpx__traverse_scalar(const bpx_query_view *view, const bpx_prepared *p, bpx_hit_list *out);
 bool bpx__traverse_avx2(const bpx_query_view *view, const bpx_prepared *p, bpx_hit_list *out);
+bool bpx__traverse_avx512(const bpx_query_view *view, const bpx_prepared *p, bpx_hit_list *out);

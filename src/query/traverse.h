@@ -14,15 +14,15 @@
 
 #include "query_prep.h"
 
-enum { STACK = 4 * BPX_BVH_MAX_DEPTH + 4 };
+enum { STACK = BPX_BVH_WIDTH * (BPX_BVH_MAX_DEPTH + 1) };
 
 // A walk waits on memory (a node's lanes decide where it goes next): the nodes it will visit
 // later start loading now, so their cache misses overlap.
 static inline void prefetch_node(const bpx_bvh *t, uint32_t index)
 {
     const char *node = (const char *)&t->nodes[index];
-    __builtin_prefetch(node);
-    __builtin_prefetch(node + 64);
+    for (size_t line = 0; line < sizeof(bpx_bvh_node); line += 64)
+        __builtin_prefetch(node + line);
 }
 
 // BOX and SPHERE: every box the region touches, by id.

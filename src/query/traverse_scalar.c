@@ -5,7 +5,7 @@
 
 #include "query_prep.h"
 
-static uint32_t lanes_box(const bpx_bvh_node *n, const bpx_prepared *p)
+static inline uint32_t lanes_box(const bpx_bvh_node *n, const bpx_prepared *p)
 {
     uint32_t hit = 0;
     for (int k = 0; k < BPX_BVH_WIDTH; k++) {
@@ -19,7 +19,7 @@ static uint32_t lanes_box(const bpx_bvh_node *n, const bpx_prepared *p)
 
 // Monotone in the box: a node's distance is never more than a box's inside it, whatever the
 // rounding, so the tree never skips a hit.
-static uint32_t lanes_sphere(const bpx_bvh_node *n, const bpx_prepared *p)
+static inline uint32_t lanes_sphere(const bpx_bvh_node *n, const bpx_prepared *p)
 {
     uint32_t hit = 0;
     for (int k = 0; k < BPX_BVH_WIDTH; k++) {
@@ -40,7 +40,7 @@ static uint32_t lanes_sphere(const bpx_bvh_node *n, const bpx_prepared *p)
 // intervals of the boxes inside it. A lane with lo <= hi meets its near plane first, so the
 // near and far fractions are the definition's t1 and t2 in order; an unused lane (+inf .. -inf)
 // enters at +inf and leaves at -inf.
-static uint32_t lanes_cast(const bpx_bvh_node *n, const bpx_prepared *p, float limit,
+static inline uint32_t lanes_cast(const bpx_bvh_node *n, const bpx_prepared *p, float limit,
                            float enter[BPX_BVH_WIDTH])
 {
     uint32_t hit = 0;
