@@ -34,9 +34,25 @@ static void advise_huge(void *memory, size_t size)
 #endif
 }
 
+bool bpx__bvh_reserve_nodes(bpx_bvh *t, size_t count, size_t keep)
+{
+    if (count <= t->node_capacity)
+        return true;
+    size_t cap = count + count / 4 + 16;
+    bpx_bvh_node *nodes = bpx__alloc(sizeof(bpx_bvh_node) * cap);
+    if (!nodes)
+        return false;
+    advise_huge(nodes, sizeof(bpx_bvh_node) * cap);
+    if (keep)
+        memcpy(nodes, t->nodes, sizeof(bpx_bvh_node) * keep);
+    bpx__free(t->nodes, sizeof(bpx_bvh_node) * t->node_capacity);
+    t->nodes = nodes;
+    t->node_capacity = cap;
+    return true;
+}
+
 static void release(bpx_bvh *t)
 {
-    bpx__free(t->nodes, sizeof(bpx_bvh_node) * t->node_capacity);
     bpx__free(t->words, sizeof(uint64_t) * t->item_capacity);
     bpx__free(t->words_scratch, sizeof(uint64_t) * t->item_capacity);
     bpx__free(t->boxes, sizeof(bpx_bvh_box) * t->item_capacity);
@@ -47,22 +63,19 @@ static void release(bpx_bvh *t)
 // grown: all new or, when memory runs out, all old.
 static bool reserve(bpx_bvh *t, uint32_t n)
 {
-    if (n <= t->item_capacity && t->nodes)
+    if (n <= t->item_capacity && t->words)
         return true;
     uint32_t cap = n + n / 4 + 16;
     bpx_bvh fresh = *t;
     fresh.item_capacity = cap;
-    fresh.node_capacity = bpx__bvh_most_nodes(cap);
     fresh.count_capacity = bpx__bvh_count_words(cap);
-    fresh.nodes = bpx__alloc(sizeof(bpx_bvh_node) * fresh.node_capacity);
     fresh.words = bpx__alloc(sizeof(uint64_t) * cap);
     fresh.words_scratch = bpx__alloc(sizeof(uint64_t) * cap);
     fresh.boxes = bpx__alloc(sizeof(bpx_bvh_box) * cap);
     fresh.counts = bpx__alloc(sizeof(uint32_t) * fresh.count_capacity);
-    bool ok = fresh.nodes && fresh.words && fresh.words_scratch && fresh.boxes && fresh.counts;
+    bool ok = fresh.words && fresh.words_scratch && fresh.boxes && fresh.counts;
     release(ok ? t : &fresh);
     if (ok) {
-        advise_huge(fresh.nodes, sizeof(bpx_bvh_node) * fresh.node_capacity);
         advise_huge(fresh.boxes, sizeof(bpx_bvh_box) * cap);
         advise_huge(fresh.words, sizeof(uint64_t) * cap);
         advise_huge(fresh.words_scratch, sizeof(uint64_t) * cap);
@@ -220,6 +233,7 @@ bpx_status bpx__bvh_update(bpx_bvh *t, const bpx_world *w)
 void bpx__bvh_free(bpx_bvh *t)
 {
     release(t);
+    bpx__free(t->nodes, sizeof(bpx_bvh_node) * t->node_capacity);
     bpx__free(t->blocks, sizeof(bpx_bvh_block) * t->block_capacity);
     memset(t, 0, sizeof *t);
 }

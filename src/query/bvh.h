@@ -126,8 +126,13 @@ static inline uint32_t bpx__bvh_copy_chunk(bpx_bvh *t, const bpx_soa *s, uint32_
 bool bpx__bvh_rebuild(bpx_bvh *t, const bpx_soa *s, const bpx_executor *executor);
 /// The top block's node lanes from their children, in reverse (children after parents).
 void bpx__bvh_top_refit(bpx_bvh *t);
-/// The most nodes a tree over m boxes takes (the node array's room).
-size_t bpx__bvh_most_nodes(uint32_t m);
+/// Room for count nodes, keeping the first `keep`: false when memory ran out.
+bool bpx__bvh_reserve_nodes(bpx_bvh *t, size_t count, size_t keep);
+/// The live boxes' (Morton key << 32 | id) words into t->words, and the boxes into t->boxes;
+/// returns how many are live.
+uint32_t bpx__bvh_keys(bpx_bvh *t, const bpx_soa *s, const bpx_executor *ex);
+/// Sorts t->words[0, m) by key, stably; the result ends in t->words.
+void bpx__bvh_sort(bpx_bvh *t, uint32_t m, const bpx_executor *ex);
 /// The words of radix counts and chunk sums a build over n ids needs.
 size_t bpx__bvh_count_words(uint32_t n);
 /// The union of a node's lanes, and a box's surface area (half of it).
