@@ -33,7 +33,8 @@ typedef struct bpx_bvh_box {
     float pad[2];
 } bpx_bvh_box;
 
-/// A run of nodes built by one task: a subtree below the top levels, or the top levels.
+/// A run of nodes built by one task: a subtree below the top levels, or the top levels. The
+/// blocks lie one after another in block order, each in depth-first order.
 typedef struct bpx_bvh_block {
     uint32_t first; ///< its first node (the subtree's root)
     uint32_t count; ///< nodes it holds
@@ -45,7 +46,7 @@ typedef struct bpx_bvh_block {
 } bpx_bvh_block;
 
 typedef struct bpx_bvh {
-    bpx_bvh_node *nodes; ///< blocks at fixed places, each in depth-first order
+    bpx_bvh_node *nodes; ///< the blocks' nodes
     size_t node_capacity;
     uint32_t item_count; ///< live boxes in the tree
 
@@ -66,7 +67,7 @@ typedef struct bpx_bvh {
     bool valid;       // matches the world's boxes of `version`
     uint64_t version; // the world's boxes_version it was made from
     uint32_t world_n; // the world's n then
-    double looseness; // inner nodes' area over the root's, at the last build
+    double looseness; // nodes' area over the root's, at the last build
     uint64_t builds, refits, last_update_ns;
     uint32_t node_count; ///< nodes in use, over all blocks
 } bpx_bvh;
@@ -79,9 +80,9 @@ bpx_status bpx__bvh_update(bpx_bvh *tree, const bpx_world *world);
 
 void bpx__bvh_free(bpx_bvh *tree);
 
-// Between bvh.c and bvh_build.c.
+// Between bvh.c, bvh_keys.c and bvh_build.c.
 
-/// Items per chunk of the parallel passes (keys, sort, gather, live counts).
+/// Items per chunk of the parallel passes (copies, keys, sort, live counts).
 #define BPX_BVH_CHUNK (1u << 15)
 /// Below this many items of work the passes run on the calling thread (same result).
 #define BPX_BVH_PARALLEL_ITEMS (2u * BPX_BVH_CHUNK)
