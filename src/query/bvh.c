@@ -1,5 +1,5 @@
 // The tree's upkeep: its memory, the choice between refit and rebuild, and the refit (block by
-// block on the world's workers). The build is bvh_build.c.
+// block on the world's workers). The build is bvh_keys.c and bvh_build.c.
 #if defined(__linux__)
 #define _DEFAULT_SOURCE // madvise
 #include <sys/mman.h>
@@ -18,8 +18,8 @@
 #define BPX_BVH_REBUILD_LOOSENESS 1.3
 
 // Big arrays in 2 MiB pages where the OS has them on request (Linux's transparent huge pages
-// in "madvise" mode): a first build faults in a tenth of the pages, and a walk of the tree, a
-// cache miss per node, misses the TLB far less.
+// in "madvise" mode): a first build faults in a twentieth of the pages, and a walk of the tree,
+// a cache miss per node, misses the TLB far less.
 static void advise_huge(void *memory, size_t size)
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
