@@ -1,9 +1,9 @@
 // The walks of the tree, once per instruction set: a file defines the three lane tests below
 // and BPX_TRAVERSE (its entry's name), then includes this one (traverse_scalar.c,
-// traverse_avx2.c, traverse_avx512.c). Every lane test computes a lane's answer with the very operations of the
-// header's definitions (in double, in the same order), so every build and width gives the same
-// bits; a node's lanes hold its children's bounds, and a leaf lane is a box, so the lane test
-// of a leaf is the box's own test.
+// traverse_avx2.c, traverse_avx512.c). Every lane test computes a lane's answer with the very
+// operations of the header's definitions (in double, in the same order), so every build and width
+// gives the same bits; a node's lanes hold its children's bounds, and a leaf lane is a box, so the
+// lane test of a leaf is the box's own test.
 //
 //   uint32_t lanes_box(node, p)     lanes whose box overlaps the region (closed intervals)
 //   uint32_t lanes_sphere(node, p)  lanes within the sphere

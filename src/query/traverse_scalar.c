@@ -41,7 +41,7 @@ static inline uint32_t lanes_sphere(const bpx_bvh_node *n, const bpx_prepared *p
 // near and far fractions are the definition's t1 and t2 in order; an unused lane (+inf .. -inf)
 // enters at +inf and leaves at -inf.
 static inline uint32_t lanes_cast(const bpx_bvh_node *n, const bpx_prepared *p, float limit,
-                           float enter[BPX_BVH_WIDTH])
+                                  float enter[BPX_BVH_WIDTH])
 {
     uint32_t hit = 0;
     for (int k = 0; k < BPX_BVH_WIDTH; k++) {
