@@ -153,10 +153,14 @@ static bpx_query random_query(scene_rng *r, const bpx_box *boxes, uint32_t n)
 
 // ---------------------------------------------------------------------------------------------
 
+// The walks' instruction set: the widest (AUTO) or the portable one, the same results.
+static bpx_simd query_simd = BPX_SIMD_AUTO;
+
 static bpx_world *make_world(int workers)
 {
     bpx_world_def def = bpx_default_world_def();
     def.worker_count = workers;
+    def.simd = query_simd;
     bpx_world *w = NULL;
     CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
     return w;
@@ -177,16 +181,19 @@ static void compare_one(bpx_world *w, const world_copy *copy, const bpx_query *q
               want ? (double)expect_buf[0].fraction : 0.0);
 }
 
-// Every scene kind at several sizes: single queries against the oracle.
-static void test_scenes(void)
+// Every scene kind at several sizes: single queries against the oracle, with the walks of one
+// instruction set (the widest, or the portable ones).
+static void test_scenes(bpx_simd simd)
 {
+    query_simd = simd;
     const uint32_t sizes[] = {0, 1, 2, 5, 17, 100, 1000};
     for (int kind = 0; kind < SCENE_KIND_COUNT; kind++)
         for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
             uint32_t n = sizes[s];
             uint64_t seed = 1000u * (uint64_t)kind + s;
             check_set_seed(seed);
-            check_set_context("scene %s n=%u", scene_kind_name((scene_kind)kind), n);
+            check_set_context("scene %s n=%u simd %s", scene_kind_name((scene_kind)kind), n,
+                              bpx_simd_name(simd));
             bpx_box *boxes = malloc(sizeof(bpx_box) * (n ? n : 1));
             CHECK(scene_generate((scene_kind)kind, n, seed, boxes) == 0);
             bpx_world *w = make_world(1);
@@ -202,6 +209,69 @@ static void test_scenes(void)
             bpx_world_destroy(w);
             free(boxes);
         }
+    query_simd = BPX_SIMD_AUTO;
+}
+
+// A world big enough that the tree is built and refitted in parallel passes and subtrees: at
+// every worker count the same results, against the oracle; then every box moves (a refit) and
+// a few are removed (a rebuild).
+static void test_parallel_tree(void)
+{
+    enum { N = 150000, Q = 200 };
+    bpx_box *boxes = malloc(sizeof(bpx_box) * N);
+    uint8_t *live = malloc(N);
+    scene_heavy_tailed_density(N, 21, boxes);
+    memset(live, 1, N);
+    bpx_query *queries = malloc(sizeof(bpx_query) * Q);
+    scene_rng r;
+    scene_rng_seed(&r, 23);
+    for (int k = 0; k < Q; k++)
+        queries[k] = random_query(&r, boxes, N);
+    bpx_world *worlds[3];
+    for (int k = 0; k < 3; k++) {
+        worlds[k] = make_world(k == 0 ? 1 : k + 1);
+        CHECK_STATUS(bpx_world_set_boxes(worlds[k], boxes, N), BPX_OK);
+    }
+    world_copy copy = {boxes, N, live, NULL, NULL};
+    for (int phase = 0; phase < 3; phase++) {
+        check_set_context("parallel tree phase %d", phase);
+        if (phase == 1) { // every box moves: a refit
+            scene_move(boxes, N, 0.5f, &r);
+            for (int k = 0; k < 3; k++)
+                CHECK_STATUS(bpx_world_set_boxes(worlds[k], boxes, N), BPX_OK);
+        } else if (phase == 2) { // some leave: a rebuild
+            uint32_t ids[100];
+            for (uint32_t k = 0; k < 100; k++) {
+                ids[k] = (k * 1499u + 7u) % N;
+                live[ids[k]] = 0;
+            }
+            for (int k = 0; k < 3; k++)
+                CHECK_STATUS(bpx_world_remove_boxes(worlds[k], ids, 100), BPX_OK);
+        }
+        for (int q = 0; q < Q; q++) {
+            size_t want = oracle(&copy, &queries[q], expect_buf);
+            for (int k = 0; k < 3; k++) {
+                size_t got = 0;
+                CHECK_STATUS(bpx_world_query(worlds[k], &queries[q], got_buf, buf_cap, &got),
+                             BPX_OK);
+                CHECK_MSG(got == want && memcmp(got_buf, expect_buf, sizeof(bpx_hit) * want) == 0,
+                          "query %d kind %d world %d: %zu hits, oracle %zu", q, queries[q].kind,
+                          k, got, want);
+            }
+        }
+        bpx_query_stats first = bpx_world_query_stats(worlds[0]);
+        for (int k = 1; k < 3; k++) {
+            bpx_query_stats st = bpx_world_query_stats(worlds[k]);
+            CHECK(st.nodes == first.nodes && st.builds == first.builds &&
+                  st.refits == first.refits);
+        }
+        CHECK(first.builds == (phase == 2 ? 2u : 1u) && first.refits == (phase >= 1 ? 1u : 0u));
+    }
+    for (int k = 0; k < 3; k++)
+        bpx_world_destroy(worlds[k]);
+    free(queries);
+    free(live);
+    free(boxes);
 }
 
 // A lattice of unit boxes whose faces touch: rays along shared faces and edges, through
@@ -539,7 +609,11 @@ int main(void)
     expect_buf = malloc(sizeof(bpx_hit) * buf_cap);
     got_buf = malloc(sizeof(bpx_hit) * buf_cap);
     int64_t start = bpx_allocated_bytes();
-    test_scenes();
+    test_scenes(BPX_SIMD_AUTO);
+    if (bpx_simd_best() == BPX_SIMD_AVX512 && bpx_simd_supported(BPX_SIMD_AVX2))
+        test_scenes(BPX_SIMD_AVX2);
+    test_scenes(BPX_SIMD_SCALAR);
+    test_parallel_tree();
     test_adversarial_rays();
     test_objects_and_moves();
     test_centres();

@@ -3,7 +3,11 @@
 // same boxes and the same queries, in one run. SPDX-License-Identifier: MIT
 //
 //   bpx_querybench [--sizes 100000,1000000] [--rays 1000000] [--regions 1000000]
-//                  [--sweeps 100000] [--workers 2]
+//                  [--sweeps 100000] [--workers 2] [--rounds 1] [--peers all]
+//
+// --rounds R runs every column R times, alternating (bpx, then each peer, R times), and reports
+// the medians: ratios side by side on a shared machine. --peers picks the peers (a comma list of
+// bullet, box2d, embree; "all" by default).
 //
 // Rays: closest hit from a random origin inside the world along a random unit direction, up to
 // a quarter of the world's side. Regions: boxes of side 2..4 at random places, every hit.
@@ -16,11 +20,13 @@
 // Box2D's tree is 2D: it answers for the boxes' x-y projections, fattened by b2_aabbExtension
 // (0.1), and its ray callback clips the ray at each hit as Box2D's own ray casts do. Both run
 // on one thread; bpx on one and on --workers.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -229,9 +235,9 @@ struct Bullet {
     {
         for (size_t i = 0; i < boxes.size(); i++) {
             const bpx_box &b = boxes[i];
-            proxies.push_back(broadphase.createProxy(
-                btVector3(b.min[0], b.min[1], b.min[2]), btVector3(b.max[0], b.max[1], b.max[2]),
-                0, (void *)(uintptr_t)i, 1, 1, nullptr));
+            proxies.push_back(broadphase.createProxy(btVector3(b.min[0], b.min[1], b.min[2]),
+                                                     btVector3(b.max[0], b.max[1], b.max[2]), 0,
+                                                     (void *)(uintptr_t)i, 1, 1, nullptr));
         }
     }
     ~Bullet()
@@ -354,8 +360,8 @@ struct Box2D {
 void embree_bounds(const RTCBoundsFunctionArguments *args)
 {
     const bpx_box &b = static_cast<const bpx_box *>(args->geometryUserPtr)[args->primID];
-    *args->bounds_o = RTCBounds{b.min[0], b.min[1], b.min[2], 0.0f,
-                                b.max[0], b.max[1], b.max[2], 0.0f};
+    *args->bounds_o =
+        RTCBounds{b.min[0], b.min[1], b.min[2], 0.0f, b.max[0], b.max[1], b.max[2], 0.0f};
 }
 
 void embree_intersect(const RTCIntersectFunctionNArguments *args)
@@ -441,13 +447,29 @@ std::vector<uint32_t> parse_list(const char *s)
     return v;
 }
 
+double median(std::vector<double> v)
+{
+    if (v.empty())
+        return NAN;
+    std::sort(v.begin(), v.end());
+    size_t h = v.size() / 2;
+    return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
+}
+
+bool listed(const std::string &peers, const char *name)
+{
+    return peers == "all" ||
+           ("," + peers + ",").find(std::string(",") + name + ",") != std::string::npos;
+}
+
 } // namespace
 
 int main(int argc, char **argv)
 {
     std::vector<uint32_t> sizes = {100000, 1000000};
     uint32_t rays = 1000000, regions = 1000000, sweeps = 100000;
-    int workers = 2;
+    int workers = 2, rounds = 1;
+    std::string peers = "all";
     for (int i = 1; i + 1 < argc; i += 2) {
         if (!std::strcmp(argv[i], "--sizes"))
             sizes = parse_list(argv[i + 1]);
@@ -459,14 +481,21 @@ int main(int argc, char **argv)
             sweeps = (uint32_t)std::atoi(argv[i + 1]);
         else if (!std::strcmp(argv[i], "--workers"))
             workers = std::atoi(argv[i + 1]);
+        else if (!std::strcmp(argv[i], "--rounds"))
+            rounds = std::max(1, std::atoi(argv[i + 1]));
+        else if (!std::strcmp(argv[i], "--peers"))
+            peers = argv[i + 1];
         else {
             std::fprintf(stderr, "unknown option %s\n", argv[i]);
             return 2;
         }
     }
+    bool use_bullet = listed(peers, "bullet"), use_box2d = listed(peers, "box2d");
+    bool use_embree = listed(peers, "embree");
+    (void)use_bullet, (void)use_box2d, (void)use_embree;
     std::printf("# bpx queries: ns per query (lower is better); bpx 1t = one thread, bpx %dt = "
-                "batch on %d workers\n\n",
-                workers, workers);
+                "batch on %d workers; median of %d alternating round(s), ratios of the medians\n\n",
+                workers, workers, rounds);
     std::printf("| scene | boxes | query | bpx 1t | bpx %dt | bullet-dbvt | box2d-tree (2D) | "
                 "embree (rays) | bullet / bpx 1t | box2d / bpx 1t | embree / bpx 1t | "
                 "hits per query |\n",
@@ -477,42 +506,57 @@ int main(int argc, char **argv)
         for (uint32_t n : sizes) {
             Workload w = make(heavy, n, rays, regions, sweeps);
             const char *scene = heavy ? "heavy" : "uniform";
-            bpx_world *one = make_world(w, 1), *many = make_world(w, workers);
-            // The first query after the boxes were set builds the tree: against one collide.
+            // The first query after the boxes were set builds the tree, on a fresh world each
+            // round: against that world's first collide.
             bpx_query probe = w.regions[0];
             size_t count = 0;
-            double t0 = now_s();
-            bpx_world_query(many, &probe, nullptr, 0, &count);
-            double build = now_s() - t0;
+            std::vector<double> builds, refits, collides, ratios;
+            bpx_query_stats qs = {};
             std::vector<bpx_box> moved = w.boxes;
             scene_rng r;
             scene_rng_seed(&r, 3);
             scene_move(moved.data(), n, 0.1f, &r);
-            bpx_world_set_boxes(many, moved.data(), n);
-            t0 = now_s();
-            bpx_world_query(many, &probe, nullptr, 0, &count);
-            double refit = now_s() - t0;
-            bpx_query_stats qs = bpx_world_query_stats(many);
-            t0 = now_s();
-            bpx_world_collide(many);
-            double collide = now_s() - t0;
-            char row[256];
+            for (int round = 0; round < rounds; round++) {
+                bpx_world *fresh = make_world(w, workers);
+                double t0 = now_s();
+                bpx_world_query(fresh, &probe, nullptr, 0, &count);
+                builds.push_back(now_s() - t0);
+                bpx_world_set_boxes(fresh, moved.data(), n);
+                t0 = now_s();
+                bpx_world_query(fresh, &probe, nullptr, 0, &count);
+                refits.push_back(now_s() - t0);
+                qs = bpx_world_query_stats(fresh);
+                t0 = now_s();
+                bpx_world_collide(fresh);
+                collides.push_back(now_s() - t0);
+                ratios.push_back(builds.back() / collides.back());
+                bpx_world_destroy(fresh);
+            }
+            char row[320];
             std::snprintf(row, sizeof row,
-                          "| %s | %u | %.1f ms | %.1f ms | %.1f ms | %llu builds, %llu refits |",
-                          scene, n, 1e3 * build, 1e3 * refit, 1e3 * collide,
-                          (unsigned long long)qs.builds, (unsigned long long)qs.refits);
-            first_rows.push_back(row);
-            bpx_world_set_boxes(many, w.boxes.data(), n);
+                          "| %s | %u | %.1f ms | %.1f ms | %.1f ms | %.2f | %llu builds, %llu "
+                          "refits, %u nodes |",
+                          scene, n, 1e3 * median(builds), 1e3 * median(refits),
+                          1e3 * median(collides), median(ratios), (unsigned long long)qs.builds,
+                          (unsigned long long)qs.refits, qs.nodes);
+            std::string each;
+            for (double ratio : ratios) {
+                char one[16];
+                std::snprintf(one, sizeof one, " %.2f", ratio);
+                each += one;
+            }
+            first_rows.push_back(std::string(row) + each + " |");
+            bpx_world *one = make_world(w, 1), *many = make_world(w, workers);
             bpx_world_query(one, &probe, nullptr, 0, &count);
             bpx_world_query(many, &probe, nullptr, 0, &count);
 #ifdef BPX_QB_HAVE_BULLET
-            Bullet bullet(w.boxes);
+            std::unique_ptr<Bullet> bullet(use_bullet ? new Bullet(w.boxes) : nullptr);
 #endif
 #ifdef BPX_QB_HAVE_BOX2D
-            Box2D box2d(w.boxes);
+            std::unique_ptr<Box2D> box2d(use_box2d ? new Box2D(w.boxes) : nullptr);
 #endif
 #ifdef BPX_QB_HAVE_EMBREE
-            Embree embree(w.boxes);
+            std::unique_ptr<Embree> embree(use_embree ? new Embree(w.boxes) : nullptr);
 #endif
             const std::vector<bpx_query> *sets[3] = {&w.rays, &w.regions, &w.sweeps};
             const char *names[3] = {"ray closest", "region", "swept box closest"};
@@ -520,52 +564,76 @@ int main(int argc, char **argv)
                 const std::vector<bpx_query> &qs_k = *sets[k];
                 if (qs_k.empty())
                     continue;
-                BpxResult b1 = run_bpx(one, qs_k), bm = run_bpx(many, qs_k);
-                double bullet_ns = NAN, box2d_ns = NAN, embree_ns = NAN;
-                uint64_t hits = 0;
+                std::vector<double> b1s, bms, bullets, box2ds, embrees;
+                uint64_t b1_hits = 0;
+                for (int round = 0; round < rounds; round++) {
+                    BpxResult b1 = run_bpx(one, qs_k), bm = run_bpx(many, qs_k);
+                    b1s.push_back(b1.ns_per_query);
+                    bms.push_back(bm.ns_per_query);
+                    b1_hits = b1.hits;
+                    uint64_t hits = 0;
 #ifdef BPX_QB_HAVE_BULLET
-                bullet_ns = time_each(
-                    qs_k,
-                    [&](const bpx_query &q) {
-                        return k == 1 ? bullet.region(q) : bullet.cast(w.boxes, q);
-                    },
-                    &hits);
-                if (hits != b1.hits)
-                    std::fprintf(stderr, "note: %s %s n=%u: bullet %llu hits, bpx %llu\n", scene,
-                                 names[k], n, (unsigned long long)hits,
-                                 (unsigned long long)b1.hits);
+                    if (bullet) {
+                        bullets.push_back(time_each(
+                            qs_k,
+                            [&](const bpx_query &q) {
+                                return k == 1 ? bullet->region(q) : bullet->cast(w.boxes, q);
+                            },
+                            &hits));
+                        if (hits != b1.hits && round == 0)
+                            std::fprintf(stderr, "note: %s %s n=%u: bullet %llu hits, bpx %llu\n",
+                                         scene, names[k], n, (unsigned long long)hits,
+                                         (unsigned long long)b1.hits);
+                    }
 #endif
 #ifdef BPX_QB_HAVE_BOX2D
-                box2d_ns = time_each(
-                    qs_k,
-                    [&](const bpx_query &q) { return k == 1 ? box2d.region(q) : box2d.cast(q); },
-                    &hits);
+                    if (box2d)
+                        box2ds.push_back(time_each(
+                            qs_k,
+                            [&](const bpx_query &q) {
+                                return k == 1 ? box2d->region(q) : box2d->cast(q);
+                            },
+                            &hits));
 #endif
 #ifdef BPX_QB_HAVE_EMBREE
-                if (k == 0) {
-                    embree_ns = time_each(
-                        qs_k, [&](const bpx_query &q) { return embree.cast(q); }, &hits);
-                    if (hits != b1.hits)
-                        std::fprintf(stderr, "note: %s rays n=%u: embree %llu hits, bpx %llu\n",
-                                     scene, n, (unsigned long long)hits,
-                                     (unsigned long long)b1.hits);
-                }
+                    if (embree && k == 0) {
+                        embrees.push_back(time_each(
+                            qs_k, [&](const bpx_query &q) { return embree->cast(q); }, &hits));
+                        if (hits != b1.hits && round == 0)
+                            std::fprintf(stderr, "note: %s rays n=%u: embree %llu hits, bpx %llu\n",
+                                         scene, n, (unsigned long long)hits,
+                                         (unsigned long long)b1.hits);
+                    }
 #endif
+                    (void)hits;
+                }
+                double b1 = median(b1s), bm = median(bms), bullet_ns = median(bullets);
+                double box2d_ns = median(box2ds), embree_ns = median(embrees);
                 std::printf("| %s | %u | %s | %.0f | %.0f | %.0f | %.0f | %.0f | %.1f× | %.1f× | "
                             "%.2f× | %.2f |\n",
-                            scene, n, names[k], b1.ns_per_query, bm.ns_per_query, bullet_ns,
-                            box2d_ns, embree_ns, bullet_ns / b1.ns_per_query,
-                            box2d_ns / b1.ns_per_query, embree_ns / b1.ns_per_query,
-                            (double)b1.hits / (double)qs_k.size());
+                            scene, n, names[k], b1, bm, bullet_ns, box2d_ns, embree_ns,
+                            bullet_ns / b1, box2d_ns / b1, embree_ns / b1,
+                            (double)b1_hits / (double)qs_k.size());
+                if (rounds > 1 && !embrees.empty()) {
+                    std::printf("|  |  | (rounds: embree / bpx 1t |");
+                    for (size_t k2 = 0; k2 < embrees.size(); k2++)
+                        std::printf(" %.2f", embrees[k2] / b1s[k2]);
+                    std::printf(") |  |  |  |  |  |  |  |  |\n");
+                }
                 std::fflush(stdout);
             }
             bpx_world_destroy(one);
             bpx_world_destroy(many);
         }
-    std::printf("\n# the first query after set_boxes: the tree built from scratch, then after "
-                "every box moved (a refit), against one collide (auto, %d workers)\n\n",
-                workers);
-    std::printf("| scene | boxes | build | refit | collide | tree |\n|---|---:|---:|---:|---:|---|\n");
+    std::printf(
+        "\n# the first query after set_boxes: the tree built from scratch on a fresh world, "
+        "then after every box moved (a refit), against that world's first collide (auto, "
+        "%d workers); medians of %d round(s), build / collide the median of the rounds' "
+        "ratios\n\n",
+        workers, rounds);
+    std::printf(
+        "| scene | boxes | build | refit | collide | build / collide | tree | rounds' build "
+        "/ collide |\n|---|---:|---:|---:|---:|---:|---|---|\n");
     for (const std::string &row : first_rows)
         std::printf("%s\n", row.c_str());
     return 0;

@@ -1,3 +1,10 @@
+// The tree's upkeep: its memory, the choice between refit and rebuild, and the refit (block by
+// block on the world's workers). The build is bvh_keys.c and bvh_build.c.
+#if defined(__linux__)
+#define _DEFAULT_SOURCE // madvise
+#include <sys/mman.h>
+#endif
+
 #include "bvh.h"
 
 #include <math.h>
@@ -5,245 +12,197 @@
 
 #include "core/alloc.h"
 #include "core/clock.h"
-#include "cpu/sort.h"
 
-/// A refitted tree is rebuilt once its inner nodes' area, relative to the root's, grows past
-/// this factor of what the last build gave: a looser tree costs every query more.
+/// A refitted tree is rebuilt once its nodes' area, relative to the root's, grows past this
+/// factor of what the last build gave: a looser tree costs every query more.
 #define BPX_BVH_REBUILD_LOOSENESS 1.3
 
-static bool live(const bpx_soa *s, uint32_t i)
+// Big arrays in 2 MiB pages where the OS has them on request (Linux's transparent huge pages
+// in "madvise" mode): a first build faults in a twentieth of the pages, and a walk of the tree,
+// a cache miss per node, misses the TLB far less.
+static void advise_huge(void *memory, size_t size)
 {
-    return s->lo[0][i] <= s->hi[0][i]; // removed ids hold inert boxes: +inf .. -inf
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    const uintptr_t huge = (uintptr_t)2 << 20;
+    uintptr_t begin = ((uintptr_t)memory + huge - 1) & ~(huge - 1);
+    uintptr_t end = ((uintptr_t)memory + size) & ~(huge - 1);
+    if (memory && end > begin)
+        (void)madvise((void *)begin, end - begin, MADV_HUGEPAGE); // a hint: failure is fine
+#else
+    (void)memory;
+    (void)size;
+#endif
 }
 
-// Room for a tree over `items` boxes. A rebuild rewrites everything, so the arrays are
-// replaced, not grown: all new or, when memory runs out, all old.
-static bool reserve(bpx_bvh *t, uint32_t items)
+bool bpx__bvh_reserve_nodes(bpx_bvh *t, size_t count, size_t keep)
 {
-    if (items <= t->item_capacity)
+    if (count <= t->node_capacity)
         return true;
-    uint32_t cap = items + items / 4 + 16;
+    size_t cap = count + count / 4 + 16;
+    bpx_bvh_node *nodes = bpx__alloc(sizeof(bpx_bvh_node) * cap);
+    if (!nodes)
+        return false;
+    advise_huge(nodes, sizeof(bpx_bvh_node) * cap);
+    if (keep)
+        memcpy(nodes, t->nodes, sizeof(bpx_bvh_node) * keep);
+    bpx__free(t->nodes, sizeof(bpx_bvh_node) * t->node_capacity);
+    t->nodes = nodes;
+    t->node_capacity = cap;
+    return true;
+}
+
+static void release(bpx_bvh *t)
+{
+    bpx__free(t->words, sizeof(uint64_t) * t->item_capacity);
+    bpx__free(t->words_scratch, sizeof(uint64_t) * t->item_capacity);
+    bpx__free(t->boxes, sizeof(bpx_bvh_box) * t->item_capacity);
+    bpx__free(t->counts, sizeof(uint32_t) * t->count_capacity);
+}
+
+// Room for a tree over n ids. A rebuild rewrites everything, so the arrays are replaced, not
+// grown: all new or, when memory runs out, all old.
+static bool reserve(bpx_bvh *t, uint32_t n)
+{
+    if (n <= t->item_capacity && t->words)
+        return true;
+    uint32_t cap = n + n / 4 + 16;
     bpx_bvh fresh = *t;
-    fresh.nodes = bpx__alloc(sizeof(bpx_bvh_node) * 2 * (size_t)cap);
-    fresh.items = bpx__alloc(sizeof(bpx_box) * (size_t)cap);
-    fresh.ids = bpx__alloc(sizeof(uint32_t) * (size_t)cap);
-    fresh.keys = bpx__alloc(sizeof(uint32_t) * (size_t)cap);
-    fresh.scratch = bpx__alloc(sizeof(uint32_t) * 2 * (size_t)cap);
-    fresh.node_capacity = 2 * cap;
-    fresh.item_capacity = fresh.scratch_capacity = cap;
-    bool ok = fresh.nodes && fresh.items && fresh.ids && fresh.keys && fresh.scratch;
-    bpx_bvh *drop = ok ? t : &fresh;
-    bpx__free(drop->nodes, sizeof(bpx_bvh_node) * drop->node_capacity);
-    bpx__free(drop->items, sizeof(bpx_box) * drop->item_capacity);
-    bpx__free(drop->ids, sizeof(uint32_t) * drop->item_capacity);
-    bpx__free(drop->keys, sizeof(uint32_t) * drop->scratch_capacity);
-    bpx__free(drop->scratch, sizeof(uint32_t) * 2 * (size_t)drop->scratch_capacity);
-    if (ok)
+    fresh.item_capacity = cap;
+    fresh.count_capacity = bpx__bvh_count_words(cap);
+    fresh.words = bpx__alloc(sizeof(uint64_t) * cap);
+    fresh.words_scratch = bpx__alloc(sizeof(uint64_t) * cap);
+    fresh.boxes = bpx__alloc(sizeof(bpx_bvh_box) * cap);
+    fresh.counts = bpx__alloc(sizeof(uint32_t) * fresh.count_capacity);
+    bool ok = fresh.words && fresh.words_scratch && fresh.boxes && fresh.counts;
+    release(ok ? t : &fresh);
+    if (ok) {
+        advise_huge(fresh.boxes, sizeof(bpx_bvh_box) * cap);
+        advise_huge(fresh.words, sizeof(uint64_t) * cap);
+        advise_huge(fresh.words_scratch, sizeof(uint64_t) * cap);
+        fresh.node_count = 0;
+        fresh.block_count = 0;
         *t = fresh;
+    }
     t->valid = false;
     return ok;
 }
 
-// 10 bits of v spread to every third bit.
-static uint32_t spread(uint32_t v)
+static void lane_union(bpx_bvh_node *node, int k, const bpx_bvh_node *child)
 {
-    v &= 0x3FF;
-    v = (v | (v << 16)) & 0x030000FF;
-    v = (v | (v << 8)) & 0x0300F00F;
-    v = (v | (v << 4)) & 0x030C30C3;
-    v = (v | (v << 2)) & 0x09249249;
-    return v;
-}
-
-/// Boxes whose largest side passes this many times the mean one go to a subtree of their own
-/// (bit 30 of their key): among small boxes a large one would inflate every node above it, the
-/// heavy-tailed case (the grid backend keeps its biggest boxes apart for the same reason).
-#define BPX_BVH_LARGE_FACTOR 4.0
-
-static double largest_side(const bpx_soa *s, uint32_t i)
-{
-    double side = 0.0;
+    float lo[3], hi[3];
+    bpx__bvh_node_bounds(child, lo, hi);
     for (int a = 0; a < 3; a++) {
-        double e = (double)s->hi[a][i] - (double)s->lo[a][i];
-        side = e > side ? e : side;
+        node->lo[a][k] = lo[a];
+        node->hi[a][k] = hi[a];
     }
-    return side;
 }
 
-// Morton keys of the live boxes' centres in t->keys, their ids in t->ids; returns how many.
-// The keys only order the boxes: any rounding here changes the tree's shape, never a result.
-static uint32_t morton_keys(bpx_bvh *t, const bpx_soa *s)
+// Nodes [first, first + count): with `leaves`, first every leaf lane from t->boxes (a loop of
+// independent reads that overlap their cache misses: the ids are scattered), then in reverse
+// (children after parents) every node lane from its child. Returns the nodes' total area; sets
+// *dead when a leaf's box is no longer live.
+static double refit_nodes(bpx_bvh *t, bool leaves, uint32_t first, uint32_t count, bool *dead)
 {
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    double side_sum = 0.0;
-    uint32_t live_count = 0;
-    for (uint32_t i = 0; i < s->n; i++) {
-        if (!live(s, i))
-            continue;
-        for (int a = 0; a < 3; a++) {
-            double c = 0.5 * ((double)s->lo[a][i] + (double)s->hi[a][i]);
-            lo[a] = c < lo[a] ? c : lo[a];
-            hi[a] = c > hi[a] ? c : hi[a];
+    for (uint32_t k = first; leaves && k < first + count; k++) {
+        bpx_bvh_node *node = &t->nodes[k];
+        for (uint32_t leaf = node->leaves; leaf; leaf &= leaf - 1) {
+            int lane = __builtin_ctz(leaf);
+            const bpx_bvh_box *b = &t->boxes[node->child[lane]];
+            for (int a = 0; a < 3; a++) {
+                node->lo[a][lane] = b->lo[a];
+                node->hi[a][lane] = b->hi[a];
+            }
+            *dead |= !(b->lo[0] <= b->hi[0]);
         }
-        side_sum += largest_side(s, i);
-        live_count++;
     }
-    double large = live_count ? BPX_BVH_LARGE_FACTOR * side_sum / live_count : INFINITY;
-    double scale[3];
-    for (int a = 0; a < 3; a++)
-        scale[a] = hi[a] > lo[a] ? 1023.0 / (hi[a] - lo[a]) : 0.0;
-    uint32_t m = 0;
-    for (uint32_t i = 0; i < s->n; i++) {
-        if (!live(s, i))
-            continue;
-        uint32_t key = largest_side(s, i) > large ? 1u << 30 : 0u;
-        for (int a = 0; a < 3; a++) {
-            double c = 0.5 * ((double)s->lo[a][i] + (double)s->hi[a][i]);
-            key |= spread((uint32_t)((c - lo[a]) * scale[a])) << (2 - a);
+    double area = 0.0;
+    for (uint32_t k = first + count; k-- > first;) {
+        bpx_bvh_node *node = &t->nodes[k];
+        for (uint32_t inner = ~node->leaves & ((1u << node->lanes) - 1); inner;
+             inner &= inner - 1) {
+            int lane = __builtin_ctz(inner);
+            lane_union(node, lane, &t->nodes[node->child[lane]]);
         }
-        t->keys[m] = key;
-        t->ids[m] = i;
-        m++;
+        float lo[3], hi[3];
+        bpx__bvh_node_bounds(node, lo, hi);
+        area += bpx__bvh_area(lo, hi);
     }
-    return m;
+    return area;
 }
 
-static void box_union(float lo[3], float hi[3], const float blo[3], const float bhi[3])
+void bpx__bvh_top_refit(bpx_bvh *t)
 {
-    for (int a = 0; a < 3; a++) {
-        lo[a] = blo[a] < lo[a] ? blo[a] : lo[a];
-        hi[a] = bhi[a] > hi[a] ? bhi[a] : hi[a];
-    }
+    bool dead = false;
+    t->blocks[0].area = refit_nodes(t, false, 0, t->blocks[0].count, &dead);
 }
 
-static void leaf_bounds(bpx_bvh *t, bpx_bvh_node *node)
-{
-    const bpx_box *b = t->items + node->second;
-    memcpy(node->lo, b->min, sizeof node->lo);
-    memcpy(node->hi, b->max, sizeof node->hi);
-    for (uint32_t k = 1; k < node->count; k++)
-        box_union(node->lo, node->hi, b[k].min, b[k].max);
-}
-
-static void inner_bounds(bpx_bvh *t, uint32_t index)
-{
-    bpx_bvh_node *node = &t->nodes[index];
-    const bpx_bvh_node *a = &t->nodes[index + 1], *b = &t->nodes[node->second];
-    memcpy(node->lo, a->lo, sizeof node->lo);
-    memcpy(node->hi, a->hi, sizeof node->hi);
-    box_union(node->lo, node->hi, b->lo, b->hi);
-}
-
-// Where [begin, end) of the sorted keys splits: at the highest bit in which its first and last
-// keys differ, or in the middle when all keys are equal.
-static uint32_t split_at(const uint32_t *keys, uint32_t begin, uint32_t end)
-{
-    uint32_t diff = keys[begin] ^ keys[end - 1];
-    if (!diff)
-        return begin + (end - begin) / 2;
-    uint32_t bit = 1u << (31 - __builtin_clz(diff));
-    uint32_t lo = begin, hi = end - 1; // keys[lo] lacks the bit, keys[hi] has it
-    while (hi - lo > 1) {
-        uint32_t mid = lo + (hi - lo) / 2;
-        if (keys[mid] & bit)
-            hi = mid;
-        else
-            lo = mid;
-    }
-    return hi;
-}
-
-static uint32_t build(bpx_bvh *t, uint32_t begin, uint32_t end)
-{
-    uint32_t index = t->node_count++;
-    bpx_bvh_node *node = &t->nodes[index];
-    if (end - begin <= BPX_BVH_LEAF) {
-        node->second = begin;
-        node->count = end - begin;
-        leaf_bounds(t, node);
-        return index;
-    }
-    uint32_t split = split_at(t->keys, begin, end);
-    build(t, begin, split);
-    uint32_t second = build(t, split, end);
-    t->nodes[index].second = second;
-    t->nodes[index].count = 0;
-    inner_bounds(t, index);
-    return index;
-}
-
-static double area(const float lo[3], const float hi[3])
-{
-    double e[3];
-    for (int a = 0; a < 3; a++)
-        e[a] = (double)hi[a] - (double)lo[a];
-    return e[0] * e[1] + e[1] * e[2] + e[2] * e[0];
-}
-
-// The expected number of inner nodes a ray through the root visits, by the surface area rule.
-static double looseness(const bpx_bvh *t)
+double bpx__bvh_looseness(const bpx_bvh *t)
 {
     if (!t->node_count)
         return 0.0;
-    double root = area(t->nodes[0].lo, t->nodes[0].hi), sum = 0.0;
+    float lo[3], hi[3];
+    bpx__bvh_node_bounds(&t->nodes[0], lo, hi);
+    double root = bpx__bvh_area(lo, hi), sum = 0.0;
     if (!(root > 0.0))
         return 1.0;
-    for (uint32_t k = 0; k < t->node_count; k++)
-        if (!t->nodes[k].count)
-            sum += area(t->nodes[k].lo, t->nodes[k].hi);
+    for (uint32_t b = 0; b < t->block_count; b++) // in block order: the same sum for any workers
+        sum += t->blocks[b].area;
     return sum / root;
 }
 
-static void gather(bpx_bvh *t, const bpx_soa *s, uint32_t k)
+typedef struct refit_job {
+    bpx_bvh *t;
+    const bpx_soa *s;
+    uint32_t *live; // per chunk of ids: live boxes
+    uint8_t *dead;  // per block below the top
+} refit_job;
+
+static void copy_task(int begin, int end, int worker, void *context)
 {
-    uint32_t i = t->ids[k];
-    bpx_box *b = &t->items[k];
-    for (int a = 0; a < 3; a++) {
-        b->min[a] = s->lo[a][i];
-        b->max[a] = s->hi[a][i];
+    (void)worker;
+    refit_job *job = context;
+    for (int c = begin; c < end; c++)
+        job->live[c] = bpx__bvh_copy_chunk(job->t, job->s, (uint32_t)c);
+}
+
+static void refit_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    refit_job *job = context;
+    for (int b = begin; b < end; b++) {
+        bpx_bvh_block *block = &job->t->blocks[b + 1];
+        bool dead = false;
+        block->area = refit_nodes(job->t, true, block->first, block->count, &dead);
+        job->dead[b] = dead;
     }
 }
 
-static bpx_status rebuild(bpx_bvh *t, const bpx_soa *s)
+// The same live ids, moved: every lane from its box or child. False when the live ids differ
+// from the tree's (then it must be rebuilt).
+static bool refit(bpx_bvh *t, const bpx_soa *s, const bpx_executor *ex)
 {
-    if (!reserve(t, s->n))
-        return BPX_ERR_OUT_OF_MEMORY;
-    uint32_t m = morton_keys(t, s);
-    // Stable: equal keys keep id order, so the tree depends on the boxes alone.
-    bpx__radix_sort(t->keys, t->ids, t->scratch, t->scratch + t->scratch_capacity, m);
-    for (uint32_t k = 0; k < m; k++)
-        gather(t, s, k);
-    t->item_count = m;
-    t->node_count = 0;
-    if (m)
-        build(t, 0, m);
-    t->looseness = looseness(t);
-    t->builds++;
-    return BPX_OK;
-}
-
-// The same live ids, moved: new item boxes, then every node's bounds from its children's.
-// False when the live ids differ from the tree's (then it must be rebuilt).
-static bool refit(bpx_bvh *t, const bpx_soa *s)
-{
-    if (s->n != t->world_n)
+    if (s->n != t->world_n || !t->block_count)
         return false;
-    uint32_t live_count = 0;
-    for (uint32_t i = 0; i < s->n; i++)
-        live_count += live(s, i);
-    if (live_count != t->item_count)
+    uint32_t chunks = bpx__bvh_chunks(s->n);
+    // Scratch, from the build's counts (free now): live boxes per chunk, then a flag per block.
+    if (chunks + (t->block_count + 3) / 4 > t->count_capacity)
         return false;
-    for (uint32_t k = 0; k < t->item_count; k++) {
-        if (!live(s, t->ids[k]))
-            return false; // as many live, but not the same ones
-        gather(t, s, k);
-    }
-    for (uint32_t k = t->node_count; k-- > 0;) {
-        if (t->nodes[k].count)
-            leaf_bounds(t, &t->nodes[k]);
-        else
-            inner_bounds(t, k);
-    }
+    refit_job job = {t, s, t->counts, (uint8_t *)(t->counts + chunks)};
+    bpx__bvh_run(ex, copy_task, chunks, s->n, &job);
+    uint32_t live = 0;
+    for (uint32_t c = 0; c < chunks; c++)
+        live += job.live[c];
+    if (live != t->item_count)
+        return false;
+    // As many live as the tree holds: the same ids when all of the tree's are live (the tree's
+    // ids are distinct).
+    bpx__bvh_run(ex, refit_task, t->block_count - 1, t->item_count, &job);
+    bool dead = false;
+    for (uint32_t b = 0; b + 1 < t->block_count; b++)
+        dead |= job.dead[b];
+    t->blocks[0].area = refit_nodes(t, true, 0, t->blocks[0].count, &dead);
+    if (dead)
+        return false;
     t->refits++;
     return true;
 }
@@ -254,14 +213,15 @@ bpx_status bpx__bvh_update(bpx_bvh *t, const bpx_world *w)
         return BPX_OK;
     uint64_t start = bpx__now_ns();
     bpx_soa s = bpx__world_soa(w);
-    bool refitted = t->valid && refit(t, &s);
-    if (refitted && looseness(t) > BPX_BVH_REBUILD_LOOSENESS * t->looseness)
+    bool refitted = t->valid && refit(t, &s, &w->executor);
+    if (refitted && bpx__bvh_looseness(t) > BPX_BVH_REBUILD_LOOSENESS * t->looseness)
         refitted = false;
     t->valid = false;
     if (!refitted) {
-        bpx_status status = rebuild(t, &s);
-        if (status != BPX_OK)
-            return status;
+        if (!reserve(t, s.n) || !bpx__bvh_rebuild(t, &s, &w->executor))
+            return BPX_ERR_OUT_OF_MEMORY;
+        t->looseness = bpx__bvh_looseness(t);
+        t->builds++;
     }
     t->valid = true;
     t->version = w->boxes_version;
@@ -272,10 +232,8 @@ bpx_status bpx__bvh_update(bpx_bvh *t, const bpx_world *w)
 
 void bpx__bvh_free(bpx_bvh *t)
 {
+    release(t);
     bpx__free(t->nodes, sizeof(bpx_bvh_node) * t->node_capacity);
-    bpx__free(t->items, sizeof(bpx_box) * t->item_capacity);
-    bpx__free(t->ids, sizeof(uint32_t) * t->item_capacity);
-    bpx__free(t->keys, sizeof(uint32_t) * t->scratch_capacity);
-    bpx__free(t->scratch, sizeof(uint32_t) * 2 * (size_t)t->scratch_capacity);
+    bpx__free(t->blocks, sizeof(bpx_bvh_block) * t->block_capacity);
     memset(t, 0, sizeof *t);
 }

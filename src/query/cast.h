@@ -20,6 +20,7 @@ typedef struct bpx_query_view {
     const bpx_bvh *tree;
     const uint32_t *category; // per id, or NULL: every box category 1
     const uint32_t *mask;     // per id, or NULL: every box mask all ones
+    bpx_simd simd;            // the walks' instruction set (the same results from each)
 } bpx_query_view;
 
 /// Appends the query's hits, in their defined order, to out. False when memory ran out (out

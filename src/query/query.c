@@ -239,7 +239,7 @@ static bpx_status run_batch(bpx_world *w, const bpx_query *queries, uint32_t cou
     if (bpx__bvh_update(&q->tree, w) != BPX_OK)
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for the query tree over %u boxes", w->n);
-    batch_job job = {q, {&q->tree, w->category, w->mask}, queries, count};
+    batch_job job = {q, {&q->tree, w->category, w->mask, w->simd}, queries, count};
     if (chunks > 1)
         bpx__parallel_for(&w->executor, batch_task, (int)chunks, &job);
     else if (chunks)

@@ -1,0 +1,156 @@
+// The walks of the tree, once per instruction set: a file defines the three lane tests below
+// and BPX_TRAVERSE (its entry's name), then includes this one (traverse_scalar.c,
+// traverse_avx2.c, traverse_avx512.c). Every lane test computes a lane's answer with the very
+// operations of the header's definitions (in double, in the same order), so every build and width
+// gives the same bits; a node's lanes hold its children's bounds, and a leaf lane is a box, so the
+// lane test of a leaf is the box's own test.
+//
+//   uint32_t lanes_box(node, p)     lanes whose box overlaps the region (closed intervals)
+//   uint32_t lanes_sphere(node, p)  lanes within the sphere
+//   uint32_t lanes_cast(node, p, limit, enter[W])
+//                                   lanes the ray or sweep hits, at enter[k] = the fraction
+//                                   (rounded to float), no later than limit
+#pragma once
+
+#include "query_prep.h"
+
+enum { STACK = BPX_BVH_WIDTH * (BPX_BVH_MAX_DEPTH + 1) };
+
+// A walk waits on memory (a node's lanes decide where it goes next): the nodes it will visit
+// later start loading now, so their cache misses overlap.
+static inline void prefetch_node(const bpx_bvh *t, uint32_t index)
+{
+    const char *node = (const char *)&t->nodes[index];
+    for (size_t line = 0; line < sizeof(bpx_bvh_node); line += 64)
+        __builtin_prefetch(node + line);
+}
+
+// BOX and SPHERE: every box the region touches, by id.
+static bool region(const bpx_query_view *v, const bpx_prepared *p, bpx_hit_list *out)
+{
+    const bpx_bvh *t = v->tree;
+    size_t first = out->count;
+    bool sphere = p->kind == BPX_QUERY_SPHERE;
+    uint32_t stack[STACK];
+    int top = 0;
+    if (t->node_count)
+        stack[top++] = 0;
+    while (top) {
+        const bpx_bvh_node *node = &t->nodes[stack[--top]];
+        uint32_t hit = sphere ? lanes_sphere(node, p) : lanes_box(node, p);
+        uint32_t leaves = hit & node->leaves, inner = hit & ~node->leaves;
+        if (leaves && !bpx__hits_reserve(out, BPX_BVH_WIDTH)) {
+            out->count = first;
+            return false;
+        }
+        for (; leaves; leaves &= leaves - 1) {
+            uint32_t id = node->child[__builtin_ctz(leaves)];
+            if (bpx__query_seen(v, p, id))
+                out->hits[out->count++] = (bpx_hit){id, 0.0f};
+        }
+        for (; inner; inner &= inner - 1) {
+            prefetch_node(t, node->child[__builtin_ctz(inner)]);
+            stack[top++] = node->child[__builtin_ctz(inner)];
+        }
+    }
+    bpx__hits_sort(out, first, false);
+    return true;
+}
+
+// RAY and SWEEP, every hit, by fraction then id.
+static bool cast_all(const bpx_query_view *v, const bpx_prepared *p, bpx_hit_list *out)
+{
+    const bpx_bvh *t = v->tree;
+    size_t first = out->count;
+    uint32_t stack[STACK];
+    int top = 0;
+    if (t->node_count)
+        stack[top++] = 0;
+    float enter[BPX_BVH_WIDTH];
+    while (top) {
+        const bpx_bvh_node *node = &t->nodes[stack[--top]];
+        uint32_t hit = lanes_cast(node, p, INFINITY, enter);
+        uint32_t leaves = hit & node->leaves, inner = hit & ~node->leaves;
+        if (leaves && !bpx__hits_reserve(out, BPX_BVH_WIDTH)) {
+            out->count = first;
+            return false;
+        }
+        for (; leaves; leaves &= leaves - 1) {
+            int k = __builtin_ctz(leaves);
+            if (bpx__query_seen(v, p, node->child[k]))
+                out->hits[out->count++] = (bpx_hit){node->child[k], enter[k]};
+        }
+        for (; inner; inner &= inner - 1) {
+            prefetch_node(t, node->child[__builtin_ctz(inner)]);
+            stack[top++] = node->child[__builtin_ctz(inner)];
+        }
+    }
+    bpx__hits_sort(out, first, true);
+    return true;
+}
+
+// RAY and SWEEP, the closest hit: nearer children first, and nothing entered after the best so
+// far. Fractions compare as the floats reported, so a tie at the reported fraction still looks
+// for a lower id.
+static bool cast_closest(const bpx_query_view *v, const bpx_prepared *p, bpx_hit_list *out)
+{
+    const bpx_bvh *t = v->tree;
+    bpx_hit best = {UINT32_MAX, INFINITY};
+    typedef struct entry {
+        uint32_t node;
+        float enter; // where the cast enters the node, as a reported fraction would round
+    } entry;
+    entry stack[STACK];
+    int top = 0;
+    if (t->node_count)
+        stack[top++] = (entry){0, 0.0f};
+    float enter[BPX_BVH_WIDTH];
+    while (top) {
+        top--;
+        if (stack[top].enter > best.fraction)
+            continue;
+        const bpx_bvh_node *node = &t->nodes[stack[top].node];
+        uint32_t hit = lanes_cast(node, p, best.fraction, enter);
+        for (uint32_t leaves = hit & node->leaves; leaves; leaves &= leaves - 1) {
+            int k = __builtin_ctz(leaves);
+            bpx_hit h = {node->child[k], enter[k]};
+            if ((h.fraction < best.fraction || (h.fraction == best.fraction && h.id < best.id)) &&
+                bpx__query_seen(v, p, h.id))
+                best = h;
+        }
+        // The children still in reach, farthest pushed first so that the nearest comes next.
+        entry near[BPX_BVH_WIDTH];
+        int count = 0;
+        for (uint32_t inner = hit & ~node->leaves; inner; inner &= inner - 1) {
+            int k = __builtin_ctz(inner);
+            if (enter[k] > best.fraction)
+                continue;
+            entry e = {node->child[k], enter[k]};
+            int at = count++;
+            for (; at > 0 && near[at - 1].enter < e.enter; at--)
+                near[at] = near[at - 1];
+            near[at] = e;
+        }
+        for (int k = 0; k < count; k++) {
+            prefetch_node(t, near[k].node);
+            stack[top++] = near[k];
+        }
+    }
+    if (best.id == UINT32_MAX)
+        return true;
+    if (!bpx__hits_reserve(out, 1))
+        return false;
+    out->hits[out->count++] = best;
+    return true;
+}
+
+bool BPX_TRAVERSE(const bpx_query_view *view, const bpx_prepared *p, bpx_hit_list *out)
+{
+    switch (p->kind) {
+    case BPX_QUERY_BOX:
+    case BPX_QUERY_SPHERE:
+        return region(view, p, out);
+    default:
+        return p->closest ? cast_closest(view, p, out) : cast_all(view, p, out);
+    }
+}
