@@ -8,7 +8,7 @@
 # Files: env.txt (machine, driver, toolkit, commit), tests.log, gpubench.md/.csv (cuda
 # device-resident and over the link against the host's grid on every thread, n = 500 .. 10M),
 # table2.md (the paper's Table 2 with the communication share of cuda and opencl), scale.md/.csv
-# (bpx bench's scale rows for cuda, opencl, grid and sap), clresident.md (the opencl tree's
+# (bpx bench's scale rows for cuda, opencl, hybrid, grid and sap), clresident.md (the opencl tree's
 # cycle with pairs out to the host against its device-resident cycle, bpx_clscale --mode).
 set -u
 cd "$(dirname "$0")/../.."
@@ -54,7 +54,7 @@ stamp "table 2" | tee -a "$out/tests.log"
 tail -30 "$out/table2.md"
 
 stamp "scale rows" | tee -a "$out/tests.log"
-"$build/bpx" bench --backend cuda,opencl,grid,sap --sizes 10000,100000,1000000 \
+"$build/bpx" bench --backend cuda,opencl,hybrid,grid,sap --sizes 10000,100000,1000000 \
     --scene uniform,heavy --seconds 1 --csv "$out/scale.csv" >"$out/scale.md" 2>&1
 grep -E "^\|" "$out/scale.md" | head -40
 

@@ -65,6 +65,8 @@ typedef enum bpx_backend {
     BPX_BACKEND_OPENCL,    ///< "opencl": the comparator on an OpenCL device (PoCL, GPUs, FPGAs)
     BPX_BACKEND_CUDA,      ///< "cuda": a tree built each cycle on a CUDA GPU (brute force in one
                            ///< block up to 1024 boxes); device-resident cycles in bpx/cuda.h
+    BPX_BACKEND_HYBRID,    ///< "hybrid": the CPU (auto) and a device (cuda, else opencl) share
+                           ///< each cycle, space cut along x by their measured speed
     BPX_BACKEND_COUNT
 } bpx_backend;
 
@@ -156,6 +158,10 @@ typedef struct bpx_world_def {
     /// none. Never needed for correctness; fast-math options are refused. The string must live
     /// as long as the world (it is read again when the world first uses the device).
     const char *opencl_build_options;
+    /// Hybrid backend: the share of the boxes (cut along x by their centres) given to the
+    /// device, in (0, 1]; 0 (default) = balanced each cycle by both sides' measured speed, with
+    /// everything on the CPU below 20,000 boxes, where a device's launch costs more than it saves.
+    float hybrid_device_share;
 } bpx_world_def;
 
 /// The change in the pair set made by the last collide, both lists sorted by (i, j).
@@ -190,6 +196,7 @@ typedef struct bpx_cycle_stats {
     uint64_t bytes_in;  ///< OpenCL, CUDA: bytes sent to the device last cycle (12 per object in the
                         ///< two-phase mode once the extents are there, 24 per box otherwise)
     uint64_t bytes_out; ///< OpenCL, CUDA: bytes read back last cycle (8 per pair + the register)
+    float device_share; ///< hybrid: the share of the boxes the device got last cycle (0 .. 1)
 } bpx_cycle_stats;
 
 /// Detail of an error from a call that has no world (one-shot). index is the first offending

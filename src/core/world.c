@@ -20,6 +20,7 @@ static const char *const backend_names[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_SAP] = "sap",     [BPX_BACKEND_GRID] = "grid",
     [BPX_BACKEND_MODEL] = "model", [BPX_BACKEND_OPENCL] = "opencl",
     [BPX_BACKEND_CUDA] = "cuda",
+    [BPX_BACKEND_HYBRID] = "hybrid",
 };
 
 static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
@@ -36,6 +37,7 @@ static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
 #if BPX_HAVE_CUDA
     [BPX_BACKEND_CUDA] = &bpx__cuda_backend,
 #endif
+    [BPX_BACKEND_HYBRID] = &bpx__hybrid_backend,
 };
 
 enum { MAX_WORKERS = 256, DEFAULT_SPIN_US = 200 };
@@ -113,7 +115,8 @@ bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
         return BPX_ERR_NULL_ARGUMENT;
     if (def->worker_count < 0 || def->worker_count > MAX_WORKERS ||
         (unsigned)def->backend >= BPX_BACKEND_COUNT || (unsigned)def->simd >= BPX_SIMD_COUNT ||
-        !def->enqueue_task != !def->finish_task || def->capacity_hint > BPX_MAX_BOXES)
+        !def->enqueue_task != !def->finish_task || def->capacity_hint > BPX_MAX_BOXES ||
+        !(def->hybrid_device_share >= 0.0f && def->hybrid_device_share <= 1.0f))
         return BPX_ERR_INVALID_ARGUMENT;
 
     bpx_backend resolved = def->backend;

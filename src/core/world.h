@@ -173,3 +173,4 @@ bpx_backend bpx__auto_choice(const bpx_world *w);
 extern const bpx_backend_impl bpx__model_backend;
 extern const bpx_backend_impl bpx__opencl_backend;
 extern const bpx_backend_impl bpx__cuda_backend;
+extern const bpx_backend_impl bpx__hybrid_backend;

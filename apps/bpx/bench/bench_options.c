@@ -213,6 +213,9 @@ int bench_cmd_list_variants(const bench_options *o, uint32_t n, bench_variant *o
     }
     if (bpx_backend_query(BPX_BACKEND_CUDA).available)
         all[count++] = (bench_variant){-1, BPX_BACKEND_CUDA, BPX_SIMD_AUTO, 1, false, 0};
+    // CPU and device in one cycle, the CPU side on every thread.
+    if (bpx_backend_query(BPX_BACKEND_HYBRID).available)
+        all[count++] = (bench_variant){-1, BPX_BACKEND_HYBRID, BPX_SIMD_AUTO, o->threads, false, 0};
     for (int p = 0; p < bench_peer_count() && count < BENCH_MAX_VARIANTS; p++)
         all[count++] = (bench_variant){p, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, false, 0};
     int kept = 0;

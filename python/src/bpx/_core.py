@@ -89,7 +89,7 @@ def find_pairs(
             real dtype or layout is converted to float32 once (rounding is monotone: no
             float64 overlap is lost).
         backend: "auto" (default), "reference", "brute", "prune", "sap", "grid", "model",
-            "opencl", "cuda": see ``bpx.backends()``.
+            "opencl", "cuda", "hybrid": see ``bpx.backends()``.
         threads: threads working on the call, 1 .. 256 (0 is 1). None: every CPU this process
             may use from 16,384 boxes, one thread below (where starting threads costs more
             than they save).
