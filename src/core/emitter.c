@@ -32,6 +32,22 @@ bpx_status bpx__emitter_reserve_blocks(bpx_world *w, int wanted)
     return BPX_OK;
 }
 
+bpx_status bpx__emitter_one_block(bpx_world *w, bpx_block **out)
+{
+    if (w->planned_n != w->n) {
+        bpx_status status = bpx__emitter_plan(w, true);
+        if (status != BPX_OK)
+            return status;
+    }
+    bpx_block *block = &w->blocks[0];
+    block->hits.count = 0;
+    block->stage.count = 0;
+    block->tests = 0;
+    block->status = BPX_OK;
+    *out = block;
+    return BPX_OK;
+}
+
 bpx_status bpx__emitter_plan_rows(bpx_world *w, uint32_t rows)
 {
     uint32_t n = w->n;

@@ -137,6 +137,9 @@ void bpx__query_free(bpx_world *w);
 // Emitter (emitter.c).
 /// Makes room for `count` blocks (new ones zeroed), for comparators that lay out their own.
 bpx_status bpx__emitter_reserve_blocks(bpx_world *w, int count);
+/// For comparators that emit one ordered list: one block over every row (planned again when n
+/// changed), emptied; *out is that block.
+bpx_status bpx__emitter_one_block(bpx_world *w, bpx_block **out);
 /// Splits rows 0..n-1 into blocks of about equal pair tests; one block when `single`.
 bpx_status bpx__emitter_plan(bpx_world *w, bool single);
 /// Splits rows 0..n-1 into blocks of `rows` rows each (for comparators whose rows cost about

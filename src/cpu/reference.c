@@ -21,16 +21,11 @@ static bool reference_query(const bpx_world_def *def, const char **reason, char 
 
 static bpx_status reference_compare(bpx_world *w)
 {
-    if (w->planned_n != w->n) {
-        bpx_status status = bpx__emitter_plan(w, true);
-        if (status != BPX_OK)
-            return status;
-    }
+    bpx_block *out;
+    bpx_status status = bpx__emitter_one_block(w, &out);
+    if (status != BPX_OK)
+        return status;
     bpx_soa s = bpx__world_soa(w);
-    bpx_block *out = &w->blocks[0];
-    out->hits.count = 0;
-    out->tests = 0;
-    out->status = BPX_OK;
     for (uint32_t i = 0; i < s.n; i++) {
         bpx_box a = box_at(&s, i);
         for (uint32_t j = i + 1; j < s.n; j++) {

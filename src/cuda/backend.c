@@ -51,12 +51,9 @@ static bpx_status cuda_compare(bpx_world *w)
     bpx_status s = cuda_state(w, &cu);
     if (s != BPX_OK)
         return s;
-    if (w->planned_n != w->n && (s = bpx__emitter_plan(w, true)) != BPX_OK)
+    bpx_block *block;
+    if ((s = bpx__emitter_one_block(w, &block)) != BPX_OK)
         return s;
-    bpx_block *block = &w->blocks[0];
-    block->hits.count = 0;
-    block->tests = 0;
-    block->status = BPX_OK;
     bpx_soa soa = bpx__world_soa(w);
     uint64_t count = 0;
     s = bpx__cuda_finish(cu, NULL); // a device cycle still in flight

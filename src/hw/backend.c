@@ -62,16 +62,10 @@ static model_state *get_state(bpx_world *w)
 
 static bpx_status model_compare(bpx_world *w)
 {
-    if (w->planned_n != w->n) {
-        bpx_status status = bpx__emitter_plan(w, true);
-        if (status != BPX_OK)
-            return status;
-    }
-    bpx_block *out = &w->blocks[0];
-    out->hits.count = 0;
-    out->stage.count = 0;
-    out->tests = 0;
-    out->status = BPX_OK;
+    bpx_block *out;
+    bpx_status status = bpx__emitter_one_block(w, &out);
+    if (status != BPX_OK)
+        return status;
     model_state *st = get_state(w);
     if (!st)
         return BPX_ERR_OUT_OF_MEMORY;
@@ -80,7 +74,7 @@ static bpx_status model_compare(bpx_world *w)
     const float *const banks[BPX_HW_BANKS] = {s.lo[0], s.lo[1], s.lo[2], s.hi[0], s.hi[1], s.hi[2]};
     bpx_model_report report;
     // The collision RAM is the block's stage list; hits receives the sorted pairs.
-    bpx_status status =
+    status =
         bpx__hw_machine_cycle(&st->machine, BPX_HW_FORMAT_BOXES, banks, s.n, &out->stage, &report);
     if (status != BPX_OK)
         return status;

@@ -231,12 +231,9 @@ static bpx_status hybrid_compare(bpx_world *w)
     if (!h && (s = make_state(w, &h)) != BPX_OK)
         return bpx__error(&w->error, s, UINT32_MAX, -1, "hybrid: could not make its cpu world: %s",
                           bpx_status_string(s));
-    if (w->planned_n != w->n && (s = bpx__emitter_plan(w, true)) != BPX_OK)
+    bpx_block *block;
+    if ((s = bpx__emitter_one_block(w, &block)) != BPX_OK)
         return s;
-    bpx_block *block = &w->blocks[0];
-    block->hits.count = 0;
-    block->tests = 0;
-    block->status = BPX_OK;
 
     // Split: each box to the side(s) it reaches.
     bpx_soa soa = bpx__world_soa(w);

@@ -148,12 +148,8 @@ static bpx_status opencl_compare(bpx_world *w)
     TRY(bpx__cl_state_get(w, &st));
     bpx__cl_resident_settle(w, st); // a device-resident cycle still in flight
     st->resident = RESIDENT_NONE;   // this cycle may write over its pairs
-    if (w->planned_n != w->n)
-        TRY(bpx__emitter_plan(w, true));
-    bpx_block *block = &w->blocks[0];
-    block->hits.count = 0;
-    block->tests = 0;
-    block->status = BPX_OK;
+    bpx_block *block;
+    TRY(bpx__emitter_one_block(w, &block));
     st->bytes_in = st->bytes_out = st->tests = 0;
     memset(st->ns, 0, sizeof st->ns);
     bpx_status status = run_cycle(st, w, block);
