@@ -8,10 +8,6 @@
 
 #include "world.h"
 
-static int pair_less(const bpx_mpi_pair *x, const bpx_mpi_pair *y) {
-    return x->a < y->a || (x->a == y->a && x->b < y->b);
-}
-
 static int compare_records(const void *p, const void *q) {
     const event_record *x = p, *y = q;
     if (x->a != y->a)
@@ -28,9 +24,9 @@ static void diff(bpx_mpi_world *w, event_record *out, bool *overflow) {
     while (i < n_old || j < n_now) {
         const bpx_mpi_pair *p;
         uint32_t began;
-        if (j >= n_now || (i < n_old && pair_less(&old[i], &now[j])))
+        if (j >= n_now || (i < n_old && bpx_mpi__pair_less(&old[i], &now[j])))
             p = &old[i++], began = 0;
-        else if (i >= n_old || pair_less(&now[j], &old[i]))
+        else if (i >= n_old || bpx_mpi__pair_less(&now[j], &old[i]))
             p = &now[j++], began = 1;
         else {
             i++, j++;

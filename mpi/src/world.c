@@ -323,8 +323,7 @@ static bpx_mpi_pair *merge_runs(bpx_mpi_pair *a, bpx_mpi_pair *b, size_t *starts
             size_t lo = starts[r], mid = starts[r + 1], hi = r + 2 <= runs ? starts[r + 2] : mid;
             size_t i = lo, j = mid, k = lo;
             while (i < mid && j < hi) {
-                bool take_a = a[i].a < a[j].a || (a[i].a == a[j].a && a[i].b < a[j].b);
-                b[k++] = take_a ? a[i++] : a[j++];
+                b[k++] = bpx_mpi__pair_less(&a[j], &a[i]) ? a[j++] : a[i++];
             }
             while (i < mid)
                 b[k++] = a[i++];

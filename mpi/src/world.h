@@ -76,6 +76,11 @@ struct bpx_mpi_world {
     size_t gathered_cap, gather_tmp_cap;
 };
 
+/// The order of pair lists: by a, then b.
+static inline bool bpx_mpi__pair_less(const bpx_mpi_pair *x, const bpx_mpi_pair *y) {
+    return x->a < y->a || (x->a == y->a && x->b < y->b);
+}
+
 /// Grows *memory to hold at least need elements of size bytes (keeping the contents).
 /// 0, or -1 with *memory untouched.
 int bpx_mpi__grow(void **memory, size_t *cap, size_t need, size_t size);

@@ -275,11 +275,6 @@ void bpx__filter_blocks(bpx_world *w)
 // ---------------------------------------------------------------------------------------------
 // Events
 
-static bool pair_less(bpx_pair a, bpx_pair b)
-{
-    return a.i < b.i || (a.i == b.i && a.j < b.j);
-}
-
 // began = now - before, ended = before - now: one merge walk over two sorted lists.
 static bool diff_sorted(const bpx_pair *before, size_t nb, const bpx_pair *now, size_t nn,
                         bpx_pair_list *began, bpx_pair_list *ended)
@@ -289,9 +284,9 @@ static bool diff_sorted(const bpx_pair *before, size_t nb, const bpx_pair *now, 
         return false;
     size_t a = 0, b = 0;
     while (a < nb || b < nn) {
-        if (b == nn || (a < nb && pair_less(before[a], now[b])))
+        if (b == nn || (a < nb && bpx__pair_less(before[a], now[b])))
             ended->pairs[ended->count++] = before[a++];
-        else if (a == nb || pair_less(now[b], before[a]))
+        else if (a == nb || bpx__pair_less(now[b], before[a]))
             began->pairs[began->count++] = now[b++];
         else
             a++, b++;

@@ -124,6 +124,12 @@ struct bpx_world {
     bpx_error error;
 };
 
+/// The order of every pair list: by i, then j.
+static inline bool bpx__pair_less(bpx_pair a, bpx_pair b)
+{
+    return a.i < b.i || (a.i == b.i && a.j < b.j);
+}
+
 static inline bpx_soa bpx__world_soa(const bpx_world *w)
 {
     const bpx_box_arrays *b = &w->boxes;

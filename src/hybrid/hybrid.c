@@ -219,11 +219,6 @@ static void keep(const side *s, bpx_soa soa, float cut, bool device, bpx_pair *o
     *count = kept;
 }
 
-static bool pair_less(bpx_pair x, bpx_pair y)
-{
-    return x.i < y.i || (x.i == y.i && x.j < y.j);
-}
-
 static bpx_status hybrid_compare(bpx_world *w)
 {
     hybrid *h = w->backend_state;
@@ -304,7 +299,7 @@ static bpx_status hybrid_compare(bpx_world *w)
     size_t na = from_cpu, nb = from_device - from_cpu, i = 0, j = 0;
     bpx_pair *out = lists[1]->pairs;
     while (i < na && j < nb)
-        out[total++] = pair_less(b[j], a[i]) ? b[j++] : a[i++];
+        out[total++] = bpx__pair_less(b[j], a[i]) ? b[j++] : a[i++];
     while (i < na)
         out[total++] = a[i++];
     while (j < nb)
