@@ -174,6 +174,48 @@ static void test_balanced(void)
     free(boxes);
 }
 
+// Past 32,768 boxes and pairs per side the split, the corner rule and the merge run in chunks
+// on the world's workers: every worker count, shares that leave each side more or less, moving
+// boxes and removed ids, against sap (itself checked against the reference elsewhere).
+static void test_chunked(void)
+{
+    uint32_t n = check_quick() ? 70000 : 150000;
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 3.0f, 21, boxes);
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = BPX_BACKEND_SAP;
+    bpx_world *oracle = NULL;
+    CHECK_STATUS(bpx_world_create(&def, &oracle), BPX_OK);
+    static const float shares[] = {0.1f, 0.5f, 0.9f};
+    static const int workers[] = {1, 2, 3};
+    uint32_t gone[4] = {0, 7, n / 2, n - 1};
+    for (size_t s = 0; s < sizeof shares / sizeof shares[0] && oracle; s++) {
+        int worker_count = workers[s];
+        check_set_context("chunked n=%u share=%.1f workers=%d", n, (double)shares[s], worker_count);
+        bpx_world *w = hybrid_world(shares[s], worker_count, false);
+        scene_rng motion;
+        scene_rng_seed(&motion, 5 + s);
+        for (int c = 0; c < 3 && w; c++) {
+            bpx_world *both[2] = {w, oracle};
+            for (int k = 0; k < 2; k++) {
+                CHECK_STATUS(bpx_world_set_boxes(both[k], boxes, n), BPX_OK);
+                if (c == 2)
+                    CHECK_STATUS(bpx_world_remove_boxes(both[k], gone, 4), BPX_OK);
+                CHECK_STATUS(bpx_world_collide(both[k]), BPX_OK);
+            }
+            size_t a, b;
+            const bpx_pair *pa = bpx_world_pairs(w, &a), *pb = bpx_world_pairs(oracle, &b);
+            CHECK_MSG(a == b && (a == 0 || memcmp(pa, pb, a * 8) == 0), "%zu pairs, want %zu", a,
+                      b);
+            CHECK_MSG(b > 100000, "%zu pairs: too few for chunks on each side", b);
+            scene_move(boxes, n, 0.2f, &motion);
+        }
+        bpx_world_destroy(w);
+    }
+    bpx_world_destroy(oracle);
+    free(boxes);
+}
+
 static void test_errors(void)
 {
     check_set_context("errors");
@@ -227,5 +269,6 @@ int main(void)
     test_scenes_and_shares();
     test_world_features();
     test_balanced();
+    test_chunked();
     return check_finish("test_hybrid", 1);
 }

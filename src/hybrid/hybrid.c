@@ -10,6 +10,10 @@
 //
 // The cut follows the measured speed: each cycle the device gets the share of the boxes (by
 // centre x) that would have made both sides take equally long last cycle, smoothed.
+//
+// The split, the corner rule and the merge run on this world's own workers, in chunks that
+// each know where their output goes (counted first, then written): beside a GPU that takes a
+// few milliseconds for a million boxes, they must not be a serial tail.
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -21,16 +25,20 @@
 #include "core/log.h"
 #include "core/validate.h"
 #include "core/world.h"
+#include "parallel/pool.h"
 
 enum {
     SAMPLES = 1024,         // centres sampled to place the cut
     BALANCED_MIN_N = 20000, // below it, a measured split sends everything to the CPU
+    CHUNKS_MAX = 64,        // of the boxes, of each side's pairs, of the merged pairs
+    CHUNK_MIN = 16384,      // items; fewer go to one chunk
 };
 
 typedef struct side {
     bpx_world *world;
     bpx_box *boxes;
     uint32_t *ids; // world id of each box, ascending
+    float *lo_x;   // each box's min x, for the corner rule
     uint32_t n, capacity;
     uint64_t ns;
     bpx_status status;
@@ -116,6 +124,7 @@ static void hybrid_destroy(bpx_world *w)
         bpx_world_destroy(sides[k]->world);
         bpx__free(sides[k]->boxes, sizeof(bpx_box) * sides[k]->capacity);
         bpx__free(sides[k]->ids, sizeof(uint32_t) * sides[k]->capacity);
+        bpx__free(sides[k]->lo_x, sizeof(float) * sides[k]->capacity);
     }
     bpx__free(h, sizeof *h);
     w->backend_state = NULL;
@@ -153,17 +162,177 @@ static bool reserve(side *s, uint32_t n)
     uint32_t capacity = n + n / 2;
     bpx_box *boxes = bpx__alloc(sizeof(bpx_box) * capacity);
     uint32_t *ids = bpx__alloc(sizeof(uint32_t) * capacity);
-    if (!boxes || !ids) {
+    float *lo_x = bpx__alloc(sizeof(float) * capacity);
+    if (!boxes || !ids || !lo_x) {
         bpx__free(boxes, sizeof(bpx_box) * capacity);
         bpx__free(ids, sizeof(uint32_t) * capacity);
+        bpx__free(lo_x, sizeof(float) * capacity);
         return false;
     }
     bpx__free(s->boxes, sizeof(bpx_box) * s->capacity);
     bpx__free(s->ids, sizeof(uint32_t) * s->capacity);
+    bpx__free(s->lo_x, sizeof(float) * s->capacity);
     s->boxes = boxes;
     s->ids = ids;
+    s->lo_x = lo_x;
     s->capacity = capacity;
     return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The cycle's own work, in chunks on the world's workers
+
+typedef struct chunked {
+    hybrid *h;
+    bpx_soa soa;
+    float cut;
+    size_t per_chunk[3]; // items per chunk: boxes, a side's pairs (each side), merged pairs
+    int chunks[2];       // of the cpu's pairs, of the device's
+    // Per chunk: what it counted, then (after the prefix sums) where its output starts.
+    size_t cpu_at[CHUNKS_MAX + 1], device_at[CHUNKS_MAX + 1], kept_at[2 * CHUNKS_MAX + 1];
+    const bpx_pair *found[2]; // each side's pairs, in its local ids
+    size_t found_count[2];
+    bpx_pair *kept;           // the cpu's kept pairs, then the device's, as world ids
+    size_t kept_count[2];
+    bpx_pair *merged;
+    bool write;               // the counting pass, or the writing pass
+} chunked;
+
+static int chunks_for(const bpx_world *w, size_t items)
+{
+    size_t chunks = items / CHUNK_MIN;
+    if (chunks > CHUNKS_MAX)
+        chunks = CHUNKS_MAX;
+    return w->def.worker_count > 1 && chunks > 1 ? (int)chunks : 1;
+}
+
+static void run_chunks(const bpx_world *w, bpx_task_fn *task, int chunks, chunked *job)
+{
+    if (chunks == 1)
+        task(0, 1, 0, job);
+    else
+        bpx__parallel_for(&w->executor, task, chunks, job);
+}
+
+// Turns per-chunk counts in at[0 .. chunks) into where each chunk starts; at[chunks]: the total.
+static void starts(size_t *at, int chunks)
+{
+    size_t sum = 0;
+    for (int c = 0; c <= chunks; c++) {
+        size_t count = c < chunks ? at[c] : 0;
+        at[c] = sum;
+        sum += count;
+    }
+}
+
+// Each box to the side(s) it reaches: the cpu below the cut, the device from it on.
+static void split_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    chunked *job = context;
+    bpx_soa soa = job->soa;
+    side *cpu = &job->h->cpu, *device = &job->h->device;
+    for (int c = begin; c < end; c++) {
+        uint32_t first = (uint32_t)(c * job->per_chunk[0]);
+        uint32_t last = (uint32_t)((c + 1) * job->per_chunk[0]);
+        if (last > soa.n)
+            last = soa.n;
+        size_t to_cpu = job->write ? job->cpu_at[c] : 0;
+        size_t to_device = job->write ? job->device_at[c] : 0;
+        for (uint32_t i = first; i < last; i++) {
+            if (!(soa.lo[0][i] <= soa.hi[0][i]))
+                continue; // a removed id's inert box
+            bool below = soa.lo[0][i] < job->cut, above = soa.hi[0][i] >= job->cut;
+            if (job->write) {
+                bpx_box box = {{soa.lo[0][i], soa.lo[1][i], soa.lo[2][i]},
+                               {soa.hi[0][i], soa.hi[1][i], soa.hi[2][i]}};
+                side *sides[2] = {below ? cpu : NULL, above ? device : NULL};
+                size_t *to[2] = {&to_cpu, &to_device};
+                for (int k = 0; k < 2; k++)
+                    if (sides[k]) {
+                        size_t at = (*to[k])++;
+                        sides[k]->boxes[at] = box;
+                        sides[k]->ids[at] = i;
+                        sides[k]->lo_x[at] = box.min[0];
+                    }
+            } else {
+                to_cpu += below;
+                to_device += above;
+            }
+        }
+        if (!job->write) {
+            job->cpu_at[c] = to_cpu;
+            job->device_at[c] = to_device;
+        }
+    }
+}
+
+// The corner rule over a chunk of one side's pairs: the pairs whose corner (the larger min x)
+// is on this side, mapped to world ids (ascending with the local ones, so still in order).
+static void keep_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    chunked *job = context;
+    for (int c = begin; c < end; c++) {
+        int k = c < job->chunks[0] ? 0 : 1, chunk = k == 0 ? c : c - job->chunks[0];
+        const side *s = k == 0 ? &job->h->cpu : &job->h->device;
+        size_t first = chunk * job->per_chunk[1 + k], last = first + job->per_chunk[1 + k];
+        if (last > job->found_count[k])
+            last = job->found_count[k];
+        const bpx_pair *pairs = job->found[k];
+        size_t kept = 0, at = job->write ? job->kept_at[c] : 0;
+        for (size_t p = first; p < last; p++) {
+            uint32_t i = pairs[p].i, j = pairs[p].j;
+            float corner = s->lo_x[i] > s->lo_x[j] ? s->lo_x[i] : s->lo_x[j];
+            if ((corner >= job->cut) != (k == 1))
+                continue;
+            if (job->write)
+                job->kept[at++] = (bpx_pair){s->ids[i], s->ids[j]};
+            kept++;
+        }
+        if (!job->write)
+            job->kept_at[c] = kept;
+    }
+}
+
+// How many of the first d merged pairs come from a (the rest from b): both ascending, no pair
+// in both (each is kept by one side).
+static size_t co_rank(size_t d, const bpx_pair *a, size_t na, const bpx_pair *b, size_t nb)
+{
+    size_t lo = d > nb ? d - nb : 0, hi = d < na ? d : na;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (bpx__pair_less(a[mid], b[d - mid - 1]))
+            lo = mid + 1; // a[mid] is among the first d
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+// One chunk of the merged list: its start on each side by co-rank, then a plain merge.
+static void merge_task(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    chunked *job = context;
+    const bpx_pair *a = job->kept, *b = job->kept + job->kept_count[0];
+    size_t na = job->kept_count[0], nb = job->kept_count[1], total = na + nb;
+    for (int c = begin; c < end; c++) {
+        size_t d0 = c * job->per_chunk[2], d1 = d0 + job->per_chunk[2];
+        if (d1 > total)
+            d1 = total;
+        if (d0 >= d1)
+            continue;
+        size_t i = co_rank(d0, a, na, b, nb), j = d0 - i;
+        size_t i_end = co_rank(d1, a, na, b, nb), j_end = d1 - i_end;
+        bpx_pair *out = job->merged + d0;
+        while (i < i_end && j < j_end)
+            *out++ = bpx__pair_less(b[j], a[i]) ? b[j++] : a[i++];
+        while (i < i_end)
+            *out++ = a[i++];
+        while (j < j_end)
+            *out++ = b[j++];
+    }
 }
 
 static int compare_floats(const void *a, const void *b)
@@ -204,21 +373,6 @@ static bpx_status make_device_world(bpx_world *w, hybrid *h)
     return bpx_world_create(&device, &h->device.world);
 }
 
-// Keeps one side's pairs whose corner is on its side, as world ids, appended to out in order.
-static void keep(const side *s, bpx_soa soa, float cut, bool device, bpx_pair *out,
-                 size_t *count)
-{
-    size_t m, kept = *count;
-    const bpx_pair *pairs = bpx_world_pairs(s->world, &m);
-    for (size_t k = 0; k < m; k++) {
-        uint32_t a = s->ids[pairs[k].i], b = s->ids[pairs[k].j];
-        float corner = soa.lo[0][a] > soa.lo[0][b] ? soa.lo[0][a] : soa.lo[0][b];
-        if ((corner >= cut) == device)
-            out[kept++] = (bpx_pair){a, b};
-    }
-    *count = kept;
-}
-
 static bpx_status hybrid_compare(bpx_world *w)
 {
     hybrid *h = w->backend_state;
@@ -230,28 +384,22 @@ static bpx_status hybrid_compare(bpx_world *w)
     if ((s = bpx__emitter_one_block(w, &block)) != BPX_OK)
         return s;
 
-    // Split: each box to the side(s) it reaches.
+    // Split: each box to the side(s) it reaches, in id order on each side.
     bpx_soa soa = bpx__world_soa(w);
     bool fixed = w->def.hybrid_device_share > 0;
     float share = fixed ? w->def.hybrid_device_share : soa.n < BALANCED_MIN_N ? 0.0f : h->share;
-    float cut = place_cut(h, soa, share);
+    chunked job = {.h = h, .soa = soa, .cut = place_cut(h, soa, share)};
     if (!reserve(&h->cpu, soa.n) || !reserve(&h->device, soa.n))
         return BPX_ERR_OUT_OF_MEMORY;
-    h->cpu.n = h->device.n = 0;
-    for (uint32_t i = 0; i < soa.n; i++) {
-        if (!(soa.lo[0][i] <= soa.hi[0][i]))
-            continue; // a removed id's inert box
-        bpx_box box = {{soa.lo[0][i], soa.lo[1][i], soa.lo[2][i]},
-                       {soa.hi[0][i], soa.hi[1][i], soa.hi[2][i]}};
-        if (box.min[0] < cut) {
-            h->cpu.boxes[h->cpu.n] = box;
-            h->cpu.ids[h->cpu.n++] = i;
-        }
-        if (box.max[0] >= cut) {
-            h->device.boxes[h->device.n] = box;
-            h->device.ids[h->device.n++] = i;
-        }
-    }
+    int box_chunks = chunks_for(w, soa.n);
+    job.per_chunk[0] = (soa.n + box_chunks - 1) / box_chunks;
+    run_chunks(w, split_task, box_chunks, &job);
+    starts(job.cpu_at, box_chunks);
+    starts(job.device_at, box_chunks);
+    job.write = true;
+    run_chunks(w, split_task, box_chunks, &job);
+    h->cpu.n = (uint32_t)job.cpu_at[box_chunks];
+    h->device.n = (uint32_t)job.device_at[box_chunks];
 
     // Both sides at once; the device's only when it has boxes (no launch for nothing).
     bool device_runs = h->device.n > 0;
@@ -281,29 +429,34 @@ static bpx_status hybrid_compare(bpx_world *w)
         return bad->status;
     }
 
-    // The corner rule, then one merge of the two ordered lists into the block.
-    size_t cpu_found, device_found = 0;
-    bpx_world_pairs(h->cpu.world, &cpu_found);
+    // The corner rule over both sides' pairs, then one merge of the two ordered lists.
+    job.write = false;
+    job.found[0] = bpx_world_pairs(h->cpu.world, &job.found_count[0]);
+    job.found[1] = NULL;
+    job.found_count[1] = 0;
     if (device_runs)
-        bpx_world_pairs(h->device.world, &device_found);
+        job.found[1] = bpx_world_pairs(h->device.world, &job.found_count[1]);
     bpx_pair_list *lists[2] = {&block->stage, &block->hits};
-    if (!bpx__list_reserve(lists[0], cpu_found + device_found) ||
-        !bpx__list_reserve(lists[1], cpu_found + device_found))
+    size_t found = job.found_count[0] + job.found_count[1];
+    if (!bpx__list_reserve(lists[0], found) || !bpx__list_reserve(lists[1], found))
         return BPX_ERR_OUT_OF_MEMORY;
-    size_t from_cpu = 0, total = 0;
-    keep(&h->cpu, soa, cut, false, lists[0]->pairs, &from_cpu);
-    size_t from_device = from_cpu;
-    if (device_runs)
-        keep(&h->device, soa, cut, true, lists[0]->pairs, &from_device);
-    const bpx_pair *a = lists[0]->pairs, *b = lists[0]->pairs + from_cpu;
-    size_t na = from_cpu, nb = from_device - from_cpu, i = 0, j = 0;
-    bpx_pair *out = lists[1]->pairs;
-    while (i < na && j < nb)
-        out[total++] = bpx__pair_less(b[j], a[i]) ? b[j++] : a[i++];
-    while (i < na)
-        out[total++] = a[i++];
-    while (j < nb)
-        out[total++] = b[j++];
+    for (int k = 0; k < 2; k++) {
+        job.chunks[k] = chunks_for(w, job.found_count[k]);
+        job.per_chunk[1 + k] = (job.found_count[k] + job.chunks[k] - 1) / job.chunks[k];
+    }
+    int keep_chunks = job.chunks[0] + job.chunks[1];
+    run_chunks(w, keep_task, keep_chunks, &job);
+    for (int c = 0; c < keep_chunks; c++)
+        job.kept_count[c < job.chunks[0] ? 0 : 1] += job.kept_at[c];
+    starts(job.kept_at, keep_chunks);
+    job.kept = lists[0]->pairs;
+    job.write = true;
+    run_chunks(w, keep_task, keep_chunks, &job);
+    size_t total = job.kept_count[0] + job.kept_count[1];
+    int merge_chunks = chunks_for(w, total);
+    job.per_chunk[2] = (total + merge_chunks - 1) / merge_chunks;
+    job.merged = lists[1]->pairs;
+    run_chunks(w, merge_task, merge_chunks, &job);
     block->hits.count = total;
     block->tests = bpx_world_stats(h->cpu.world).pair_tests +
                    (device_runs ? bpx_world_stats(h->device.world).pair_tests : 0);
