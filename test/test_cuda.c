@@ -3,8 +3,8 @@
 // boxes, the tree beyond) on every scene kind over moving cycles, against sap (itself checked
 // against the reference) and at small n against the reference; the same bytes on a second
 // world; device-resident round trips (boxes in device memory, pairs left on the device, then
-// read back and compared); a pair buffer too small (CAPACITY with the needed count, then room);
-// invalid device boxes; queries refused while the boxes are on the device; and the calls
+// read back and compared); a pair buffer too small (CAPACITY with the needed count, then room;
+// on the host path, grown within the cycle); invalid device boxes; queries refused while the boxes are on the device; and the calls
 // refused where they do not apply.
 //
 // Without a CUDA device (or without CUDA in the build) the test reports itself skipped (77).
@@ -271,6 +271,40 @@ static void test_device_errors(void)
     free(boxes);
 }
 
+// Device in, host out on a world's first cycle, when the pairs pass the first pair buffer: the
+// walk runs again into a grown buffer, whose head must still carry the boxes' check. Then the
+// device boxes turn infinite from box 100 on (n^2 / 2 candidate pairs): the cycle names box 100
+// before it grows anything.
+static void test_device_first_cycle_growth(void)
+{
+    enum { n = 2500 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    CHECK(scene_generate(SCENE_ALL_OVERLAP, n, 1, boxes) == 0); // n(n-1)/2 pairs
+    bpx_box *d_boxes = to_device(boxes, n);
+    bpx_world *cuda = cuda_world(false), *oracle = oracle_world(n);
+    CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes(oracle, boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+    same_pairs(cuda, oracle, "device in, host out, first cycle past the buffer");
+    bpx_world_destroy(cuda);
+
+    cuda = cuda_world(false);
+    CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
+    for (uint32_t i = 100; i < n; i++)
+        for (int a = 0; a < 3; a++)
+            boxes[i].min[a] = -INFINITY, boxes[i].max[a] = INFINITY;
+    CHECK(cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) ==
+          cudaSuccess);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
+    CHECK_MSG(bpx_world_error(cuda)->index == 100, "named box %u, want 100",
+              bpx_world_error(cuda)->index);
+    bpx_world_destroy(cuda);
+    bpx_world_destroy(oracle);
+    cudaFree(d_boxes);
+    free(boxes);
+}
+
 // Queries while the boxes are in device memory: refused (BAD_STATE, nothing written), the
 // cycles unaffected, until set_boxes brings host boxes back; then they see those.
 static void test_device_queries(void)
@@ -339,6 +373,7 @@ int main(void)
 #if BPX_TEST_CUDA
     test_device_resident();
     test_device_errors();
+    test_device_first_cycle_growth();
     test_device_queries();
 #endif
     return check_finish("test_cuda", 1);

@@ -259,17 +259,16 @@ bpx_status enqueue_tree(bpx_cuda *cu, cudaStream_t s)
     CU(cudaMemsetAsync(t->scene, 0xff, 12, s));
     CU(cudaMemsetAsync(t->scene + 3, 0, 12, s));
     CU(cudaMemsetAsync(t->flags, 0, 4 * (size_t)n, s));
-    bpx__cuda_launch_bounds(s, t);
-    bpx__cuda_launch_morton(s, t);
+    CU(bpx__cuda_launch_bounds(s, t));
+    CU(bpx__cuda_launch_morton(s, t));
     cub::DoubleBuffer<uint32_t> mk(t->morton[0], t->morton[1]);
     cub::DoubleBuffer<uint32_t> ids(t->ids[0], t->ids[1]);
     size_t bytes = cu->sort_temp_bytes;
-    CU(cub::DeviceRadixSort::SortPairs(cu->sort_temp, bytes, mk, ids, (int64_t)n, 0, 30,
-                                       s));
+    CU(cub::DeviceRadixSort::SortPairs(cu->sort_temp, bytes, mk, ids, (int64_t)n, 0, 30, s));
     t->current = mk.selector;
     if (ids.selector != mk.selector) // CUB keeps both in step; the tree relies on it
         return fail(cudaErrorUnknown, "SortPairs (buffers out of step)");
-    bpx__cuda_launch_build(s, t);
+    CU(bpx__cuda_launch_build(s, t));
     return BPX_OK;
 }
 
@@ -277,8 +276,8 @@ bpx_status enqueue_tree(bpx_cuda *cu, cudaStream_t s)
 bpx_status enqueue_walk(bpx_cuda *cu, cudaStream_t s)
 {
     CU(cudaMemsetAsync(device_head(cu), 0, sizeof(unsigned long long), s));
-    bpx__cuda_launch_traverse(s, &cu->tree, cu->bits, cu->keys[0], cu->pair_capacity,
-                              device_head(cu));
+    CU(bpx__cuda_launch_traverse(s, &cu->tree, cu->bits, cu->keys[0], cu->pair_capacity,
+                                 device_head(cu)));
     return BPX_OK;
 }
 
@@ -291,8 +290,8 @@ bpx_status enqueue_sort(bpx_cuda *cu, cudaStream_t s, unsigned long long items)
         CU(cub::DeviceRadixSort::SortKeys(cu->sort_temp, bytes, keys, (int64_t)items, 0,
                                           2 * cu->bits, s));
     cu->key_buffer = keys.selector;
-    bpx__cuda_launch_unpack(s, keys.Current(), cu->bits, items, device_head(cu),
-                            device_pairs(cu));
+    CU(bpx__cuda_launch_unpack(s, keys.Current(), cu->bits, items, device_head(cu),
+                               device_pairs(cu)));
     return BPX_OK;
 }
 
@@ -420,7 +419,7 @@ static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3
         dhi[a] = cu->boxes + (size_t)(3 + a) * cu->box_capacity;
     }
     if (n)
-        bpx__cuda_launch_convert(s, cu->user_boxes, n, dlo, dhi, device_head(cu));
+        CU(bpx__cuda_launch_convert(s, cu->user_boxes, n, dlo, dhi, device_head(cu)));
     return BPX_OK;
 }
 
@@ -440,7 +439,11 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     cu->n = n;
     cu->tree_path = n > BPX_CUDA_SMALL_MAX;
     CU(cudaSetDevice(cu->device));
-    if (bpx_status s = reserve_pairs(cu, cu->tree_path ? 0 : small_pairs(n)); s != BPX_OK)
+    // Every buffer that the head lives in is sized before the boxes go in: the check of device
+    // boxes writes its verdict into the head, which a later regrow would drop.
+    unsigned long long expected =
+        cu->tree_path ? cu->last_count + cu->last_count / 4 : small_pairs(n);
+    if (bpx_status s = reserve_pairs(cu, expected); s != BPX_OK)
         return s;
     // The pairs we expect come back in the same copy as the head (small sets); the tree's are
     // counted first and copied straight to the caller.
@@ -457,14 +460,12 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     if (n < 2) {
         CU(cudaMemsetAsync(device_head(cu), 0, 8, cu->stream));
     } else if (!cu->tree_path) {
-        bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, n, device_head(cu),
-                               device_pairs(cu));
+        CU(bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, n, device_head(cu),
+                                  device_pairs(cu)));
         cu->timing.tests = small_pairs(n);
     } else {
         cu->bits = key_bits(n);
         if (bpx_status s = reserve_tree(cu, n); s != BPX_OK)
-            return s;
-        if (bpx_status s = reserve_pairs(cu, cu->last_count + cu->last_count / 4); s != BPX_OK)
             return s;
         if (bpx_status s = reserve_sort(cu); s != BPX_OK)
             return s;
@@ -475,12 +476,18 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
         CU(cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
                            cudaMemcpyDeviceToHost, cu->stream));
         CU(cudaStreamSynchronize(cu->stream));
+        // A bad device box is reported before anything grows: its count means nothing (an
+        // infinite box can ask for n^2 / 2 pairs).
+        if (cu->user_boxes && cu->host_head->bad != ~0ull)
+            return BPX_ERR_NOT_FINITE;
         unsigned long long found = cu->host_head->count;
         if (found > cu->pair_capacity) { // grow to the exact need and walk again
             if (bpx_status s = reserve_pairs(cu, found); s != BPX_OK)
                 return s;
             if (bpx_status s = reserve_sort(cu); s != BPX_OK)
                 return s;
+            // The fresh buffer's head: the boxes were checked above, the count is the walk's.
+            CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, cu->stream));
             if (bpx_status s = enqueue_walk(cu, cu->stream); s != BPX_OK)
                 return s;
         }
@@ -544,9 +551,8 @@ bpx_status bpx__cuda_check_device_boxes(bpx_cuda *cu, const bpx_box *boxes, uint
     CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, cu->stream));
     if (n) {
         float *none[3] = {nullptr, nullptr, nullptr};
-        bpx__cuda_launch_convert(cu->stream, boxes, n, none, none, device_head(cu));
+        CU(bpx__cuda_launch_convert(cu->stream, boxes, n, none, none, device_head(cu)));
     }
-    CU(cudaGetLastError());
     CU(cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
                        cudaMemcpyDeviceToHost, cu->stream));
     CU(cudaStreamSynchronize(cu->stream));
@@ -587,7 +593,9 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         cudaError_t e = cudaMemsetAsync(device_head(cu), 0, 8, s);
         status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemsetAsync");
     } else if (n <= BPX_CUDA_SMALL_MAX) {
-        bpx__cuda_launch_small(s, cu->tree.lo, cu->tree.hi, n, device_head(cu), device_pairs(cu));
+        cudaError_t e = bpx__cuda_launch_small(s, cu->tree.lo, cu->tree.hi, n, device_head(cu),
+                                               device_pairs(cu));
+        status = e == cudaSuccess ? BPX_OK : fail(e, "small_kernel");
         cu->tree_path = false;
     } else {
         cu->tree_path = true;

@@ -229,61 +229,73 @@ __global__ void convert_kernel(const bpx_box *boxes, uint32_t n, float *lx, floa
 
 } // namespace
 
-void bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3], const float *const hi[3],
-                            uint32_t n, bpx_cuda_head *head, bpx_pair *pairs)
+cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
+                                   const float *const hi[3], uint32_t n, bpx_cuda_head *head,
+                                   bpx_pair *pairs)
 {
-    small_kernel<<<1, BPX_CUDA_SMALL_MAX, 0, stream>>>(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2],
-                                                       n, head, pairs);
+    small_kernel<<<1, BPX_CUDA_SMALL_MAX, 0, stream>>>(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], n,
+                                                       head, pairs);
+    return cudaGetLastError();
 }
 
-void bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t)
+cudaError_t bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t)
 {
     unsigned int grid = min(grid_for(t->n), 1024u);
     bounds_kernel<<<grid, block_threads, 0, stream>>>(t->lo[0], t->lo[1], t->lo[2], t->hi[0],
                                                       t->hi[1], t->hi[2], t->n, t->scene);
+    return cudaGetLastError();
 }
 
-void bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t)
+cudaError_t bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t)
 {
-    morton_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(
-        t->lo[0], t->lo[1], t->lo[2], t->hi[0], t->hi[1], t->hi[2], t->n, t->scene,
-        t->morton[0], t->ids[0]);
+    morton_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(t->lo[0], t->lo[1], t->lo[2],
+                                                                t->hi[0], t->hi[1], t->hi[2], t->n,
+                                                                t->scene, t->morton[0], t->ids[0]);
+    return cudaGetLastError();
 }
 
-void bpx__cuda_launch_build(cudaStream_t stream, const bpx_cuda_tree *t)
+cudaError_t bpx__cuda_launch_build(cudaStream_t stream, const bpx_cuda_tree *t)
 {
     const uint32_t *ids = t->ids[t->current];
-    gather_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(
-        t->lo[0], t->lo[1], t->lo[2], t->hi[0], t->hi[1], t->hi[2], t->n, ids, t->leaf_lo,
-        t->leaf_hi);
+    gather_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(t->lo[0], t->lo[1], t->lo[2],
+                                                                t->hi[0], t->hi[1], t->hi[2], t->n,
+                                                                ids, t->leaf_lo, t->leaf_hi);
+    if (cudaError_t e = cudaGetLastError(); e != cudaSuccess)
+        return e;
     build_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(t->morton[t->current], (int)t->n,
                                                                t->leaf_parent, t->node_parent);
+    if (cudaError_t e = cudaGetLastError(); e != cudaSuccess)
+        return e;
     refit_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(
         t->leaf_lo, t->leaf_hi, t->n, t->leaf_parent, t->node_parent, t->nodes, t->flags);
+    return cudaGetLastError();
 }
 
-void bpx__cuda_launch_traverse(cudaStream_t stream, const bpx_cuda_tree *t, int bits,
-                               unsigned long long *keys, unsigned long long capacity,
-                               bpx_cuda_head *head)
+cudaError_t bpx__cuda_launch_traverse(cudaStream_t stream, const bpx_cuda_tree *t, int bits,
+                                      unsigned long long *keys, unsigned long long capacity,
+                                      bpx_cuda_head *head)
 {
-    traverse_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(
-        t->nodes, t->leaf_lo, t->leaf_hi, t->n, bits, keys, capacity, head);
+    traverse_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(t->nodes, t->leaf_lo, t->leaf_hi,
+                                                                  t->n, bits, keys, capacity, head);
+    return cudaGetLastError();
 }
 
-void bpx__cuda_launch_unpack(cudaStream_t stream, const unsigned long long *keys, int bits,
-                             unsigned long long capacity, const bpx_cuda_head *head,
-                             bpx_pair *pairs)
+cudaError_t bpx__cuda_launch_unpack(cudaStream_t stream, const unsigned long long *keys, int bits,
+                                    unsigned long long capacity, const bpx_cuda_head *head,
+                                    bpx_pair *pairs)
 {
     if (capacity == 0)
-        return;
+        return cudaSuccess;
     unsigned long long grid = (capacity + block_threads - 1) / block_threads;
     unpack_kernel<<<(unsigned int)grid, block_threads, 0, stream>>>(keys, bits, capacity, head,
-                                                                     pairs);
+                                                                    pairs);
+    return cudaGetLastError();
 }
 
-void bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, uint32_t n,
-                              float *const lo[3], float *const hi[3], bpx_cuda_head *head)
+cudaError_t bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, uint32_t n,
+                                     float *const lo[3], float *const hi[3], bpx_cuda_head *head)
 {
-    convert_kernel<<<grid_for(n), block_threads, 0, stream>>>(boxes, n, lo[0], lo[1], lo[2],
-                                                              hi[0], hi[1], hi[2], head);
+    convert_kernel<<<grid_for(n), block_threads, 0, stream>>>(boxes, n, lo[0], lo[1], lo[2], hi[0],
+                                                              hi[1], hi[2], head);
+    return cudaGetLastError();
 }

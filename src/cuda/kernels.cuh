@@ -45,21 +45,22 @@ struct bpx_cuda_tree {
     uint32_t *flags;              // refit arrivals, zeroed each cycle
 };
 
-void bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3], const float *const hi[3],
-                            uint32_t n, bpx_cuda_head *head, bpx_pair *pairs);
+cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
+                                   const float *const hi[3], uint32_t n, bpx_cuda_head *head,
+                                   bpx_pair *pairs);
 
-void bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t);
-void bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t);
+cudaError_t bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t);
+cudaError_t bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t);
 /// After the sort: gathers the boxes into Morton order, builds the hierarchy and refits it.
-void bpx__cuda_launch_build(cudaStream_t stream, const bpx_cuda_tree *t);
+cudaError_t bpx__cuda_launch_build(cudaStream_t stream, const bpx_cuda_tree *t);
 /// Every pair as a key (i << bits) | j, i < j, written below capacity; head->count counts all.
-void bpx__cuda_launch_traverse(cudaStream_t stream, const bpx_cuda_tree *t, int bits,
-                               unsigned long long *keys, unsigned long long capacity,
-                               bpx_cuda_head *head);
+cudaError_t bpx__cuda_launch_traverse(cudaStream_t stream, const bpx_cuda_tree *t, int bits,
+                                      unsigned long long *keys, unsigned long long capacity,
+                                      bpx_cuda_head *head);
 /// Sorted keys back to pairs: the first min(count, capacity).
-void bpx__cuda_launch_unpack(cudaStream_t stream, const unsigned long long *keys, int bits,
-                             unsigned long long capacity, const bpx_cuda_head *head,
-                             bpx_pair *pairs);
+cudaError_t bpx__cuda_launch_unpack(cudaStream_t stream, const unsigned long long *keys, int bits,
+                                    unsigned long long capacity, const bpx_cuda_head *head,
+                                    bpx_pair *pairs);
 /// Device input: AoS boxes to the SoA arrays, checking each (first bad box into head).
-void bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, uint32_t n,
-                              float *const lo[3], float *const hi[3], bpx_cuda_head *head);
+cudaError_t bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, uint32_t n,
+                                     float *const lo[3], float *const hi[3], bpx_cuda_head *head);
