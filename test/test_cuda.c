@@ -154,6 +154,33 @@ static void test_objects_and_events(void)
     free(boxes);
 }
 
+// A live box alone in the Morton order's top cell (code 0x3FFFFFFF) after removed ids: their
+// code (~0u) must sort after it, else the codes are out of order and the tree is no tree.
+static void test_inert_before_top_cell(void)
+{
+    enum { n = 3000 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, 6, boxes);
+    for (int a = 0; a < 3; a++) { // a pair of boxes beyond every other on every axis
+        boxes[n - 2].min[a] = 1e6f, boxes[n - 2].max[a] = 1e6f + 2.0f;
+        boxes[n - 1].min[a] = 1e6f + 1.0f, boxes[n - 1].max[a] = 1e6f + 3.0f;
+    }
+    bpx_world *cuda = cuda_world(false), *oracle = oracle_world(n);
+    uint32_t *ids = check_alloc(sizeof(uint32_t) * n);
+    CHECK_STATUS(bpx_world_add_boxes(cuda, boxes, n, ids), BPX_OK);
+    CHECK_STATUS(bpx_world_add_boxes(oracle, boxes, n, ids), BPX_OK);
+    uint32_t gone[10] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
+    CHECK_STATUS(bpx_world_remove_boxes(cuda, gone, 10), BPX_OK);
+    CHECK_STATUS(bpx_world_remove_boxes(oracle, gone, 10), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+    same_pairs(cuda, oracle, "top cell after removed ids");
+    bpx_world_destroy(cuda);
+    bpx_world_destroy(oracle);
+    free(ids);
+    free(boxes);
+}
+
 // Calls that do not apply are refused, with the world unchanged.
 static void test_refusals(void)
 {
@@ -370,6 +397,7 @@ int main(void)
     test_scenes();
     test_large();
     test_objects_and_events();
+    test_inert_before_top_cell();
 #if BPX_TEST_CUDA
     test_device_resident();
     test_device_errors();

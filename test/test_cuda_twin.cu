@@ -40,7 +40,12 @@ std::vector<bpx_pair> twin_pairs(const std::vector<bpx_box> &boxes)
                       ? bpx_tree::morton(&centres[3 * (size_t)i], scene)
                       : ~0u;
     std::iota(ids.begin(), ids.end(), 0u);
-    std::stable_sort(ids.begin(), ids.end(), [&](uint32_t a, uint32_t b) { return code[a] < code[b]; });
+    // By the bits the device's radix sort orders by; the codes keep all theirs, as CUB's do.
+    const uint32_t sorted_bits =
+        BPX_CUDA_MORTON_SORT_BITS < 32 ? (1u << BPX_CUDA_MORTON_SORT_BITS) - 1 : ~0u;
+    std::stable_sort(ids.begin(), ids.end(), [&](uint32_t a, uint32_t b) {
+        return (code[a] & sorted_bits) < (code[b] & sorted_bits);
+    });
     std::vector<uint32_t> keys(n);
     std::vector<float4> leaf_lo(n), leaf_hi(n);
     for (uint32_t t = 0; t < n; t++) {
@@ -53,11 +58,15 @@ std::vector<bpx_pair> twin_pairs(const std::vector<bpx_box> &boxes)
     std::vector<bpx_cuda_node> nodes(n - 1);
     for (int i = 0; i < (int)n - 1; i++)
         bpx_tree::build_node(keys.data(), (int)n, i, leaf_parent.data(), node_parent.data());
-    // Every leaf and every internal node but the root has a parent.
+    // Every leaf and every internal node but the root has a parent (else no refit can run).
+    bool tree = true;
     for (uint32_t t = 0; t < n; t++)
-        CHECK_MSG(leaf_parent[t] != ~0u, "leaf %u has no parent (n = %u)", t, n);
+        tree = tree && leaf_parent[t] != ~0u;
     for (uint32_t i = 1; i + 1 < n; i++)
-        CHECK_MSG(node_parent[i] != ~0u, "node %u has no parent (n = %u)", i, n);
+        tree = tree && node_parent[i] != ~0u;
+    CHECK_MSG(tree, "a leaf or a node has no parent (n = %u)", n);
+    if (!tree)
+        return pairs;
     // Leaves one after another: each runs to the root or to the first node its sibling has not
     // reached, as any interleaving of the device's threads does.
     for (uint32_t t = 0; t < n; t++)
@@ -131,6 +140,20 @@ int main()
         check_scene(boxes, "uniform");
         scene_heavy_tailed_density(n, 9, boxes.data());
         check_scene(boxes, "heavy");
+    }
+    // A live box alone in the top cell (Morton code 0x3FFFFFFF) after an inert id: the inert
+    // box's code (~0u) must still sort after it, or the codes are out of order and the build
+    // makes no tree.
+    for (uint32_t n : {3u, 40u, 2500u}) {
+        std::vector<bpx_box> boxes(n);
+        CHECK(scene_generate(SCENE_SPARSE, n, 5, boxes.data()) == 0);
+        for (int a = 0; a < 3; a++) {
+            boxes[n - 1].min[a] = 1e6f, boxes[n - 1].max[a] = 1e6f + 1.0f;
+            boxes[0].min[a] = INFINITY, boxes[0].max[a] = -INFINITY;
+        }
+        char what[96];
+        snprintf(what, sizeof what, "n=%u, top cell after an inert box", n);
+        check_scene(boxes, what);
     }
     return check_finish("test_cuda_twin", 1);
 }

@@ -208,7 +208,8 @@ bpx_status reserve_sort(bpx_cuda *cu)
     size_t a = 0, b = 0;
     cub::DoubleBuffer<uint32_t> mk(cu->tree.morton[0], cu->tree.morton[1]);
     cub::DoubleBuffer<uint32_t> ids(cu->tree.ids[0], cu->tree.ids[1]);
-    CU(cub::DeviceRadixSort::SortPairs(nullptr, a, mk, ids, (int64_t)cu->tree_capacity, 0, 30));
+    CU(cub::DeviceRadixSort::SortPairs(nullptr, a, mk, ids, (int64_t)cu->tree_capacity, 0,
+                                       BPX_CUDA_MORTON_SORT_BITS));
     cub::DoubleBuffer<unsigned long long> keys(cu->keys[0], cu->keys[1]);
     CU(cub::DeviceRadixSort::SortKeys(nullptr, b, keys, (int64_t)cu->pair_capacity, 0, 64));
     size_t bytes = a > b ? a : b;
@@ -264,7 +265,8 @@ bpx_status enqueue_tree(bpx_cuda *cu, cudaStream_t s)
     cub::DoubleBuffer<uint32_t> mk(t->morton[0], t->morton[1]);
     cub::DoubleBuffer<uint32_t> ids(t->ids[0], t->ids[1]);
     size_t bytes = cu->sort_temp_bytes;
-    CU(cub::DeviceRadixSort::SortPairs(cu->sort_temp, bytes, mk, ids, (int64_t)n, 0, 30, s));
+    CU(cub::DeviceRadixSort::SortPairs(cu->sort_temp, bytes, mk, ids, (int64_t)n, 0,
+                                       BPX_CUDA_MORTON_SORT_BITS, s));
     t->current = mk.selector;
     if (ids.selector != mk.selector) // CUB keeps both in step; the tree relies on it
         return fail(cudaErrorUnknown, "SortPairs (buffers out of step)");
