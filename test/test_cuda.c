@@ -266,21 +266,21 @@ static void test_device_resident(void)
 }
 
 // A bad box in device memory is named like a bad host box, and the world keeps its boxes; one
-// that turns bad after the check is reported by the cycle that reads it.
-static void test_device_errors(void)
+// that turns bad after the check is reported by the cycle that reads it, on both comparators.
+static void test_device_errors(uint32_t n)
 {
-    enum { n = 3000 };
+    const uint32_t nan_at = n * 2 / 5, flipped_at = n * 2 / 3;
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
     scene_uniform_density(n, 1.0f, 2, boxes);
     bpx_box *good = to_device(boxes, n);
-    boxes[1234].min[1] = NAN;
-    boxes[2000].min[0] = boxes[2000].max[0] + 1.0f;
+    boxes[nan_at].min[1] = NAN;
+    boxes[flipped_at].min[0] = boxes[flipped_at].max[0] + 1.0f;
     bpx_box *bad = to_device(boxes, n);
     bpx_world *cuda = cuda_world(false);
     CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, good, n), BPX_OK);
     CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, bad, n), BPX_ERR_NOT_FINITE);
     const bpx_error *e = bpx_world_error(cuda);
-    CHECK(e->index == 1234 && e->axis == 1);
+    CHECK(e->index == nan_at && e->axis == 1);
     CHECK(bpx_world_box_count(cuda) == n);
     CHECK_STATUS(bpx_world_collide(cuda), BPX_OK); // still the good boxes
     size_t first = 0;
@@ -288,10 +288,11 @@ static void test_device_errors(void)
     // The good buffer turns bad between cycles.
     CHECK(cudaMemcpy(good, bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess);
     CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
-    CHECK(bpx_world_error(cuda)->index == 1234);
+    CHECK_MSG(bpx_world_error(cuda)->index == nan_at, "n=%u: named box %u, want %u", n,
+              bpx_world_error(cuda)->index, nan_at);
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     CHECK_STATUS(bpx_cuda_finish(cuda, NULL), BPX_ERR_NOT_FINITE);
-    CHECK(bpx_world_error(cuda)->index == 1234);
+    CHECK(bpx_world_error(cuda)->index == nan_at);
     bpx_world_destroy(cuda);
     cudaFree(good);
     cudaFree(bad);
@@ -400,7 +401,8 @@ int main(void)
     test_inert_before_top_cell();
 #if BPX_TEST_CUDA
     test_device_resident();
-    test_device_errors();
+    test_device_errors(600);  // one block
+    test_device_errors(3000); // the tree
     test_device_first_cycle_growth();
     test_device_queries();
 #endif

@@ -51,10 +51,8 @@ __global__ void __launch_bounds__(BPX_CUDA_SMALL_MAX)
                 az <= s[5][j] && s[2][j] <= bz)
                 pairs[offset++] = bpx_pair{i, j};
     }
-    if (i == 0) {
-        head->count = total;
-        head->bad = ~0ull;
-    }
+    if (i == 0)
+        head->count = total; // not head->bad: the device boxes' check (convert_kernel) is there
 }
 
 // ---- tree: bounds, Morton keys, build, refit, traverse --------------------------------------
