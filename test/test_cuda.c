@@ -333,6 +333,43 @@ static void test_device_first_cycle_growth(void)
     free(boxes);
 }
 
+// A device-resident cycle over boxes that turned infinite counts about n^2 / 2 pairs; once the
+// boxes are good again, the next cycle's buffer is sized by the good cycles, not by that count.
+static void test_device_bad_count(void)
+{
+    enum { n = 2500 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, 8, boxes);
+    bpx_box *d_boxes = to_device(boxes, n), *d_bad = to_device(boxes, n);
+    bpx_box *bad = check_alloc(sizeof(bpx_box) * n);
+    memcpy(bad, boxes, sizeof(bpx_box) * n);
+    for (uint32_t i = 100; i < n; i++)
+        for (int a = 0; a < 3; a++)
+            bad[i].min[a] = -INFINITY, bad[i].max[a] = INFINITY;
+    CHECK(cudaMemcpy(d_bad, bad, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess);
+    bpx_world *cuda = cuda_world(false);
+    CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+    size_t good = 0, count = 0, capacity = 0;
+    CHECK_STATUS(bpx_cuda_finish(cuda, &good), BPX_OK);
+    CHECK(cudaMemcpy(d_boxes, d_bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+    CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_ERR_NOT_FINITE);
+    CHECK(bpx_world_error(cuda)->index == 100);
+    CHECK(cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+    CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
+    CHECK(count == good);
+    CHECK_STATUS(bpx_cuda_device_pairs(cuda, NULL, NULL, &capacity), BPX_OK);
+    CHECK_MSG(capacity < (size_t)n * n / 4, "%zu pairs' room after a bad cycle (%zu found)",
+              capacity, good);
+    bpx_world_destroy(cuda);
+    cudaFree(d_boxes);
+    cudaFree(d_bad);
+    free(bad);
+    free(boxes);
+}
+
 // Queries while the boxes are in device memory: refused (BAD_STATE, nothing written), the
 // cycles unaffected, until set_boxes brings host boxes back; then they see those.
 static void test_device_queries(void)
@@ -404,6 +441,7 @@ int main(void)
     test_device_errors(600);  // one block
     test_device_errors(3000); // the tree
     test_device_first_cycle_growth();
+    test_device_bad_count();
     test_device_queries();
 #endif
     return check_finish("test_cuda", 1);

@@ -634,11 +634,12 @@ bpx_status bpx__cuda_finish(bpx_cuda *cu, uint64_t *count)
         return BPX_OK;
     CU(cudaEventSynchronize(cu->events[event_out]));
     cu->pending_head = false;
-    cu->last_count = cu->host_head->count;
     if (count)
-        *count = cu->last_count;
+        *count = cu->host_head->count;
+    // A bad box's count sizes nothing (an infinite box can ask for n^2 / 2 pairs).
     if (cu->host_head->bad != ~0ull)
         return BPX_ERR_NOT_FINITE;
+    cu->last_count = cu->host_head->count;
     if (cu->last_count > cu->pair_capacity)
         return BPX_ERR_CAPACITY;
     return BPX_OK;
