@@ -135,9 +135,13 @@ __global__ void refit_kernel(const float4 *leaf_lo, const float4 *leaf_hi, uint3
     uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= n)
         return;
+    // Fence, atomic, fence: the sibling's release and this thread's acquire (PTX memory
+    // model); without the second fence nothing orders the slot loads after the atomic.
     refit_leaf(t, leaf_lo, leaf_hi, leaf_parent, node_parent, nodes, [flags](uint32_t p) {
         __threadfence(); // this child's slot is out before its arrival is
-        return atomicAdd(&flags[p], 1u);
+        uint32_t before = atomicAdd(&flags[p], 1u);
+        __threadfence(); // the sibling's slot is read after its arrival is seen
+        return before;
     });
 }
 
