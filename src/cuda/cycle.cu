@@ -225,6 +225,9 @@ bpx_status upload(bpx_cuda *cu, cudaStream_t s, const float *const lo[3], const 
                   uint32_t n)
 {
     const float *src[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
+    cu->timing.bytes_in = 24ull * n;
+    if (n == 0) // no arrays yet: no 2D copy of null pointers with pitch 0 (may be refused)
+        return BPX_OK;
     if (n <= staged_max) {
         if (bpx_status st = reserve_box_arrays(&cu->staging, &cu->staging_capacity, n, true);
             st != BPX_OK)
@@ -239,7 +242,6 @@ bpx_status upload(bpx_cuda *cu, cudaStream_t s, const float *const lo[3], const 
             CU(cudaMemcpyAsync(cu->boxes + (size_t)a * cu->box_capacity, src[a],
                                sizeof(float) * n, cudaMemcpyHostToDevice, s));
     }
-    cu->timing.bytes_in = 24ull * n;
     return BPX_OK;
 }
 
