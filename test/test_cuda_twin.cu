@@ -75,11 +75,22 @@ std::vector<bpx_pair> twin_pairs(const std::vector<bpx_box> &boxes)
                              [&](uint32_t p) { return arrivals[p]++; });
     for (uint32_t i = 0; i + 1 < n; i++)
         CHECK_MSG(arrivals[i] == 2, "node %u: %u arrivals", i, arrivals[i]);
+    // The pairs as the device packs them, after padding keys (all ones) as on the device path,
+    // ordered by the bits its radix sort orders by, then unpacked.
+    const int bits = bpx_tree::key_bits(n);
+    std::vector<unsigned long long> found;
     for (uint32_t t = 0; t + 1 < n; t++)
-        bpx_tree::walk(t, nodes.data(), leaf_lo.data(), leaf_hi.data(),
-                       [&](uint32_t i, uint32_t j) { pairs.push_back(bpx_pair{i, j}); });
-    std::sort(pairs.begin(), pairs.end(),
-              [](bpx_pair a, bpx_pair b) { return a.i != b.i ? a.i < b.i : a.j < b.j; });
+        bpx_tree::walk(
+            t, nodes.data(), leaf_lo.data(), leaf_hi.data(),
+            [&](uint32_t i, uint32_t j) { found.push_back(bpx_tree::pair_key(i, j, bits)); });
+    const size_t count = found.size();
+    found.resize(count + 3, ~0ull);
+    const unsigned long long sorted_key_bits = 2 * bits < 64 ? (1ull << (2 * bits)) - 1 : ~0ull;
+    std::stable_sort(found.begin(), found.end(), [&](unsigned long long a, unsigned long long b) {
+        return (a & sorted_key_bits) < (b & sorted_key_bits);
+    });
+    for (size_t k = 0; k < count; k++)
+        pairs.push_back(bpx_tree::key_pair(found[k], bits));
     return pairs;
 }
 

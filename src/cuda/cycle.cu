@@ -11,6 +11,7 @@
 
 #include "cuda_api.h"
 #include "kernels.cuh"
+#include "tree.cuh"
 
 extern "C" {
 #include "core/alloc.h"
@@ -98,14 +99,6 @@ bpx_pair *device_pairs(const bpx_cuda *cu)
 bpx_cuda_head *device_head(const bpx_cuda *cu)
 {
     return reinterpret_cast<bpx_cuda_head *>(cu->out);
-}
-
-int key_bits(uint32_t n)
-{
-    int bits = 1;
-    while (bits < 32 && (1ull << bits) < n)
-        bits++;
-    return bits;
 }
 
 // Room for n boxes' 6 float arrays in *arrays, device memory or (pinned) host memory, grown
@@ -468,7 +461,7 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
                                   device_pairs(cu)));
         cu->timing.tests = small_pairs(n);
     } else {
-        cu->bits = key_bits(n);
+        cu->bits = bpx_tree::key_bits(n);
         if (bpx_status s = reserve_tree(cu, n); s != BPX_OK)
             return s;
         if (bpx_status s = reserve_sort(cu); s != BPX_OK)
@@ -603,7 +596,7 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         cu->tree_path = false;
     } else {
         cu->tree_path = true;
-        cu->bits = key_bits(n);
+        cu->bits = bpx_tree::key_bits(n);
         status = reserve_tree(cu, n);
         if (status == BPX_OK)
             status = reserve_sort(cu);

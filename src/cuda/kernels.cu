@@ -171,7 +171,7 @@ __global__ void traverse_kernel(const bpx_cuda_node *__restrict__ nodes,
                 emit_flush(buffer, count, keys, capacity, head);
                 count = 0;
             }
-            buffer[count++] = ((unsigned long long)i << bits) | j;
+            buffer[count++] = pair_key(i, j, bits);
         });
     }
     // One atomic per warp for what is left: a warp-wide scan of the counts.
@@ -201,8 +201,7 @@ __global__ void unpack_kernel(const unsigned long long *keys, int bits,
     unsigned long long count = min(head->count, capacity);
     if (k >= count)
         return;
-    unsigned long long key = keys[k];
-    pairs[k] = bpx_pair{(uint32_t)(key >> bits), (uint32_t)(key & ((1ull << bits) - 1))};
+    pairs[k] = key_pair(keys[k], bits);
 }
 
 // The host's rule (src/core/validate.c): the first bad box; in it, a non-finite coordinate
