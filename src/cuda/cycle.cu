@@ -572,6 +572,10 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         n = cu->n;
     cu->n = n;
     cu->timing = bpx_cuda_timing{};
+    // A host cycle that failed part-way may have left work on the world's stream, over the
+    // buffers this cycle uses: it ends before this cycle starts on another stream.
+    if (s != cu->stream)
+        CU(cudaStreamSynchronize(cu->stream));
     // The last cycle's count, copied back behind it, sizes this cycle's buffer.
     if (bpx_status st = bpx__cuda_finish(cu, nullptr); st != BPX_OK && st != BPX_ERR_CAPACITY &&
                                                        st != BPX_ERR_NOT_FINITE)
@@ -620,6 +624,8 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         cu->pending_head = status == BPX_OK;
     }
     cu->timing.tree = cu->tree_path;
+    if (status != BPX_OK && cudaStreamSynchronize(s) != cudaSuccess)
+        cudaGetLastError(); // what was enqueued ends before a host cycle reuses its buffers
     return status;
 }
 
