@@ -144,7 +144,12 @@ int main(int argc, char **argv)
         // The device boxes are read in place: each cycle's copy below changes them.
         while (ok && cycles < max_cycles && (cycles < warm + 5 || now_s() - start < 3 * seconds)) {
             scene_move(boxes, n, 0.05f, &rng);
-            cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice);
+            if (cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) !=
+                cudaSuccess) {
+                fprintf(stderr, "bpx_gpubench: copying the boxes to the device failed\n");
+                ok = false;
+                break;
+            }
             double t1 = now_s();
             size_t on_device = 0;
             ok = ok && check(bpx_cuda_collide_device(resident, NULL), resident, "collide_device");
@@ -164,12 +169,14 @@ int main(int argc, char **argv)
             bool same = hn == gn && memcmp(hp, gp, sizeof(bpx_pair) * hn) == 0;
             t[1].exact &= same;
             t[0].exact &= on_device == gn;
-            if (cycles == warm) { // once, the resident pairs themselves
+            if (on_device == gn) { // every cycle, untimed: the resident pairs themselves
                 const bpx_pair *dp = NULL;
                 bpx_cuda_device_pairs(resident, &dp, NULL, NULL);
                 bpx_pair *back = malloc(sizeof(bpx_pair) * (gn ? gn : 1));
-                cudaMemcpy(back, dp, sizeof(bpx_pair) * gn, cudaMemcpyDeviceToHost);
-                t[0].exact &= memcmp(back, gp, sizeof(bpx_pair) * gn) == 0;
+                t[0].exact &= back &&
+                              cudaMemcpy(back, dp, sizeof(bpx_pair) * gn, cudaMemcpyDeviceToHost) ==
+                                  cudaSuccess &&
+                              memcmp(back, gp, sizeof(bpx_pair) * gn) == 0;
                 free(back);
             }
             pairs = gn;
