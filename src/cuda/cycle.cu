@@ -305,6 +305,7 @@ uint64_t elapsed_ns(cudaEvent_t a, cudaEvent_t b)
 pthread_once_t probe_once = PTHREAD_ONCE_INIT;
 const char *probe_reason = "";
 char probe_detail[96];
+char probe_old_driver[96];
 bool probe_ok;
 
 __global__ void probe_kernel(int *out)
@@ -320,6 +321,17 @@ void probe_device()
         probe_reason = e == cudaErrorInsufficientDriver ? "no CUDA driver"
                        : e == cudaErrorNoDevice || count == 0 ? "no CUDA device"
                                                               : "CUDA runtime failed to start";
+        // The same error when the driver is there but older than the runtime linked in: a GPU
+        // machine that would skip every CUDA test says why.
+        int driver = 0;
+        if (e == cudaErrorInsufficientDriver && cudaDriverGetVersion(&driver) == cudaSuccess &&
+            driver > 0) {
+            snprintf(probe_old_driver, sizeof probe_old_driver,
+                     "the CUDA driver (%d.%d) is older than this build's runtime (%d.%d)",
+                     driver / 1000, driver % 1000 / 10, CUDART_VERSION / 1000,
+                     CUDART_VERSION % 1000 / 10);
+            probe_reason = probe_old_driver;
+        }
         cudaGetLastError();
         return;
     }
