@@ -19,6 +19,15 @@
 #include <cuda_runtime_api.h>
 #endif
 
+// A device failure names the CUDA call and error only through the logger (the world's error
+// says DEVICE): printed, a failure on a lent GPU says which call failed and why.
+static void print_log(int level, const char *message, void *user)
+{
+    (void)user;
+    if (level <= 1)
+        fprintf(stderr, "bpx log: %s\n", message);
+}
+
 static bpx_world *cuda_world(bool events)
 {
     bpx_world_def def = bpx_default_world_def();
@@ -419,6 +428,7 @@ static void test_device_queries(void)
 
 int main(void)
 {
+    bpx_set_logger(print_log, NULL);
     bpx_backend_info info = bpx_backend_query(BPX_BACKEND_CUDA);
     printf("cuda: %s%s\n", info.available ? info.detail : "unavailable: ",
            info.available ? "" : info.reason);

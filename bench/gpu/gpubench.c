@@ -68,6 +68,14 @@ static bpx_world *make_world(bpx_backend backend, int threads)
     return w;
 }
 
+// Device failures name the CUDA call and error only through the logger.
+static void print_log(int level, const char *message, void *user)
+{
+    (void)user;
+    if (level <= 1)
+        fprintf(stderr, "bpx log: %s\n", message);
+}
+
 static bool check(bpx_status s, bpx_world *w, const char *what)
 {
     if (s == BPX_OK)
@@ -98,6 +106,7 @@ int main(int argc, char **argv)
             return 2;
         }
     }
+    bpx_set_logger(print_log, NULL);
     bpx_backend_info info = bpx_backend_query(BPX_BACKEND_CUDA);
     if (!info.available) {
         printf("bpx_gpubench: cuda unavailable (%s)\n", info.reason);
