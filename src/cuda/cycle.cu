@@ -227,9 +227,18 @@ bpx_status upload(bpx_cuda *cu, cudaStream_t s, const float *const lo[3], const 
             return st;
         for (int a = 0; a < 6; a++)
             memcpy(cu->staging + (size_t)a * n, src[a], sizeof(float) * n);
-        // Packed as 6 arrays of n, then spread to the device's arrays of box_capacity.
-        CU(cudaMemcpy2DAsync(cu->boxes, sizeof(float) * cu->box_capacity, cu->staging,
-                             sizeof(float) * n, sizeof(float) * n, 6, cudaMemcpyHostToDevice, s));
+        // Packed as 6 arrays of n, then spread to the device's arrays of box_capacity: one 2D
+        // copy while that pitch is one CUDA takes (at most 2^31 - 1 bytes: the arrays only
+        // grow, and a world that once held 2^29 boxes may hold few now), else 6 copies.
+        size_t pitch = sizeof(float) * cu->box_capacity;
+        if (pitch <= 0x7fffffff)
+            CU(cudaMemcpy2DAsync(cu->boxes, pitch, cu->staging, sizeof(float) * n,
+                                 sizeof(float) * n, 6, cudaMemcpyHostToDevice, s));
+        else
+            for (int a = 0; a < 6; a++)
+                CU(cudaMemcpyAsync(cu->boxes + (size_t)a * cu->box_capacity,
+                                   cu->staging + (size_t)a * n, sizeof(float) * n,
+                                   cudaMemcpyHostToDevice, s));
     } else {
         for (int a = 0; a < 6; a++)
             CU(cudaMemcpyAsync(cu->boxes + (size_t)a * cu->box_capacity, src[a],
