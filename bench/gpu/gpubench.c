@@ -148,8 +148,14 @@ int main(int argc, char **argv)
         size_t pairs = 0;
         double start = now_s();
         int cycles = 0, warm = 3;
-        // Variants alternate cycle by cycle, on the same boxes, so drift hits them alike.
-        bool ok = check(bpx_cuda_set_boxes_device(resident, d_boxes, n), resident, "set device");
+        // Variants alternate cycle by cycle, on the same boxes, so drift hits them alike. The
+        // device boxes are checked when set: they hold the scene first, not what cudaMalloc left
+        // (memory an earlier size's worlds freed: NaNs, min > max).
+        bool ok =
+            cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess;
+        if (!ok)
+            fprintf(stderr, "bpx_gpubench: copying the boxes to the device failed\n");
+        ok = ok && check(bpx_cuda_set_boxes_device(resident, d_boxes, n), resident, "set device");
         // The device boxes are read in place: each cycle's copy below changes them.
         while (ok && cycles < max_cycles && (cycles < warm + 5 || now_s() - start < 3 * seconds)) {
             scene_move(boxes, n, 0.05f, &rng);
