@@ -40,7 +40,12 @@ std::vector<bpx_pair> twin_pairs(const std::vector<bpx_box> &boxes)
                       ? bpx_tree::morton(&centres[3 * (size_t)i], scene)
                       : ~0u;
     std::iota(ids.begin(), ids.end(), 0u);
-    std::stable_sort(ids.begin(), ids.end(), [&](uint32_t a, uint32_t b) { return code[a] < code[b]; });
+    // By the bits the device's radix sort orders by; the codes keep all theirs, as CUB's do.
+    const uint32_t sorted_bits =
+        BPX_CUDA_MORTON_SORT_BITS < 32 ? (1u << BPX_CUDA_MORTON_SORT_BITS) - 1 : ~0u;
+    std::stable_sort(ids.begin(), ids.end(), [&](uint32_t a, uint32_t b) {
+        return (code[a] & sorted_bits) < (code[b] & sorted_bits);
+    });
     std::vector<uint32_t> keys(n);
     std::vector<float4> leaf_lo(n), leaf_hi(n);
     for (uint32_t t = 0; t < n; t++) {
@@ -53,11 +58,15 @@ std::vector<bpx_pair> twin_pairs(const std::vector<bpx_box> &boxes)
     std::vector<bpx_cuda_node> nodes(n - 1);
     for (int i = 0; i < (int)n - 1; i++)
         bpx_tree::build_node(keys.data(), (int)n, i, leaf_parent.data(), node_parent.data());
-    // Every leaf and every internal node but the root has a parent.
+    // Every leaf and every internal node but the root has a parent (else no refit can run).
+    bool tree = true;
     for (uint32_t t = 0; t < n; t++)
-        CHECK_MSG(leaf_parent[t] != ~0u, "leaf %u has no parent (n = %u)", t, n);
+        tree = tree && leaf_parent[t] != ~0u;
     for (uint32_t i = 1; i + 1 < n; i++)
-        CHECK_MSG(node_parent[i] != ~0u, "node %u has no parent (n = %u)", i, n);
+        tree = tree && node_parent[i] != ~0u;
+    CHECK_MSG(tree, "a leaf or a node has no parent (n = %u)", n);
+    if (!tree)
+        return pairs;
     // Leaves one after another: each runs to the root or to the first node its sibling has not
     // reached, as any interleaving of the device's threads does.
     for (uint32_t t = 0; t < n; t++)
@@ -66,11 +75,22 @@ std::vector<bpx_pair> twin_pairs(const std::vector<bpx_box> &boxes)
                              [&](uint32_t p) { return arrivals[p]++; });
     for (uint32_t i = 0; i + 1 < n; i++)
         CHECK_MSG(arrivals[i] == 2, "node %u: %u arrivals", i, arrivals[i]);
+    // The pairs as the device packs them, after padding keys (all ones) as on the device path,
+    // ordered by the bits its radix sort orders by, then unpacked.
+    const int bits = bpx_tree::key_bits(n);
+    std::vector<unsigned long long> found;
     for (uint32_t t = 0; t + 1 < n; t++)
-        bpx_tree::walk(t, nodes.data(), leaf_lo.data(), leaf_hi.data(),
-                       [&](uint32_t i, uint32_t j) { pairs.push_back(bpx_pair{i, j}); });
-    std::sort(pairs.begin(), pairs.end(),
-              [](bpx_pair a, bpx_pair b) { return a.i != b.i ? a.i < b.i : a.j < b.j; });
+        bpx_tree::walk(
+            t, nodes.data(), leaf_lo.data(), leaf_hi.data(),
+            [&](uint32_t i, uint32_t j) { found.push_back(bpx_tree::pair_key(i, j, bits)); });
+    const size_t count = found.size();
+    found.resize(count + 3, ~0ull);
+    const unsigned long long sorted_key_bits = 2 * bits < 64 ? (1ull << (2 * bits)) - 1 : ~0ull;
+    std::stable_sort(found.begin(), found.end(), [&](unsigned long long a, unsigned long long b) {
+        return (a & sorted_key_bits) < (b & sorted_key_bits);
+    });
+    for (size_t k = 0; k < count; k++)
+        pairs.push_back(bpx_tree::key_pair(found[k], bits));
     return pairs;
 }
 
@@ -131,6 +151,20 @@ int main()
         check_scene(boxes, "uniform");
         scene_heavy_tailed_density(n, 9, boxes.data());
         check_scene(boxes, "heavy");
+    }
+    // A live box alone in the top cell (Morton code 0x3FFFFFFF) after an inert id: the inert
+    // box's code (~0u) must still sort after it, or the codes are out of order and the build
+    // makes no tree.
+    for (uint32_t n : {3u, 40u, 2500u}) {
+        std::vector<bpx_box> boxes(n);
+        CHECK(scene_generate(SCENE_SPARSE, n, 5, boxes.data()) == 0);
+        for (int a = 0; a < 3; a++) {
+            boxes[n - 1].min[a] = 1e6f, boxes[n - 1].max[a] = 1e6f + 1.0f;
+            boxes[0].min[a] = INFINITY, boxes[0].max[a] = -INFINITY;
+        }
+        char what[96];
+        snprintf(what, sizeof what, "n=%u, top cell after an inert box", n);
+        check_scene(boxes, what);
     }
     return check_finish("test_cuda_twin", 1);
 }

@@ -68,6 +68,14 @@ static bpx_world *make_world(bpx_backend backend, int threads)
     return w;
 }
 
+// Device failures name the CUDA call and error only through the logger.
+static void print_log(int level, const char *message, void *user)
+{
+    (void)user;
+    if (level <= 1)
+        fprintf(stderr, "bpx log: %s\n", message);
+}
+
 static bool check(bpx_status s, bpx_world *w, const char *what)
 {
     if (s == BPX_OK)
@@ -98,6 +106,7 @@ int main(int argc, char **argv)
             return 2;
         }
     }
+    bpx_set_logger(print_log, NULL);
     bpx_backend_info info = bpx_backend_query(BPX_BACKEND_CUDA);
     if (!info.available) {
         printf("bpx_gpubench: cuda unavailable (%s)\n", info.reason);
@@ -139,12 +148,23 @@ int main(int argc, char **argv)
         size_t pairs = 0;
         double start = now_s();
         int cycles = 0, warm = 3;
-        // Variants alternate cycle by cycle, on the same boxes, so drift hits them alike.
-        bool ok = check(bpx_cuda_set_boxes_device(resident, d_boxes, n), resident, "set device");
+        // Variants alternate cycle by cycle, on the same boxes, so drift hits them alike. The
+        // device boxes are checked when set: they hold the scene first, not what cudaMalloc left
+        // (memory an earlier size's worlds freed: NaNs, min > max).
+        bool ok =
+            cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess;
+        if (!ok)
+            fprintf(stderr, "bpx_gpubench: copying the boxes to the device failed\n");
+        ok = ok && check(bpx_cuda_set_boxes_device(resident, d_boxes, n), resident, "set device");
         // The device boxes are read in place: each cycle's copy below changes them.
         while (ok && cycles < max_cycles && (cycles < warm + 5 || now_s() - start < 3 * seconds)) {
             scene_move(boxes, n, 0.05f, &rng);
-            cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice);
+            if (cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) !=
+                cudaSuccess) {
+                fprintf(stderr, "bpx_gpubench: copying the boxes to the device failed\n");
+                ok = false;
+                break;
+            }
             double t1 = now_s();
             size_t on_device = 0;
             ok = ok && check(bpx_cuda_collide_device(resident, NULL), resident, "collide_device");
@@ -164,12 +184,14 @@ int main(int argc, char **argv)
             bool same = hn == gn && memcmp(hp, gp, sizeof(bpx_pair) * hn) == 0;
             t[1].exact &= same;
             t[0].exact &= on_device == gn;
-            if (cycles == warm) { // once, the resident pairs themselves
+            if (on_device == gn) { // every cycle, untimed: the resident pairs themselves
                 const bpx_pair *dp = NULL;
                 bpx_cuda_device_pairs(resident, &dp, NULL, NULL);
                 bpx_pair *back = malloc(sizeof(bpx_pair) * (gn ? gn : 1));
-                cudaMemcpy(back, dp, sizeof(bpx_pair) * gn, cudaMemcpyDeviceToHost);
-                t[0].exact &= memcmp(back, gp, sizeof(bpx_pair) * gn) == 0;
+                t[0].exact &= back &&
+                              cudaMemcpy(back, dp, sizeof(bpx_pair) * gn, cudaMemcpyDeviceToHost) ==
+                                  cudaSuccess &&
+                              memcmp(back, gp, sizeof(bpx_pair) * gn) == 0;
                 free(back);
             }
             pairs = gn;

@@ -11,6 +11,7 @@
 
 #include "cuda_api.h"
 #include "kernels.cuh"
+#include "tree.cuh"
 
 extern "C" {
 #include "core/alloc.h"
@@ -98,14 +99,6 @@ bpx_pair *device_pairs(const bpx_cuda *cu)
 bpx_cuda_head *device_head(const bpx_cuda *cu)
 {
     return reinterpret_cast<bpx_cuda_head *>(cu->out);
-}
-
-int key_bits(uint32_t n)
-{
-    int bits = 1;
-    while (bits < 32 && (1ull << bits) < n)
-        bits++;
-    return bits;
 }
 
 // Room for n boxes' 6 float arrays in *arrays, device memory or (pinned) host memory, grown
@@ -208,7 +201,8 @@ bpx_status reserve_sort(bpx_cuda *cu)
     size_t a = 0, b = 0;
     cub::DoubleBuffer<uint32_t> mk(cu->tree.morton[0], cu->tree.morton[1]);
     cub::DoubleBuffer<uint32_t> ids(cu->tree.ids[0], cu->tree.ids[1]);
-    CU(cub::DeviceRadixSort::SortPairs(nullptr, a, mk, ids, (int64_t)cu->tree_capacity, 0, 30));
+    CU(cub::DeviceRadixSort::SortPairs(nullptr, a, mk, ids, (int64_t)cu->tree_capacity, 0,
+                                       BPX_CUDA_MORTON_SORT_BITS));
     cub::DoubleBuffer<unsigned long long> keys(cu->keys[0], cu->keys[1]);
     CU(cub::DeviceRadixSort::SortKeys(nullptr, b, keys, (int64_t)cu->pair_capacity, 0, 64));
     size_t bytes = a > b ? a : b;
@@ -224,21 +218,32 @@ bpx_status upload(bpx_cuda *cu, cudaStream_t s, const float *const lo[3], const 
                   uint32_t n)
 {
     const float *src[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
+    cu->timing.bytes_in = 24ull * n;
+    if (n == 0) // no arrays yet: no 2D copy of null pointers with pitch 0 (may be refused)
+        return BPX_OK;
     if (n <= staged_max) {
         if (bpx_status st = reserve_box_arrays(&cu->staging, &cu->staging_capacity, n, true);
             st != BPX_OK)
             return st;
         for (int a = 0; a < 6; a++)
             memcpy(cu->staging + (size_t)a * n, src[a], sizeof(float) * n);
-        // Packed as 6 arrays of n, then spread to the device's arrays of box_capacity.
-        CU(cudaMemcpy2DAsync(cu->boxes, sizeof(float) * cu->box_capacity, cu->staging,
-                             sizeof(float) * n, sizeof(float) * n, 6, cudaMemcpyHostToDevice, s));
+        // Packed as 6 arrays of n, then spread to the device's arrays of box_capacity: one 2D
+        // copy while that pitch is one CUDA takes (at most 2^31 - 1 bytes: the arrays only
+        // grow, and a world that once held 2^29 boxes may hold few now), else 6 copies.
+        size_t pitch = sizeof(float) * cu->box_capacity;
+        if (pitch <= 0x7fffffff)
+            CU(cudaMemcpy2DAsync(cu->boxes, pitch, cu->staging, sizeof(float) * n,
+                                 sizeof(float) * n, 6, cudaMemcpyHostToDevice, s));
+        else
+            for (int a = 0; a < 6; a++)
+                CU(cudaMemcpyAsync(cu->boxes + (size_t)a * cu->box_capacity,
+                                   cu->staging + (size_t)a * n, sizeof(float) * n,
+                                   cudaMemcpyHostToDevice, s));
     } else {
         for (int a = 0; a < 6; a++)
             CU(cudaMemcpyAsync(cu->boxes + (size_t)a * cu->box_capacity, src[a],
                                sizeof(float) * n, cudaMemcpyHostToDevice, s));
     }
-    cu->timing.bytes_in = 24ull * n;
     return BPX_OK;
 }
 
@@ -264,7 +269,8 @@ bpx_status enqueue_tree(bpx_cuda *cu, cudaStream_t s)
     cub::DoubleBuffer<uint32_t> mk(t->morton[0], t->morton[1]);
     cub::DoubleBuffer<uint32_t> ids(t->ids[0], t->ids[1]);
     size_t bytes = cu->sort_temp_bytes;
-    CU(cub::DeviceRadixSort::SortPairs(cu->sort_temp, bytes, mk, ids, (int64_t)n, 0, 30, s));
+    CU(cub::DeviceRadixSort::SortPairs(cu->sort_temp, bytes, mk, ids, (int64_t)n, 0,
+                                       BPX_CUDA_MORTON_SORT_BITS, s));
     t->current = mk.selector;
     if (ids.selector != mk.selector) // CUB keeps both in step; the tree relies on it
         return fail(cudaErrorUnknown, "SortPairs (buffers out of step)");
@@ -308,6 +314,7 @@ uint64_t elapsed_ns(cudaEvent_t a, cudaEvent_t b)
 pthread_once_t probe_once = PTHREAD_ONCE_INIT;
 const char *probe_reason = "";
 char probe_detail[96];
+char probe_old_driver[96];
 bool probe_ok;
 
 __global__ void probe_kernel(int *out)
@@ -323,6 +330,17 @@ void probe_device()
         probe_reason = e == cudaErrorInsufficientDriver ? "no CUDA driver"
                        : e == cudaErrorNoDevice || count == 0 ? "no CUDA device"
                                                               : "CUDA runtime failed to start";
+        // The same error when the driver is there but older than the runtime linked in: a GPU
+        // machine that would skip every CUDA test says why.
+        int driver = 0;
+        if (e == cudaErrorInsufficientDriver && cudaDriverGetVersion(&driver) == cudaSuccess &&
+            driver > 0) {
+            snprintf(probe_old_driver, sizeof probe_old_driver,
+                     "the CUDA driver (%d.%d) is older than this build's runtime (%d.%d)",
+                     driver / 1000, driver % 1000 / 10, CUDART_VERSION / 1000,
+                     CUDART_VERSION % 1000 / 10);
+            probe_reason = probe_old_driver;
+        }
         cudaGetLastError();
         return;
     }
@@ -464,7 +482,7 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
                                   device_pairs(cu)));
         cu->timing.tests = small_pairs(n);
     } else {
-        cu->bits = key_bits(n);
+        cu->bits = bpx_tree::key_bits(n);
         if (bpx_status s = reserve_tree(cu, n); s != BPX_OK)
             return s;
         if (bpx_status s = reserve_sort(cu); s != BPX_OK)
@@ -575,6 +593,10 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         n = cu->n;
     cu->n = n;
     cu->timing = bpx_cuda_timing{};
+    // A host cycle that failed part-way may have left work on the world's stream, over the
+    // buffers this cycle uses: it ends before this cycle starts on another stream.
+    if (s != cu->stream)
+        CU(cudaStreamSynchronize(cu->stream));
     // The last cycle's count, copied back behind it, sizes this cycle's buffer.
     if (bpx_status st = bpx__cuda_finish(cu, nullptr); st != BPX_OK && st != BPX_ERR_CAPACITY &&
                                                        st != BPX_ERR_NOT_FINITE)
@@ -599,7 +621,7 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         cu->tree_path = false;
     } else {
         cu->tree_path = true;
-        cu->bits = key_bits(n);
+        cu->bits = bpx_tree::key_bits(n);
         status = reserve_tree(cu, n);
         if (status == BPX_OK)
             status = reserve_sort(cu);
@@ -623,6 +645,8 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         cu->pending_head = status == BPX_OK;
     }
     cu->timing.tree = cu->tree_path;
+    if (status != BPX_OK && cudaStreamSynchronize(s) != cudaSuccess)
+        cudaGetLastError(); // what was enqueued ends before a host cycle reuses its buffers
     return status;
 }
 
@@ -632,11 +656,12 @@ bpx_status bpx__cuda_finish(bpx_cuda *cu, uint64_t *count)
         return BPX_OK;
     CU(cudaEventSynchronize(cu->events[event_out]));
     cu->pending_head = false;
-    cu->last_count = cu->host_head->count;
     if (count)
-        *count = cu->last_count;
+        *count = cu->host_head->count;
+    // A bad box's count sizes nothing (an infinite box can ask for n^2 / 2 pairs).
     if (cu->host_head->bad != ~0ull)
         return BPX_ERR_NOT_FINITE;
+    cu->last_count = cu->host_head->count;
     if (cu->last_count > cu->pair_capacity)
         return BPX_ERR_CAPACITY;
     return BPX_OK;

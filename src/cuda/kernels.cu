@@ -51,10 +51,8 @@ __global__ void __launch_bounds__(BPX_CUDA_SMALL_MAX)
                 az <= s[5][j] && s[2][j] <= bz)
                 pairs[offset++] = bpx_pair{i, j};
     }
-    if (i == 0) {
-        head->count = total;
-        head->bad = ~0ull;
-    }
+    if (i == 0)
+        head->count = total; // not head->bad: the device boxes' check (convert_kernel) is there
 }
 
 // ---- tree: bounds, Morton keys, build, refit, traverse --------------------------------------
@@ -137,9 +135,13 @@ __global__ void refit_kernel(const float4 *leaf_lo, const float4 *leaf_hi, uint3
     uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= n)
         return;
+    // Fence, atomic, fence: the sibling's release and this thread's acquire (PTX memory
+    // model); without the second fence nothing orders the slot loads after the atomic.
     refit_leaf(t, leaf_lo, leaf_hi, leaf_parent, node_parent, nodes, [flags](uint32_t p) {
         __threadfence(); // this child's slot is out before its arrival is
-        return atomicAdd(&flags[p], 1u);
+        uint32_t before = atomicAdd(&flags[p], 1u);
+        __threadfence(); // the sibling's slot is read after its arrival is seen
+        return before;
     });
 }
 
@@ -169,7 +171,7 @@ __global__ void traverse_kernel(const bpx_cuda_node *__restrict__ nodes,
                 emit_flush(buffer, count, keys, capacity, head);
                 count = 0;
             }
-            buffer[count++] = ((unsigned long long)i << bits) | j;
+            buffer[count++] = pair_key(i, j, bits);
         });
     }
     // One atomic per warp for what is left: a warp-wide scan of the counts.
@@ -199,8 +201,7 @@ __global__ void unpack_kernel(const unsigned long long *keys, int bits,
     unsigned long long count = min(head->count, capacity);
     if (k >= count)
         return;
-    unsigned long long key = keys[k];
-    pairs[k] = bpx_pair{(uint32_t)(key >> bits), (uint32_t)(key & ((1ull << bits) - 1))};
+    pairs[k] = key_pair(keys[k], bits);
 }
 
 // The host's rule (src/core/validate.c): the first bad box; in it, a non-finite coordinate

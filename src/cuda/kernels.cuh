@@ -15,6 +15,11 @@
 
 enum { BPX_CUDA_SMALL_MAX = 1024 };
 
+/// The bits the Morton sort orders by: all 32. Live codes have 30, inert boxes get ~0u; a sort
+/// over 30 bits ties an inert box with a live one in the top cell (0x3FFFFFFF), leaves the codes
+/// unsorted, and the node build then makes no tree (test_cuda_twin sorts by the same bits).
+enum { BPX_CUDA_MORTON_SORT_BITS = 32 };
+
 /// The result block at the head of the pair buffer, read back in the same copy as the first
 /// pairs: the pair count, and for device input the first bad box as (index << 32) | code, code
 /// 4 + axis for a non-finite coordinate, 8 + axis for min > max (all ones: every box valid).

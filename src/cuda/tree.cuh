@@ -168,4 +168,25 @@ BPX_HD void walk(uint32_t t, const bpx_cuda_node *nodes, const float4 *leaf_lo,
     }
 }
 
+/// Bits of a pair key's j: the fewest (at least 1) that hold every id below n.
+BPX_HD int key_bits(uint32_t n)
+{
+    int bits = 1;
+    while (bits < 32 && (1ull << bits) < n)
+        bits++;
+    return bits;
+}
+
+/// A pair (i < j) as one key, (i << bits) | j: ordered by their low 2 * bits bits (the radix
+/// sort's range), keys are in (i, j) order, and all ones (the device path's padding) is last.
+BPX_HD unsigned long long pair_key(uint32_t i, uint32_t j, int bits)
+{
+    return ((unsigned long long)i << bits) | j;
+}
+
+BPX_HD bpx_pair key_pair(unsigned long long key, int bits)
+{
+    return bpx_pair{(uint32_t)(key >> bits), (uint32_t)(key & ((1ull << bits) - 1))};
+}
+
 } // namespace bpx_tree
