@@ -4,10 +4,13 @@
 // against the reference) and at small n against the reference; the same bytes on a second
 // world; device-resident round trips (boxes in device memory, pairs left on the device, then
 // read back and compared); a pair buffer too small (CAPACITY with the needed count, then room;
-// on the host path, grown within the cycle); invalid device boxes; queries refused while the boxes are on the device; and the calls
-// refused where they do not apply.
+// on the host path, grown within the cycle); invalid device boxes; queries refused while the
+// boxes are on the device; the paper's two-phase mode on the device's updater, with host centres
+// and with device centres (errors named like the host's); and the calls refused where they do
+// not apply.
 //
 // Without a CUDA device (or without CUDA in the build) the test reports itself skipped (77).
+#include <float.h>
 #include <math.h>
 
 #include <bpx/cuda.h>
@@ -294,8 +297,7 @@ static void test_device_first_cycle_growth(void)
     for (uint32_t i = 100; i < n; i++)
         for (int a = 0; a < 3; a++)
             boxes[i].min[a] = -INFINITY, boxes[i].max[a] = INFINITY;
-    CHECK(cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) ==
-          cudaSuccess);
+    CHECK(cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess);
     CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
     CHECK_MSG(bpx_world_error(cuda)->index == 100, "named box %u, want 100",
               bpx_world_error(cuda)->index);
@@ -350,13 +352,172 @@ static void test_device_queries(void)
     free(got);
     free(want);
 }
+
+static float *centres_to_device(const float *centres, uint32_t n)
+{
+    void *d = NULL;
+    CHECK(cudaMalloc(&d, 12 * (size_t)(n ? n : 1)) == cudaSuccess);
+    CHECK(cudaMemcpy(d, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) == cudaSuccess);
+    return d;
+}
+
+// The paper's two-phase mode: extents once, then centres. boxes -> centres and origin-centred
+// minima (<= 0), as a simulation keeps them.
+static void split_boxes(const bpx_box *boxes, uint32_t n, float *centres, float *minima)
+{
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            float c = 0.5f * boxes[i].min[a] + 0.5f * boxes[i].max[a];
+            float half = 0.5f * boxes[i].max[a] - 0.5f * boxes[i].min[a];
+            centres[3 * (size_t)i + a] = c;
+            minima[3 * (size_t)i + a] = -half;
+        }
+}
+
+static void centres_move(float *centres, uint32_t n, uint32_t cycle)
+{
+    for (uint32_t i = 0; i < n; i++)
+        centres[3 * (size_t)i + cycle % 3] += (i % 5 == 0) ? 0.3f : -0.05f;
+}
+
+// Host centres go to the device's updater (12 bytes an object); device centres are read in
+// place. Both give the oracle's pairs, whose boxes the host's updater made from the same
+// centres, on both paths (one block, the tree), through host-out and device-resident cycles;
+// subnormal and signed-zero coordinates included (the device must round as the host does).
+static void test_centres(void)
+{
+    static const uint32_t sizes[] = {1, 500, 1024, 1025, 20000};
+    for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
+        for (int edge = 0; edge < 2; edge++) {
+            uint32_t n = sizes[s];
+            if (edge && n > 3000)
+                continue;
+            bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+            if (edge)
+                CHECK(scene_generate(n % 2 ? SCENE_DENORMAL : SCENE_SIGNED_ZERO, n, 5, boxes) == 0);
+            else
+                scene_uniform_density(n, 1.0f, 8, boxes);
+            float *centres = check_alloc(12 * (size_t)n), *minima = check_alloc(12 * (size_t)n);
+            split_boxes(boxes, n, centres, minima);
+            bpx_world *cuda = cuda_world(false), *oracle = oracle_world(n);
+            CHECK_STATUS(bpx_world_load_extents(cuda, minima, n), BPX_OK);
+            CHECK_STATUS(bpx_world_load_extents(oracle, minima, n), BPX_OK);
+            float *d_centres = centres_to_device(centres, n);
+            for (uint32_t cycle = 0; cycle < 6; cycle++) {
+                char what[96];
+                snprintf(what, sizeof what, "centres n=%u%s cycle %u", n, edge ? " (edge)" : "",
+                         cycle);
+                CHECK_STATUS(bpx_world_update_centres(oracle, centres), BPX_OK);
+                CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+                if (cycle % 2 == 0) { // host centres over the link
+                    CHECK_STATUS(bpx_world_update_centres(cuda, centres), BPX_OK);
+                    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+                    CHECK_MSG(bpx_world_stats(cuda).bytes_in == 12ull * n, "%s: %llu bytes in",
+                              what, (unsigned long long)bpx_world_stats(cuda).bytes_in);
+                    same_pairs(cuda, oracle, what);
+                } else { // device centres, read in place; then device-resident
+                    CHECK(cudaMemcpy(d_centres, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) ==
+                          cudaSuccess);
+                    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_centres, n), BPX_OK);
+                    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+                    CHECK(bpx_world_stats(cuda).bytes_in == 0);
+                    same_pairs(cuda, oracle, what);
+                    size_t want = 0, count = 0;
+                    const bpx_pair *want_pairs = bpx_world_pairs(oracle, &want);
+                    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+                    bpx_status st = bpx_cuda_finish(cuda, &count);
+                    CHECK(st == BPX_OK || st == BPX_ERR_CAPACITY);
+                    if (st == BPX_ERR_CAPACITY) { // the first resident cycle may be short
+                        CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+                        CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
+                    }
+                    const bpx_pair *d_pairs = NULL;
+                    CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, NULL, NULL), BPX_OK);
+                    bpx_pair *got = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
+                    CHECK(cudaMemcpy(got, d_pairs, sizeof(bpx_pair) * count,
+                                     cudaMemcpyDeviceToHost) == cudaSuccess);
+                    CHECK_MSG(count == want &&
+                                  pairs_first_diff(got, count, want_pairs, want) == want,
+                              "%s: device-resident pairs differ", what);
+                    free(got);
+                }
+                if (!edge)
+                    centres_move(centres, n, cycle);
+            }
+            bpx_world_destroy(cuda);
+            bpx_world_destroy(oracle);
+            cudaFree(d_centres);
+            free(centres);
+            free(minima);
+            free(boxes);
+        }
+    }
+}
+
+// Device centres refused or named like host centres; a centre that turns bad later is named by
+// the cycle that reads it; queries wait for host data.
+static void test_centres_errors(void)
+{
+    enum { n = 3000 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, 6, boxes);
+    float *centres = check_alloc(12 * n), *minima = check_alloc(12 * n);
+    split_boxes(boxes, n, centres, minima);
+    centres[3 * 2500] = 0.0f; // object 2500 spans the whole x axis: a big centre overflows it
+    minima[3 * 2500] = -FLT_MAX;
+    float *d_good = centres_to_device(centres, n);
+    bpx_world *cuda = cuda_world(false);
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_good, n), BPX_ERR_BAD_STATE); // no extents
+    CHECK_STATUS(bpx_world_load_extents(cuda, minima, n), BPX_OK);
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, NULL, n), BPX_ERR_NULL_ARGUMENT);
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_good, n - 1), BPX_ERR_INVALID_ARGUMENT);
+    CHECK_STATUS(bpx_world_update_centres(cuda, centres), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+    size_t first = 0;
+    bpx_world_pairs(cuda, &first);
+    // A NaN centre at object 77 (axis 2), and an overflow at object 2500 (axis 0).
+    centres[3 * 77 + 2] = NAN;
+    centres[3 * 2500] = 1e38f;
+    float *d_bad = centres_to_device(centres, n);
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_bad, n), BPX_ERR_NOT_FINITE);
+    const bpx_error *e = bpx_world_error(cuda);
+    CHECK_MSG(e->index == 77 && e->axis == 2, "named object %u axis %d", e->index, e->axis);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK); // still the host centres
+    size_t again = 0;
+    bpx_world_pairs(cuda, &again);
+    CHECK(again == first);
+    // Good device centres, queries refused meanwhile; then they turn bad (77 mended: 2500's
+    // overflow is the first).
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_good, n), BPX_OK);
+    bpx_hit hit;
+    size_t hits = 0;
+    const bpx_query q = bpx_query_box(boxes[0]);
+    CHECK_STATUS(bpx_world_query(cuda, &q, &hit, 1, &hits), BPX_ERR_BAD_STATE);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+    bpx_world_pairs(cuda, &again);
+    CHECK(again == first);
+    centres[3 * 77 + 2] = 0.0f;
+    CHECK(cudaMemcpy(d_good, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) == cudaSuccess);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
+    CHECK_MSG(bpx_world_error(cuda)->index == 2500 && bpx_world_error(cuda)->axis == 0,
+              "named object %u", bpx_world_error(cuda)->index);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+    CHECK_STATUS(bpx_cuda_finish(cuda, NULL), BPX_ERR_NOT_FINITE);
+    CHECK(bpx_world_error(cuda)->index == 2500);
+    bpx_world_destroy(cuda);
+    cudaFree(d_good);
+    cudaFree(d_bad);
+    free(centres);
+    free(minima);
+    free(boxes);
+}
 #endif
 
 int main(void)
 {
     bpx_backend_info info = bpx_backend_query(BPX_BACKEND_CUDA);
-    printf("cuda: %s%s\n", info.available ? info.detail : "unavailable: ",
-           info.available ? "" : info.reason);
+    printf("cuda: %s%s\n",
+           info.available ? info.detail : "unavailable: ", info.available ? "" : info.reason);
     if (!info.available) {
         // The calls exist in every build and refuse politely.
         bpx_world_def def = bpx_default_world_def();
@@ -375,6 +536,8 @@ int main(void)
     test_device_errors();
     test_device_first_cycle_growth();
     test_device_queries();
+    test_centres();
+    test_centres_errors();
 #endif
     return check_finish("test_cuda", 1);
 }

@@ -2,7 +2,8 @@
 // (src/cuda/tree.cuh: centres, Morton codes, Karras's build, the refit, the walk), driven by
 // loops in place of the grid and a stable sort in place of CUB's radix sort (both order the
 // Morton codes with ties by id). Its pairs must be exactly the reference's on every scene kind,
-// with removed (inert) boxes among them. Compiled by nvcc, it needs no GPU: this is how machines
+// with removed (inert) boxes among them. The device's updater (update.cuh) is held to the
+// host's the same way. Compiled by nvcc, it needs no GPU: this is how machines
 // without one (CI) prove the algorithm that test_cuda runs on the device.
 #include <algorithm>
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "cuda/tree.cuh"
+#include "cuda/update.cuh"
 
 #include "check.h"
 #include "scenes.h"
@@ -103,6 +105,69 @@ void check_scene(const std::vector<bpx_box> &boxes, const char *what)
               diff);
 }
 
+// The device's updater (update.cuh) against the host's (bpx_world_update_centres on a reference
+// world): the boxes it makes give the same pairs, and the first object whose box is not finite,
+// with its axis, is the one the host names.
+void check_updater(const std::vector<bpx_box> &boxes, const char *what)
+{
+    const uint32_t n = (uint32_t)boxes.size();
+    const size_t floats = 3 * (size_t)n + 3;
+    std::vector<float> centres(floats), minima(floats), planes(floats);
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            centres[3 * (size_t)i + a] = 0.5f * boxes[i].min[a] + 0.5f * boxes[i].max[a];
+            minima[3 * (size_t)i + a] = -(0.5f * boxes[i].max[a] - 0.5f * boxes[i].min[a]);
+            planes[(size_t)a * n + i] = minima[3 * (size_t)i + a];
+        }
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = BPX_BACKEND_REFERENCE;
+    bpx_world *w = nullptr;
+    CHECK(bpx_world_create(&def, &w) == BPX_OK);
+    CHECK(bpx_world_load_extents(w, minima.data(), n) == BPX_OK);
+    for (int bad = 0; bad < 3; bad++) {
+        // bad 1: object n/2's centre NaN on y, infinite on z; bad 2: also an overflow at n/3, on z.
+        if (bad == 1 && n > 2)
+            centres[3 * (size_t)(n / 2) + 1] = NAN, centres[3 * (size_t)(n / 2) + 2] = INFINITY;
+        if (bad == 2 && n > 2)
+            centres[3 * (size_t)(n / 3) + 2] = 3e38f, planes[2 * (size_t)n + n / 3] = -3e38f;
+        if (bad == 2 && n > 2) { // the world's minima must say the same
+            minima[3 * (size_t)(n / 3) + 2] = -3e38f;
+            CHECK(bpx_world_load_extents(w, minima.data(), n) == BPX_OK);
+        }
+        std::vector<bpx_box> made(n);
+        uint32_t first = UINT32_MAX;
+        int first_axis = -1;
+        for (uint32_t i = 0; i < n; i++) {
+            int axis =
+                bpx_update::box_of(centres.data(), planes.data(), planes.data() + n,
+                                   planes.data() + 2 * (size_t)n, i, made[i].min, made[i].max);
+            if (axis >= 0 && first == UINT32_MAX)
+                first = i, first_axis = axis;
+        }
+        bpx_status s = bpx_world_update_centres(w, centres.data());
+        if (first == UINT32_MAX) {
+            CHECK_MSG(s == BPX_OK, "%s: the host refused centres the updater took", what);
+            CHECK(bpx_world_collide(w) == BPX_OK);
+            size_t count = 0;
+            const bpx_pair *want = bpx_world_pairs(w, &count);
+            std::vector<bpx_pair> got;
+            for (uint32_t i = 0; i < n; i++)
+                for (uint32_t j = i + 1; j < n; j++)
+                    if (bpx_overlap(&made[i], &made[j]))
+                        got.push_back(bpx_pair{i, j});
+            CHECK_MSG(got.size() == count &&
+                          (count == 0 || memcmp(got.data(), want, sizeof(bpx_pair) * count) == 0),
+                      "%s: updater pairs %zu, host %zu", what, got.size(), count);
+        } else {
+            const bpx_error *e = bpx_world_error(w);
+            CHECK_MSG(s == BPX_ERR_NOT_FINITE && e->index == first && e->axis == first_axis,
+                      "%s bad %d: updater names %u axis %d, host %u axis %d", what, bad, first,
+                      first_axis, e->index, e->axis);
+        }
+    }
+    bpx_world_destroy(w);
+}
+
 } // namespace
 
 int main()
@@ -122,6 +187,16 @@ int main()
                     boxes[i].min[a] = INFINITY, boxes[i].max[a] = -INFINITY;
             snprintf(what, sizeof what, "%s n=%u with inert boxes", scene_kind_name((scene_kind)kind), n);
             check_scene(boxes, what);
+        }
+    }
+    for (int kind = 0; kind < SCENE_KIND_COUNT; kind++) {
+        for (uint32_t n : {0u, 1u, 3u, 300u, 2000u}) {
+            std::vector<bpx_box> boxes(n ? n : 1);
+            boxes.resize(n);
+            CHECK(scene_generate((scene_kind)kind, n, 11 + n, boxes.data()) == 0);
+            char what[96];
+            snprintf(what, sizeof what, "updater %s n=%u", scene_kind_name((scene_kind)kind), n);
+            check_updater(boxes, what);
         }
     }
     // The benchmark's scenes, larger: uniform and heavy-tailed sizes.

@@ -6,6 +6,7 @@
 
 #include "kernels.cuh"
 #include "tree.cuh"
+#include "update.cuh"
 
 namespace {
 
@@ -227,6 +228,26 @@ __global__ void convert_kernel(const bpx_box *boxes, uint32_t n, float *lx, floa
         atomicMin(&head->bad, ((unsigned long long)i << 32) | code);
 }
 
+// The paper's updater (update.cuh): centres and stored minima to the SoA boxes, checking each
+// box (the first object whose box is not finite into head, code 4 + axis: NOT_FINITE).
+__global__ void update_kernel(const float *centres, const float *minima, uint32_t stride,
+                              uint32_t n, float *lx, float *ly, float *lz, float *hx, float *hy,
+                              float *hz, bpx_cuda_head *head)
+{
+    uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n)
+        return;
+    float lo[3], hi[3];
+    int bad = bpx_update::box_of(centres, minima, minima + stride, minima + 2 * (size_t)stride, i,
+                                 lo, hi);
+    if (lx) { // else only the check
+        lx[i] = lo[0], ly[i] = lo[1], lz[i] = lo[2];
+        hx[i] = hi[0], hy[i] = hi[1], hz[i] = hi[2];
+    }
+    if (bad >= 0)
+        atomicMin(&head->bad, ((unsigned long long)i << 32) | (4u + (uint32_t)bad));
+}
+
 } // namespace
 
 cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
@@ -297,5 +318,14 @@ cudaError_t bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, 
 {
     convert_kernel<<<grid_for(n), block_threads, 0, stream>>>(boxes, n, lo[0], lo[1], lo[2], hi[0],
                                                               hi[1], hi[2], head);
+    return cudaGetLastError();
+}
+
+cudaError_t bpx__cuda_launch_update(cudaStream_t stream, const float *centres,
+                                    const float *minima, uint32_t stride, uint32_t n,
+                                    float *const lo[3], float *const hi[3], bpx_cuda_head *head)
+{
+    update_kernel<<<grid_for(n), block_threads, 0, stream>>>(
+        centres, minima, stride, n, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], head);
     return cudaGetLastError();
 }

@@ -64,3 +64,8 @@ cudaError_t bpx__cuda_launch_unpack(cudaStream_t stream, const unsigned long lon
 /// Device input: AoS boxes to the SoA arrays, checking each (first bad box into head).
 cudaError_t bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, uint32_t n,
                                      float *const lo[3], float *const hi[3], bpx_cuda_head *head);
+/// The paper's updater: n centres (x, y, z each) and the minima (three planes `stride` apart) to
+/// the SoA arrays (lo NULL: only the check), the first object whose box is not finite into head.
+cudaError_t bpx__cuda_launch_update(cudaStream_t stream, const float *centres,
+                                    const float *minima, uint32_t stride, uint32_t n,
+                                    float *const lo[3], float *const hi[3], bpx_cuda_head *head);
