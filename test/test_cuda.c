@@ -243,20 +243,21 @@ static void test_device_resident(void)
 
 // A bad box in device memory is named like a bad host box, and the world keeps its boxes; one
 // that turns bad after the check is reported by the cycle that reads it.
-static void test_device_errors(void)
+// n: the tree (3000) and the one-block comparator (500), whose kernel must leave the check alone.
+static void test_device_errors(uint32_t n)
 {
-    enum { n = 3000 };
+    const uint32_t nan_at = n / 3, flipped_at = n - n / 3;
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
     scene_uniform_density(n, 1.0f, 2, boxes);
     bpx_box *good = to_device(boxes, n);
-    boxes[1234].min[1] = NAN;
-    boxes[2000].min[0] = boxes[2000].max[0] + 1.0f;
+    boxes[nan_at].min[1] = NAN;
+    boxes[flipped_at].min[0] = boxes[flipped_at].max[0] + 1.0f;
     bpx_box *bad = to_device(boxes, n);
     bpx_world *cuda = cuda_world(false);
     CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, good, n), BPX_OK);
     CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, bad, n), BPX_ERR_NOT_FINITE);
     const bpx_error *e = bpx_world_error(cuda);
-    CHECK(e->index == 1234 && e->axis == 1);
+    CHECK(e->index == nan_at && e->axis == 1);
     CHECK(bpx_world_box_count(cuda) == n);
     CHECK_STATUS(bpx_world_collide(cuda), BPX_OK); // still the good boxes
     size_t first = 0;
@@ -264,10 +265,11 @@ static void test_device_errors(void)
     // The good buffer turns bad between cycles.
     CHECK(cudaMemcpy(good, bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess);
     CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
-    CHECK(bpx_world_error(cuda)->index == 1234);
+    CHECK_MSG(bpx_world_error(cuda)->index == nan_at, "n=%u: named box %u", n,
+              bpx_world_error(cuda)->index);
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     CHECK_STATUS(bpx_cuda_finish(cuda, NULL), BPX_ERR_NOT_FINITE);
-    CHECK(bpx_world_error(cuda)->index == 1234);
+    CHECK(bpx_world_error(cuda)->index == nan_at);
     bpx_world_destroy(cuda);
     cudaFree(good);
     cudaFree(bad);
@@ -456,15 +458,15 @@ static void test_centres(void)
 
 // Device centres refused or named like host centres; a centre that turns bad later is named by
 // the cycle that reads it; queries wait for host data.
-static void test_centres_errors(void)
+static void test_centres_errors(uint32_t n)
 {
-    enum { n = 3000 };
+    const uint32_t nan_at = n / 40 + 2, big = n - n / 6; // 77 and 2500 of 3000
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
     scene_uniform_density(n, 1.0f, 6, boxes);
-    float *centres = check_alloc(12 * n), *minima = check_alloc(12 * n);
+    float *centres = check_alloc(12 * (size_t)n), *minima = check_alloc(12 * (size_t)n);
     split_boxes(boxes, n, centres, minima);
-    centres[3 * 2500] = 0.0f; // object 2500 spans the whole x axis: a big centre overflows it
-    minima[3 * 2500] = -FLT_MAX;
+    centres[3 * big] = 0.0f; // object `big` spans the whole x axis: a big centre overflows it
+    minima[3 * big] = -FLT_MAX;
     float *d_good = centres_to_device(centres, n);
     bpx_world *cuda = cuda_world(false);
     CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_good, n), BPX_ERR_BAD_STATE); // no extents
@@ -475,18 +477,19 @@ static void test_centres_errors(void)
     CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
     size_t first = 0;
     bpx_world_pairs(cuda, &first);
-    // A NaN centre at object 77 (axis 2), and an overflow at object 2500 (axis 0).
-    centres[3 * 77 + 2] = NAN;
-    centres[3 * 2500] = 1e38f;
+    // A NaN centre at object nan_at (axis 2), and an overflow at object big (axis 0).
+    centres[3 * nan_at + 2] = NAN;
+    centres[3 * big] = 1e38f;
     float *d_bad = centres_to_device(centres, n);
     CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_bad, n), BPX_ERR_NOT_FINITE);
     const bpx_error *e = bpx_world_error(cuda);
-    CHECK_MSG(e->index == 77 && e->axis == 2, "named object %u axis %d", e->index, e->axis);
+    CHECK_MSG(e->index == nan_at && e->axis == 2, "n=%u: named object %u axis %d", n, e->index,
+              e->axis);
     CHECK_STATUS(bpx_world_collide(cuda), BPX_OK); // still the host centres
     size_t again = 0;
     bpx_world_pairs(cuda, &again);
     CHECK(again == first);
-    // Good device centres, queries refused meanwhile; then they turn bad (77 mended: 2500's
+    // Good device centres, queries refused meanwhile; then they turn bad (nan_at mended: big's
     // overflow is the first).
     CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_good, n), BPX_OK);
     bpx_hit hit;
@@ -496,14 +499,14 @@ static void test_centres_errors(void)
     CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
     bpx_world_pairs(cuda, &again);
     CHECK(again == first);
-    centres[3 * 77 + 2] = 0.0f;
+    centres[3 * nan_at + 2] = 0.0f;
     CHECK(cudaMemcpy(d_good, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) == cudaSuccess);
     CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
-    CHECK_MSG(bpx_world_error(cuda)->index == 2500 && bpx_world_error(cuda)->axis == 0,
-              "named object %u", bpx_world_error(cuda)->index);
+    CHECK_MSG(bpx_world_error(cuda)->index == big && bpx_world_error(cuda)->axis == 0,
+              "n=%u: named object %u", n, bpx_world_error(cuda)->index);
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     CHECK_STATUS(bpx_cuda_finish(cuda, NULL), BPX_ERR_NOT_FINITE);
-    CHECK(bpx_world_error(cuda)->index == 2500);
+    CHECK(bpx_world_error(cuda)->index == big);
     bpx_world_destroy(cuda);
     cudaFree(d_good);
     cudaFree(d_bad);
@@ -533,11 +536,13 @@ int main(void)
     test_objects_and_events();
 #if BPX_TEST_CUDA
     test_device_resident();
-    test_device_errors();
+    test_device_errors(3000);
+    test_device_errors(500);
     test_device_first_cycle_growth();
     test_device_queries();
     test_centres();
-    test_centres_errors();
+    test_centres_errors(3000);
+    test_centres_errors(500);
 #endif
     return check_finish("test_cuda", 1);
 }

@@ -69,6 +69,7 @@ struct bpx_cuda {
     float *minima; // 3 planes of minima_capacity: the loaded extents' minima
     uint32_t minima_capacity;
     bool minima_current; // they are the world's (until the next load_extents)
+    const float *cycle_centres; // the centres the one-block comparator makes its boxes from
     unsigned long long host_have; // pairs of the last host cycle already in host_head
     bool tree_path;
     bool pending_head; // a device-resident cycle's head is on its way to host_head
@@ -457,10 +458,13 @@ void bpx__cuda_close(bpx_cuda *cu)
 }
 
 // Boxes in: the host's SoA arrays sent, the caller's device boxes converted and checked, or
-// boxes made from centres by the device's updater (and checked).
+// boxes made from centres by the device's updater (and checked). With `small` (the one-block
+// comparator follows) the updater is left to that kernel, so the cycle stays one launch:
+// cu->cycle_centres says where its centres are.
 static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3],
-                           const float *const hi[3], uint32_t n)
+                           const float *const hi[3], uint32_t n, bool small)
 {
+    cu->cycle_centres = nullptr;
     if (bpx_status st = reserve_floats(&cu->boxes, &cu->box_capacity, n, 6, false); st != BPX_OK)
         return st;
     CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, s));
@@ -483,6 +487,10 @@ static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3
                            cudaMemcpyHostToDevice, s));
         cu->timing.bytes_in = 12ull * n;
         centres = cu->centres;
+    }
+    if (small) {
+        cu->cycle_centres = centres;
+        return BPX_OK;
     }
     CU(bpx__cuda_launch_update(s, centres, cu->minima, cu->minima_capacity, n, dlo, dhi,
                                device_head(cu)));
@@ -525,14 +533,16 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     if (bpx_status s = reserve_host_pairs(cu, guess); s != BPX_OK)
         return s;
     CU(cudaEventRecord(cu->events[event_start], cu->stream));
-    if (bpx_status s = boxes_in(cu, cu->stream, lo, hi, n); s != BPX_OK)
+    if (bpx_status s = boxes_in(cu, cu->stream, lo, hi, n, !cu->tree_path && n >= 2);
+        s != BPX_OK)
         return s;
     CU(cudaEventRecord(cu->events[event_in], cu->stream));
     point_tree_at_boxes(cu, n);
     if (n < 2) {
         CU(cudaMemsetAsync(device_head(cu), 0, 8, cu->stream));
     } else if (!cu->tree_path) {
-        CU(bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, n, device_head(cu),
+        CU(bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, cu->cycle_centres,
+                                  cu->minima, cu->minima_capacity, n, device_head(cu),
                                   device_pairs(cu)));
         cu->timing.tests = small_pairs(n);
     } else {
@@ -692,15 +702,16 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         return st;
     if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
         return st;
-    bpx_status status = boxes_in(cu, s, lo, hi, n);
+    bpx_status status = boxes_in(cu, s, lo, hi, n, n >= 2 && n <= BPX_CUDA_SMALL_MAX);
     point_tree_at_boxes(cu, n);
     if (status != BPX_OK) {
     } else if (n < 2) {
         cudaError_t e = cudaMemsetAsync(device_head(cu), 0, 8, s);
         status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemsetAsync");
     } else if (n <= BPX_CUDA_SMALL_MAX) {
-        cudaError_t e = bpx__cuda_launch_small(s, cu->tree.lo, cu->tree.hi, n, device_head(cu),
-                                               device_pairs(cu));
+        cudaError_t e = bpx__cuda_launch_small(s, cu->tree.lo, cu->tree.hi, cu->cycle_centres,
+                                               cu->minima, cu->minima_capacity, n,
+                                               device_head(cu), device_pairs(cu));
         status = e == cudaSuccess ? BPX_OK : fail(e, "small_kernel");
         cu->tree_path = false;
     } else {

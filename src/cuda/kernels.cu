@@ -22,16 +22,26 @@ using namespace bpx_tree;
 
 // ---- small: one block, every box in shared memory -------------------------------------------
 
+// With centres (the paper's updater fused in, so that a cycle stays one launch) each thread
+// makes its box from its centre and minima (update.cuh), the first bad object into head.
 __global__ void __launch_bounds__(BPX_CUDA_SMALL_MAX)
     small_kernel(const float *lx, const float *ly, const float *lz, const float *hx,
-                 const float *hy, const float *hz, uint32_t n, bpx_cuda_head *head,
-                 bpx_pair *pairs)
+                 const float *hy, const float *hz, const float *centres, const float *minima,
+                 uint32_t stride, uint32_t n, bpx_cuda_head *head, bpx_pair *pairs)
 {
     __shared__ float s[6][BPX_CUDA_SMALL_MAX];
     using scan_t = cub::BlockScan<uint32_t, BPX_CUDA_SMALL_MAX>;
     __shared__ typename scan_t::TempStorage scan_storage;
     const uint32_t i = threadIdx.x;
-    if (i < n) {
+    if (i < n && centres) {
+        float lo[3], hi[3];
+        int bad = bpx_update::box_of(centres, minima, minima + stride,
+                                     minima + 2 * (size_t)stride, i, lo, hi);
+        for (int a = 0; a < 3; a++)
+            s[a][i] = lo[a], s[3 + a][i] = hi[a];
+        if (bad >= 0)
+            atomicMin(&head->bad, ((unsigned long long)i << 32) | (4u + (uint32_t)bad));
+    } else if (i < n) {
         s[0][i] = lx[i], s[1][i] = ly[i], s[2][i] = lz[i];
         s[3][i] = hx[i], s[4][i] = hy[i], s[5][i] = hz[i];
     }
@@ -52,10 +62,8 @@ __global__ void __launch_bounds__(BPX_CUDA_SMALL_MAX)
                 az <= s[5][j] && s[2][j] <= bz)
                 pairs[offset++] = bpx_pair{i, j};
     }
-    if (i == 0) {
-        head->count = total;
-        head->bad = ~0ull;
-    }
+    if (i == 0)
+        head->count = total; // head->bad is the cycle's check (reset before it), not touched here
 }
 
 // ---- tree: bounds, Morton keys, build, refit, traverse --------------------------------------
@@ -251,11 +259,12 @@ __global__ void update_kernel(const float *centres, const float *minima, uint32_
 } // namespace
 
 cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
-                                   const float *const hi[3], uint32_t n, bpx_cuda_head *head,
-                                   bpx_pair *pairs)
+                                   const float *const hi[3], const float *centres,
+                                   const float *minima, uint32_t stride, uint32_t n,
+                                   bpx_cuda_head *head, bpx_pair *pairs)
 {
-    small_kernel<<<1, BPX_CUDA_SMALL_MAX, 0, stream>>>(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], n,
-                                                       head, pairs);
+    small_kernel<<<1, BPX_CUDA_SMALL_MAX, 0, stream>>>(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2],
+                                                       centres, minima, stride, n, head, pairs);
     return cudaGetLastError();
 }
 

@@ -45,9 +45,12 @@ struct bpx_cuda_tree {
     uint32_t *flags;              // refit arrivals, zeroed each cycle
 };
 
+/// The small comparator; with centres (not NULL) it makes the boxes itself from them and the
+/// minima (three planes `stride` apart), checking each (the paper's updater, in the same launch).
 cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
-                                   const float *const hi[3], uint32_t n, bpx_cuda_head *head,
-                                   bpx_pair *pairs);
+                                   const float *const hi[3], const float *centres,
+                                   const float *minima, uint32_t stride, uint32_t n,
+                                   bpx_cuda_head *head, bpx_pair *pairs);
 
 cudaError_t bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t);
 cudaError_t bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t);
