@@ -1,5 +1,5 @@
 // The cuda backend beyond what the suites that loop over every backend check (test_differential
-// and test_determinism run it wherever it is available): both comparators (one block up to 1024
+// and test_determinism run it wherever it is available): both comparators (brute force up to 1024
 // boxes, the tree beyond) on every scene kind over moving cycles, against sap (itself checked
 // against the reference) and at small n against the reference; the same bytes on a second
 // world; device-resident round trips (boxes in device memory, pairs left on the device, then
@@ -243,7 +243,7 @@ static void test_device_resident(void)
 
 // A bad box in device memory is named like a bad host box, and the world keeps its boxes; one
 // that turns bad after the check is reported by the cycle that reads it.
-// n: the tree (3000) and the one-block comparator (500), whose kernel must leave the check alone.
+// n: the tree (3000) and the small comparator (500), whose kernel must leave the check alone.
 static void test_device_errors(uint32_t n)
 {
     const uint32_t nan_at = n / 3, flipped_at = n - n / 3;
@@ -384,7 +384,7 @@ static void centres_move(float *centres, uint32_t n, uint32_t cycle)
 
 // Host centres go to the device's updater (12 bytes an object); device centres are read in
 // place. Both give the oracle's pairs, whose boxes the host's updater made from the same
-// centres, on both paths (one block, the tree), through host-out and device-resident cycles;
+// centres, on both paths (small, tree), through host-out and device-resident cycles;
 // subnormal and signed-zero coordinates included (the device must round as the host does).
 static void test_centres(void)
 {

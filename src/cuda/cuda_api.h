@@ -16,7 +16,7 @@ typedef struct bpx_cuda_timing {
     uint64_t in_ns, device_ns, out_ns;
     uint64_t bytes_in, bytes_out;
     uint64_t tests; ///< box-pair tests: brute n(n-1)/2, the tree path's leaf tests
-    bool tree;      ///< the last cycle ran the tree path (else the one-block brute force)
+    bool tree;      ///< the last cycle ran the tree path (else the small brute force)
 } bpx_cuda_timing;
 
 /// Whether a CUDA device can run this build's kernels. On false *reason says why (static text);

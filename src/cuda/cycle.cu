@@ -69,7 +69,8 @@ struct bpx_cuda {
     float *minima; // 3 planes of minima_capacity: the loaded extents' minima
     uint32_t minima_capacity;
     bool minima_current; // they are the world's (until the next load_extents)
-    const float *cycle_centres; // the centres the one-block comparator makes its boxes from
+    const float *cycle_centres; // the centres the small comparator makes its boxes from
+    bpx_cuda_small_scratch *small; // the small comparator's rows (allocated at its first cycle)
     unsigned long long host_have; // pairs of the last host cycle already in host_head
     bool tree_path;
     bool pending_head; // a device-resident cycle's head is on its way to host_head
@@ -212,6 +213,23 @@ bpx_status reserve_host_pairs(bpx_cuda *cu, unsigned long long pairs)
     cudaFreeHost(cu->host_head);
     cu->host_head = static_cast<bpx_cuda_head *>(host);
     cu->host_pairs_capacity = cap;
+    return BPX_OK;
+}
+
+// The small comparator's scratch, once; its block counter starts at zero (each cycle's last block
+// leaves it so).
+bpx_status reserve_small(bpx_cuda *cu)
+{
+    if (cu->small)
+        return BPX_OK;
+    bpx_cuda_small_scratch *scratch = nullptr;
+    CU(cudaMalloc(&scratch, sizeof *scratch));
+    cudaError_t e = cudaMemset(&scratch->done, 0, sizeof scratch->done);
+    if (e != cudaSuccess) {
+        cudaFree(scratch);
+        return fail(e, "cudaMemset (small comparator)");
+    }
+    cu->small = scratch;
     return BPX_OK;
 }
 
@@ -442,6 +460,7 @@ void bpx__cuda_close(bpx_cuda *cu)
     cudaFree(cu->centres);
     cudaFreeHost(cu->centres_staging);
     cudaFree(cu->minima);
+    cudaFree(cu->small);
     cudaFree(cu->tree_memory);
     cudaFree(cu->keys[0]);
     cudaFree(cu->keys[1]);
@@ -458,7 +477,7 @@ void bpx__cuda_close(bpx_cuda *cu)
 }
 
 // Boxes in: the host's SoA arrays sent, the caller's device boxes converted and checked, or
-// boxes made from centres by the device's updater (and checked). With `small` (the one-block
+// boxes made from centres by the device's updater (and checked). With `small` (the small
 // comparator follows) the updater is left to that kernel, so the cycle stays one launch:
 // cu->cycle_centres says where its centres are.
 static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3],
@@ -541,8 +560,10 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     if (n < 2) {
         CU(cudaMemsetAsync(device_head(cu), 0, 8, cu->stream));
     } else if (!cu->tree_path) {
+        if (bpx_status s = reserve_small(cu); s != BPX_OK)
+            return s;
         CU(bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, cu->cycle_centres,
-                                  cu->minima, cu->minima_capacity, n, device_head(cu),
+                                  cu->minima, cu->minima_capacity, n, cu->small, device_head(cu),
                                   device_pairs(cu)));
         cu->timing.tests = small_pairs(n);
     } else {
@@ -709,10 +730,14 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         cudaError_t e = cudaMemsetAsync(device_head(cu), 0, 8, s);
         status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemsetAsync");
     } else if (n <= BPX_CUDA_SMALL_MAX) {
-        cudaError_t e = bpx__cuda_launch_small(s, cu->tree.lo, cu->tree.hi, cu->cycle_centres,
-                                               cu->minima, cu->minima_capacity, n,
+        status = reserve_small(cu);
+        cudaError_t e = status != BPX_OK ? cudaSuccess
+                                         : bpx__cuda_launch_small(
+                                               s, cu->tree.lo, cu->tree.hi, cu->cycle_centres,
+                                               cu->minima, cu->minima_capacity, n, cu->small,
                                                device_head(cu), device_pairs(cu));
-        status = e == cudaSuccess ? BPX_OK : fail(e, "small_kernel");
+        if (e != cudaSuccess)
+            status = fail(e, "small_kernel");
         cu->tree_path = false;
     } else {
         cu->tree_path = true;

@@ -2,8 +2,9 @@
 //
 // Two comparators, both exact (float comparisons of the caller's own coordinates; node bounds
 // are minima and maxima of them, so culling never rounds) and both in (i, j) order:
-//   small  n <= BPX_CUDA_SMALL_MAX: one block holds every box in shared memory, counts each
-//          row's hits, scans the counts and writes the pairs in place: one launch per cycle.
+//   small  n <= BPX_CUDA_SMALL_MAX: a warp per box tests the later boxes 32 at a time into hit
+//          words; the last block to finish scans the rows' counts and writes every pair at its
+//          place: one launch per cycle.
 //   tree   a linear BVH (Karras 2012) built every cycle over the boxes' centres in Morton
 //          order; each box walks it for the boxes later in that order, so every pair is found
 //          once; the pairs, packed as 64-bit (i, j) keys, are radix sorted into (i, j) order.
@@ -14,6 +15,14 @@
 #include "bpx/types.h"
 
 enum { BPX_CUDA_SMALL_MAX = 1024 };
+
+/// The small comparator's scratch in device memory: each row's (box's) hit words over the later
+/// boxes and its count; `done` counts the blocks that finished (zero between cycles).
+struct bpx_cuda_small_scratch {
+    uint32_t done;
+    uint32_t counts[BPX_CUDA_SMALL_MAX];
+    uint32_t masks[BPX_CUDA_SMALL_MAX * (BPX_CUDA_SMALL_MAX / 32)];
+};
 
 /// The result block at the head of the pair buffer, read back in the same copy as the first
 /// pairs: the pair count, and for device input the first bad box as (index << 32) | code, code
@@ -45,12 +54,14 @@ struct bpx_cuda_tree {
     uint32_t *flags;              // refit arrivals, zeroed each cycle
 };
 
-/// The small comparator; with centres (not NULL) it makes the boxes itself from them and the
-/// minima (three planes `stride` apart), checking each (the paper's updater, in the same launch).
+/// The small comparator (n >= 2); with centres (not NULL) it makes the boxes itself from them
+/// and the minima (three planes `stride` apart), checking each (the paper's updater, in the same
+/// launch). scratch->done must be zero (it is left so).
 cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
                                    const float *const hi[3], const float *centres,
                                    const float *minima, uint32_t stride, uint32_t n,
-                                   bpx_cuda_head *head, bpx_pair *pairs);
+                                   bpx_cuda_small_scratch *scratch, bpx_cuda_head *head,
+                                   bpx_pair *pairs);
 
 cudaError_t bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t);
 cudaError_t bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t);
