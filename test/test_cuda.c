@@ -166,6 +166,7 @@ static void test_refusals(void)
     CHECK_STATUS(bpx_world_create(&def, &sap), BPX_OK);
     CHECK_STATUS(bpx_cuda_collide_device(sap, NULL), BPX_ERR_BACKEND_UNAVAILABLE);
     CHECK_STATUS(bpx_cuda_set_boxes_device(sap, NULL, 0), BPX_ERR_BACKEND_UNAVAILABLE);
+    CHECK_STATUS(bpx_cuda_set_centres_device(sap, NULL, 0), BPX_ERR_BACKEND_UNAVAILABLE);
     CHECK_STATUS(bpx_cuda_finish(NULL, NULL), BPX_ERR_NULL_ARGUMENT);
     bpx_world_destroy(sap);
 
@@ -528,6 +529,8 @@ int main(void)
         bpx_world *w = NULL;
         CHECK_STATUS(bpx_world_create(&def, &w), BPX_ERR_BACKEND_UNAVAILABLE);
         CHECK(w == NULL);
+        CHECK_STATUS(bpx_cuda_set_centres_device(NULL, NULL, 0), BPX_ERR_NULL_ARGUMENT);
+        CHECK_STATUS(bpx_cuda_set_boxes_device(NULL, NULL, 0), BPX_ERR_NULL_ARGUMENT);
         return check_finish("test_cuda", 0);
     }
     test_refusals();
