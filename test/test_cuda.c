@@ -1,13 +1,16 @@
 // The cuda backend beyond what the suites that loop over every backend check (test_differential
-// and test_determinism run it wherever it is available): both comparators (one block up to 1024
+// and test_determinism run it wherever it is available): both comparators (brute force up to 1024
 // boxes, the tree beyond) on every scene kind over moving cycles, against sap (itself checked
 // against the reference) and at small n against the reference; the same bytes on a second
 // world; device-resident round trips (boxes in device memory, pairs left on the device, then
 // read back and compared); a pair buffer too small (CAPACITY with the needed count, then room;
-// on the host path, grown within the cycle); invalid device boxes; queries refused while the boxes are on the device; and the calls
-// refused where they do not apply.
+// on the host path, grown within the cycle); invalid device boxes; queries refused while the
+// boxes are on the device; the paper's two-phase mode on the device's updater, with host centres
+// and with device centres (errors named like the host's); and the calls refused where they do
+// not apply.
 //
 // Without a CUDA device (or without CUDA in the build) the test reports itself skipped (77).
+#include <float.h>
 #include <math.h>
 
 #include <bpx/cuda.h>
@@ -204,6 +207,7 @@ static void test_refusals(void)
     CHECK_STATUS(bpx_world_create(&def, &sap), BPX_OK);
     CHECK_STATUS(bpx_cuda_collide_device(sap, NULL), BPX_ERR_BACKEND_UNAVAILABLE);
     CHECK_STATUS(bpx_cuda_set_boxes_device(sap, NULL, 0), BPX_ERR_BACKEND_UNAVAILABLE);
+    CHECK_STATUS(bpx_cuda_set_centres_device(sap, NULL, 0), BPX_ERR_BACKEND_UNAVAILABLE);
     CHECK_STATUS(bpx_cuda_finish(NULL, NULL), BPX_ERR_NULL_ARGUMENT);
     bpx_world_destroy(sap);
 
@@ -280,7 +284,8 @@ static void test_device_resident(void)
 }
 
 // A bad box in device memory is named like a bad host box, and the world keeps its boxes; one
-// that turns bad after the check is reported by the cycle that reads it, on both comparators.
+// that turns bad after the check is reported by the cycle that reads it, on both comparators
+// (the small one's kernel must leave the check alone).
 static void test_device_errors(uint32_t n)
 {
     const uint32_t nan_at = n * 2 / 5, flipped_at = n * 2 / 3;
@@ -336,8 +341,7 @@ static void test_device_first_cycle_growth(void)
     for (uint32_t i = 100; i < n; i++)
         for (int a = 0; a < 3; a++)
             boxes[i].min[a] = -INFINITY, boxes[i].max[a] = INFINITY;
-    CHECK(cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) ==
-          cudaSuccess);
+    CHECK(cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess);
     CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
     CHECK_MSG(bpx_world_error(cuda)->index == 100, "named box %u, want 100",
               bpx_world_error(cuda)->index);
@@ -429,14 +433,174 @@ static void test_device_queries(void)
     free(got);
     free(want);
 }
+
+static float *centres_to_device(const float *centres, uint32_t n)
+{
+    void *d = NULL;
+    CHECK(cudaMalloc(&d, 12 * (size_t)(n ? n : 1)) == cudaSuccess);
+    CHECK(cudaMemcpy(d, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) == cudaSuccess);
+    return d;
+}
+
+// The paper's two-phase mode: extents once, then centres. boxes -> centres and origin-centred
+// minima (<= 0), as a simulation keeps them.
+static void split_boxes(const bpx_box *boxes, uint32_t n, float *centres, float *minima)
+{
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            float c = 0.5f * boxes[i].min[a] + 0.5f * boxes[i].max[a];
+            float half = 0.5f * boxes[i].max[a] - 0.5f * boxes[i].min[a];
+            centres[3 * (size_t)i + a] = c;
+            minima[3 * (size_t)i + a] = -half;
+        }
+}
+
+static void centres_move(float *centres, uint32_t n, uint32_t cycle)
+{
+    for (uint32_t i = 0; i < n; i++)
+        centres[3 * (size_t)i + cycle % 3] += (i % 5 == 0) ? 0.3f : -0.05f;
+}
+
+// Host centres go to the device's updater (12 bytes an object); device centres are read in
+// place. Both give the oracle's pairs, whose boxes the host's updater made from the same
+// centres, on both paths (small, tree), through host-out and device-resident cycles;
+// subnormal and signed-zero coordinates included (the device must round as the host does).
+static void test_centres(void)
+{
+    static const uint32_t sizes[] = {1, 500, 1024, 1025, 20000};
+    for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
+        for (int edge = 0; edge < 2; edge++) {
+            uint32_t n = sizes[s];
+            if (edge && n > 3000)
+                continue;
+            bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+            if (edge)
+                CHECK(scene_generate(n % 2 ? SCENE_DENORMAL : SCENE_SIGNED_ZERO, n, 5, boxes) == 0);
+            else
+                scene_uniform_density(n, 1.0f, 8, boxes);
+            float *centres = check_alloc(12 * (size_t)n), *minima = check_alloc(12 * (size_t)n);
+            split_boxes(boxes, n, centres, minima);
+            bpx_world *cuda = cuda_world(false), *oracle = oracle_world(n);
+            CHECK_STATUS(bpx_world_load_extents(cuda, minima, n), BPX_OK);
+            CHECK_STATUS(bpx_world_load_extents(oracle, minima, n), BPX_OK);
+            float *d_centres = centres_to_device(centres, n);
+            for (uint32_t cycle = 0; cycle < 6; cycle++) {
+                char what[96];
+                snprintf(what, sizeof what, "centres n=%u%s cycle %u", n, edge ? " (edge)" : "",
+                         cycle);
+                CHECK_STATUS(bpx_world_update_centres(oracle, centres), BPX_OK);
+                CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+                if (cycle % 2 == 0) { // host centres over the link
+                    CHECK_STATUS(bpx_world_update_centres(cuda, centres), BPX_OK);
+                    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+                    CHECK_MSG(bpx_world_stats(cuda).bytes_in == 12ull * n, "%s: %llu bytes in",
+                              what, (unsigned long long)bpx_world_stats(cuda).bytes_in);
+                    same_pairs(cuda, oracle, what);
+                } else { // device centres, read in place; then device-resident
+                    CHECK(cudaMemcpy(d_centres, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) ==
+                          cudaSuccess);
+                    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_centres, n), BPX_OK);
+                    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+                    CHECK(bpx_world_stats(cuda).bytes_in == 0);
+                    same_pairs(cuda, oracle, what);
+                    size_t want = 0, count = 0;
+                    const bpx_pair *want_pairs = bpx_world_pairs(oracle, &want);
+                    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+                    bpx_status st = bpx_cuda_finish(cuda, &count);
+                    CHECK(st == BPX_OK || st == BPX_ERR_CAPACITY);
+                    if (st == BPX_ERR_CAPACITY) { // the first resident cycle may be short
+                        CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+                        CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
+                    }
+                    const bpx_pair *d_pairs = NULL;
+                    CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, NULL, NULL), BPX_OK);
+                    bpx_pair *got = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
+                    CHECK(cudaMemcpy(got, d_pairs, sizeof(bpx_pair) * count,
+                                     cudaMemcpyDeviceToHost) == cudaSuccess);
+                    CHECK_MSG(count == want &&
+                                  pairs_first_diff(got, count, want_pairs, want) == want,
+                              "%s: device-resident pairs differ", what);
+                    free(got);
+                }
+                if (!edge)
+                    centres_move(centres, n, cycle);
+            }
+            bpx_world_destroy(cuda);
+            bpx_world_destroy(oracle);
+            cudaFree(d_centres);
+            free(centres);
+            free(minima);
+            free(boxes);
+        }
+    }
+}
+
+// Device centres refused or named like host centres; a centre that turns bad later is named by
+// the cycle that reads it; queries wait for host data.
+static void test_centres_errors(uint32_t n)
+{
+    const uint32_t nan_at = n / 40 + 2, big = n - n / 6; // 77 and 2500 of 3000
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, 6, boxes);
+    float *centres = check_alloc(12 * (size_t)n), *minima = check_alloc(12 * (size_t)n);
+    split_boxes(boxes, n, centres, minima);
+    centres[3 * big] = 0.0f; // object `big` spans the whole x axis: a big centre overflows it
+    minima[3 * big] = -FLT_MAX;
+    float *d_good = centres_to_device(centres, n);
+    bpx_world *cuda = cuda_world(false);
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_good, n), BPX_ERR_BAD_STATE); // no extents
+    CHECK_STATUS(bpx_world_load_extents(cuda, minima, n), BPX_OK);
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, NULL, n), BPX_ERR_NULL_ARGUMENT);
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_good, n - 1), BPX_ERR_INVALID_ARGUMENT);
+    CHECK_STATUS(bpx_world_update_centres(cuda, centres), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+    size_t first = 0;
+    bpx_world_pairs(cuda, &first);
+    // A NaN centre at object nan_at (axis 2), and an overflow at object big (axis 0).
+    centres[3 * nan_at + 2] = NAN;
+    centres[3 * big] = 1e38f;
+    float *d_bad = centres_to_device(centres, n);
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_bad, n), BPX_ERR_NOT_FINITE);
+    const bpx_error *e = bpx_world_error(cuda);
+    CHECK_MSG(e->index == nan_at && e->axis == 2, "n=%u: named object %u axis %d", n, e->index,
+              e->axis);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK); // still the host centres
+    size_t again = 0;
+    bpx_world_pairs(cuda, &again);
+    CHECK(again == first);
+    // Good device centres, queries refused meanwhile; then they turn bad (nan_at mended: big's
+    // overflow is the first).
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_good, n), BPX_OK);
+    bpx_hit hit;
+    size_t hits = 0;
+    const bpx_query q = bpx_query_box(boxes[0]);
+    CHECK_STATUS(bpx_world_query(cuda, &q, &hit, 1, &hits), BPX_ERR_BAD_STATE);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+    bpx_world_pairs(cuda, &again);
+    CHECK(again == first);
+    centres[3 * nan_at + 2] = 0.0f;
+    CHECK(cudaMemcpy(d_good, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) == cudaSuccess);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
+    CHECK_MSG(bpx_world_error(cuda)->index == big && bpx_world_error(cuda)->axis == 0,
+              "n=%u: named object %u", n, bpx_world_error(cuda)->index);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+    CHECK_STATUS(bpx_cuda_finish(cuda, NULL), BPX_ERR_NOT_FINITE);
+    CHECK(bpx_world_error(cuda)->index == big);
+    bpx_world_destroy(cuda);
+    cudaFree(d_good);
+    cudaFree(d_bad);
+    free(centres);
+    free(minima);
+    free(boxes);
+}
 #endif
 
 int main(void)
 {
     bpx_set_logger(print_log, NULL);
     bpx_backend_info info = bpx_backend_query(BPX_BACKEND_CUDA);
-    printf("cuda: %s%s\n", info.available ? info.detail : "unavailable: ",
-           info.available ? "" : info.reason);
+    printf("cuda: %s%s\n",
+           info.available ? info.detail : "unavailable: ", info.available ? "" : info.reason);
     if (!info.available) {
         // The calls exist in every build and refuse politely.
         bpx_world_def def = bpx_default_world_def();
@@ -444,6 +608,8 @@ int main(void)
         bpx_world *w = NULL;
         CHECK_STATUS(bpx_world_create(&def, &w), BPX_ERR_BACKEND_UNAVAILABLE);
         CHECK(w == NULL);
+        CHECK_STATUS(bpx_cuda_set_centres_device(NULL, NULL, 0), BPX_ERR_NULL_ARGUMENT);
+        CHECK_STATUS(bpx_cuda_set_boxes_device(NULL, NULL, 0), BPX_ERR_NULL_ARGUMENT);
         return check_finish("test_cuda", 0);
     }
     test_refusals();
@@ -458,6 +624,9 @@ int main(void)
     test_device_first_cycle_growth();
     test_device_bad_count();
     test_device_queries();
+    test_centres();
+    test_centres_errors(3000);
+    test_centres_errors(500);
 #endif
     return check_finish("test_cuda", 1);
 }

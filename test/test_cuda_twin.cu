@@ -2,7 +2,9 @@
 // (src/cuda/tree.cuh: centres, Morton codes, Karras's build, the refit, the walk), driven by
 // loops in place of the grid and a stable sort in place of CUB's radix sort (both order the
 // Morton codes with ties by id). Its pairs must be exactly the reference's on every scene kind,
-// with removed (inert) boxes among them. Compiled by nvcc, it needs no GPU: this is how machines
+// with removed (inert) boxes among them. The small comparator (small.cuh: warps and lanes in
+// loops) and the device's updater (update.cuh) are held to Algorithm 1 and the host's updater
+// the same way. Compiled by nvcc, it needs no GPU: this is how machines
 // without one (CI) prove the algorithm that test_cuda runs on the device.
 #include <algorithm>
 #include <cstdio>
@@ -10,6 +12,8 @@
 #include <vector>
 
 #include "cuda/tree.cuh"
+#include "cuda/small.cuh"
+#include "cuda/update.cuh"
 
 #include "check.h"
 #include "scenes.h"
@@ -123,6 +127,161 @@ void check_scene(const std::vector<bpx_box> &boxes, const char *what)
               diff);
 }
 
+// The small comparator (small.cuh) as its kernel runs it, lanes and warps in loops: each row's
+// hit words (a ballot: bit l for lane l), the rows' counts scanned, each hit written at its place.
+std::vector<bpx_pair> small_twin(const bpx_small::input &in, uint32_t n)
+{
+    std::vector<uint32_t> masks((size_t)n * 32), start(n + 1, 0);
+    for (uint32_t row = 0; row < n; row++) {
+        float alo[3], ahi[3];
+        bpx_small::box(in, row, alo, ahi);
+        uint32_t count = 0;
+        for (uint32_t k = 0; k < bpx_small::words(row, n); k++) {
+            uint32_t word = 0;
+            for (uint32_t lane = 0; lane < 32; lane++) {
+                uint32_t j = bpx_small::other(row, k, lane);
+                float blo[3], bhi[3];
+                if (j < n && (bpx_small::box(in, j, blo, bhi), bpx_small::overlap(alo, ahi, blo, bhi)))
+                    word |= 1u << lane;
+            }
+            CHECK(k < 32);
+            masks[(size_t)row * 32 + k] = word;
+            count += (uint32_t)__builtin_popcount(word);
+        }
+        start[row + 1] = start[row] + count;
+    }
+    std::vector<bpx_pair> pairs(start[n], bpx_pair{~0u, ~0u});
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t at = start[i];
+        for (uint32_t k = 0; k < bpx_small::words(i, n); k++) {
+            uint32_t word = masks[(size_t)i * 32 + k];
+            for (uint32_t lane = 0; lane < 32; lane++)
+                if ((word >> lane) & 1u) {
+                    uint32_t slot = at + bpx_small::before(word, lane);
+                    CHECK(slot < pairs.size() && pairs[slot].i == ~0u); // each place once
+                    pairs[slot] = bpx_pair{i, bpx_small::other(i, k, lane)};
+                }
+            at += (uint32_t)__builtin_popcount(word);
+        }
+        CHECK(at == start[i + 1]);
+    }
+    return pairs;
+}
+
+// The small comparator on SoA boxes and on centres + minima, against Algorithm 1 on the boxes the
+// host's updater makes (bpx_world_update_centres: the same pairs).
+void check_small(const std::vector<bpx_box> &boxes, const char *what)
+{
+    const uint32_t n = (uint32_t)boxes.size();
+    std::vector<float> soa(6 * (size_t)n + 6);
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            soa[(size_t)a * n + i] = boxes[i].min[a];
+            soa[(size_t)(3 + a) * n + i] = boxes[i].max[a];
+        }
+    bpx_small::input in = {{&soa[0], &soa[n], &soa[2 * (size_t)n]},
+                           {&soa[3 * (size_t)n], &soa[4 * (size_t)n], &soa[5 * (size_t)n]},
+                           nullptr, nullptr, 0};
+    std::vector<bpx_pair> want;
+    for (uint32_t i = 0; i < n; i++)
+        for (uint32_t j = i + 1; j < n; j++)
+            if (bpx_overlap(&boxes[i], &boxes[j]))
+                want.push_back(bpx_pair{i, j});
+    std::vector<bpx_pair> got = small_twin(in, n);
+    CHECK_MSG(got.size() == want.size() &&
+                  (want.empty() || memcmp(got.data(), want.data(), sizeof(bpx_pair) * want.size()) == 0),
+              "%s: small comparator %zu pairs, want %zu", what, got.size(), want.size());
+    // Centres: the boxes the host's updater makes from them, on a reference world.
+    const size_t floats = 3 * (size_t)n + 3;
+    std::vector<float> centres(floats), minima(floats), planes(floats);
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            centres[3 * (size_t)i + a] = 0.5f * boxes[i].min[a] + 0.5f * boxes[i].max[a];
+            minima[3 * (size_t)i + a] = -(0.5f * boxes[i].max[a] - 0.5f * boxes[i].min[a]);
+            planes[(size_t)a * n + i] = minima[3 * (size_t)i + a];
+        }
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = BPX_BACKEND_REFERENCE;
+    bpx_world *w = nullptr;
+    CHECK(bpx_world_create(&def, &w) == BPX_OK);
+    if (bpx_world_load_extents(w, minima.data(), n) == BPX_OK &&
+        bpx_world_update_centres(w, centres.data()) == BPX_OK) {
+        CHECK(bpx_world_collide(w) == BPX_OK);
+        size_t count = 0;
+        const bpx_pair *host = bpx_world_pairs(w, &count);
+        in.centres = centres.data(), in.minima = planes.data(), in.stride = n;
+        got = small_twin(in, n);
+        CHECK_MSG(got.size() == count &&
+                      (count == 0 || memcmp(got.data(), host, sizeof(bpx_pair) * count) == 0),
+                  "%s: small comparator on centres %zu pairs, host's updater %zu", what,
+                  got.size(), count);
+    }
+    bpx_world_destroy(w);
+}
+
+// The device's updater (update.cuh) against the host's (bpx_world_update_centres on a reference
+// world): the boxes it makes give the same pairs, and the first object whose box is not finite,
+// with its axis, is the one the host names.
+void check_updater(const std::vector<bpx_box> &boxes, const char *what)
+{
+    const uint32_t n = (uint32_t)boxes.size();
+    const size_t floats = 3 * (size_t)n + 3;
+    std::vector<float> centres(floats), minima(floats), planes(floats);
+    for (uint32_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            centres[3 * (size_t)i + a] = 0.5f * boxes[i].min[a] + 0.5f * boxes[i].max[a];
+            minima[3 * (size_t)i + a] = -(0.5f * boxes[i].max[a] - 0.5f * boxes[i].min[a]);
+            planes[(size_t)a * n + i] = minima[3 * (size_t)i + a];
+        }
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = BPX_BACKEND_REFERENCE;
+    bpx_world *w = nullptr;
+    CHECK(bpx_world_create(&def, &w) == BPX_OK);
+    CHECK(bpx_world_load_extents(w, minima.data(), n) == BPX_OK);
+    for (int bad = 0; bad < 3; bad++) {
+        // bad 1: object n/2's centre NaN on y, infinite on z; bad 2: also an overflow at n/3, on z.
+        if (bad == 1 && n > 2)
+            centres[3 * (size_t)(n / 2) + 1] = NAN, centres[3 * (size_t)(n / 2) + 2] = INFINITY;
+        if (bad == 2 && n > 2)
+            centres[3 * (size_t)(n / 3) + 2] = 3e38f, planes[2 * (size_t)n + n / 3] = -3e38f;
+        if (bad == 2 && n > 2) { // the world's minima must say the same
+            minima[3 * (size_t)(n / 3) + 2] = -3e38f;
+            CHECK(bpx_world_load_extents(w, minima.data(), n) == BPX_OK);
+        }
+        std::vector<bpx_box> made(n);
+        uint32_t first = UINT32_MAX;
+        int first_axis = -1;
+        for (uint32_t i = 0; i < n; i++) {
+            int axis =
+                bpx_update::box_of(centres.data(), planes.data(), planes.data() + n,
+                                   planes.data() + 2 * (size_t)n, i, made[i].min, made[i].max);
+            if (axis >= 0 && first == UINT32_MAX)
+                first = i, first_axis = axis;
+        }
+        bpx_status s = bpx_world_update_centres(w, centres.data());
+        if (first == UINT32_MAX) {
+            CHECK_MSG(s == BPX_OK, "%s: the host refused centres the updater took", what);
+            CHECK(bpx_world_collide(w) == BPX_OK);
+            size_t count = 0;
+            const bpx_pair *want = bpx_world_pairs(w, &count);
+            std::vector<bpx_pair> got;
+            for (uint32_t i = 0; i < n; i++)
+                for (uint32_t j = i + 1; j < n; j++)
+                    if (bpx_overlap(&made[i], &made[j]))
+                        got.push_back(bpx_pair{i, j});
+            CHECK_MSG(got.size() == count &&
+                          (count == 0 || memcmp(got.data(), want, sizeof(bpx_pair) * count) == 0),
+                      "%s: updater pairs %zu, host %zu", what, got.size(), count);
+        } else {
+            const bpx_error *e = bpx_world_error(w);
+            CHECK_MSG(s == BPX_ERR_NOT_FINITE && e->index == first && e->axis == first_axis,
+                      "%s bad %d: updater names %u axis %d, host %u axis %d", what, bad, first,
+                      first_axis, e->index, e->axis);
+        }
+    }
+    bpx_world_destroy(w);
+}
+
 } // namespace
 
 int main()
@@ -142,6 +301,25 @@ int main()
                     boxes[i].min[a] = INFINITY, boxes[i].max[a] = -INFINITY;
             snprintf(what, sizeof what, "%s n=%u with inert boxes", scene_kind_name((scene_kind)kind), n);
             check_scene(boxes, what);
+        }
+    }
+    for (int kind = 0; kind < SCENE_KIND_COUNT; kind++) {
+        for (uint32_t n : {2u, 3u, 31u, 32u, 33u, 64u, 65u, 500u, 1000u, 1024u}) {
+            std::vector<bpx_box> boxes(n);
+            CHECK(scene_generate((scene_kind)kind, n, 13 + n, boxes.data()) == 0);
+            char what[96];
+            snprintf(what, sizeof what, "small %s n=%u", scene_kind_name((scene_kind)kind), n);
+            check_small(boxes, what);
+        }
+    }
+    for (int kind = 0; kind < SCENE_KIND_COUNT; kind++) {
+        for (uint32_t n : {0u, 1u, 3u, 300u, 2000u}) {
+            std::vector<bpx_box> boxes(n ? n : 1);
+            boxes.resize(n);
+            CHECK(scene_generate((scene_kind)kind, n, 11 + n, boxes.data()) == 0);
+            char what[96];
+            snprintf(what, sizeof what, "updater %s n=%u", scene_kind_name((scene_kind)kind), n);
+            check_updater(boxes, what);
         }
     }
     // The benchmark's scenes, larger: uniform and heavy-tailed sizes.

@@ -37,10 +37,28 @@ extern "C" {
 /// DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.
 BPX_API bpx_status bpx_cuda_set_boxes_device(bpx_world *world, const bpx_box *boxes, uint32_t n);
 
+/// The paper's two-phase mode with the centres already in device memory: `centres` points to n
+/// centres (x, y, z floats, 12 bytes each, the layout bpx_world_update_centres takes) in memory
+/// of CUDA device 0, n the count given to bpx_world_load_extents. Each cycle the device's updater
+/// makes the boxes from them and the loaded extents (min = centre + minimum, max = centre -
+/// minimum, single precision: the host's arithmetic, bit for bit), reading the centres in place:
+/// nothing crosses the link for the boxes. They are checked now: a centre whose box is not
+/// finite is reported as bpx_world_update_centres reports it (NOT_FINITE, naming the first such
+/// object and its axis). The world reads them at every collide until the next set_boxes /
+/// load_extents / update_centres / bpx_cuda_set_boxes_device / bpx_cuda_set_centres_device;
+/// change them between cycles as for device boxes (above). A centre that makes a box not finite
+/// later is reported by the cycle that reads it. Queries are refused (BAD_STATE) meanwhile.
+/// (bpx_world_update_centres on a cuda world sends the host's centres, 12 bytes an object, to
+/// the same updater, unless objects were removed by id.)
+/// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE (not a cuda world), BAD_STATE (no extents loaded,
+/// or objects removed by id), INVALID_ARGUMENT (n other than the loaded count), NOT_FINITE,
+/// DEVICE, DEVICE_MEMORY. On error the world is unchanged.
+BPX_API bpx_status bpx_cuda_set_centres_device(bpx_world *world, const float *centres, uint32_t n);
 /// One cycle that never leaves the device: enqueued on `stream` (a cudaStream_t; NULL for the
 /// world's own) and returned from at once. The pairs, sorted by (i, j), and their count stay in
-/// device memory (bpx_cuda_device_pairs). The boxes are the device boxes, else the world's
-/// current host boxes, sent first. No host round trip happens inside the cycle: the count
+/// device memory (bpx_cuda_device_pairs). The boxes are the device boxes, or those the device's
+/// updater makes from the device centres, else the world's current host boxes (or host centres),
+/// sent first. No host round trip happens inside the cycle: the count
 /// follows the pairs into pinned host memory, and the next call reads it to size the buffer.
 /// Errors (of the enqueueing; the cycle's own outcome is bpx_cuda_finish's): NULL_ARGUMENT,
 /// BACKEND_UNAVAILABLE, DEVICE, DEVICE_MEMORY. Filters (bpx_world_set_filters) and events are

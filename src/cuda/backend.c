@@ -34,7 +34,7 @@ static bpx_status cuda_state(bpx_world *w, bpx_cuda **out)
 static bpx_status report_bad_box(bpx_world *w, const bpx_box *device_boxes, uint32_t index)
 {
     bpx_box box;
-    if (bpx__cuda_copy_box(&box, device_boxes + index) != BPX_OK)
+    if (bpx__cuda_copy_in(&box, device_boxes + index, sizeof box) != BPX_OK)
         return bpx__error(&w->error, BPX_ERR_DEVICE, index, -1, "cuda: device box %u is invalid",
                           index);
     bpx_error detail;
@@ -43,6 +43,41 @@ static bpx_status report_bad_box(bpx_world *w, const bpx_box *device_boxes, uint
         why = BPX_ERR_NOT_FINITE;
     return bpx__error(&w->error, why, index, detail.axis, "device box %u, axis %d: %s", index,
                       detail.axis, bpx_status_string(why));
+}
+
+// Names the object whose device centre makes a box that is not finite, as
+// bpx_world_update_centres names it: that centre comes back and goes through the host's check.
+static bpx_status report_bad_centre(bpx_world *w, const float *device_centres, uint32_t index)
+{
+    float centre[3];
+    if (bpx__cuda_copy_in(centre, device_centres + 3 * (size_t)index, sizeof centre) != BPX_OK)
+        return bpx__error(&w->error, BPX_ERR_DEVICE, index, -1, "cuda: device centre %u is invalid",
+                          index);
+    const float *const minima[3] = {w->minima[0] + index, w->minima[1] + index,
+                                    w->minima[2] + index};
+    bpx_error detail = {0};
+    bpx_status why = bpx__check_centres(centre, minima, 1, &detail);
+    if (why == BPX_OK) // changed since the check ran
+        why = BPX_ERR_NOT_FINITE;
+    return bpx__error(&w->error, why, index, detail.axis, "device centres, object %u, axis %d: %s",
+                      index, detail.axis, bpx_status_string(why));
+}
+
+// The first bad object of the last cycle that read the caller's device boxes or centres.
+static bpx_status report_bad_input(bpx_world *w, bpx_cuda *cu)
+{
+    uint32_t index = 0;
+    bool min_greater = false;
+    if (!bpx__cuda_bad_box(cu, &index, &min_greater))
+        return bpx__error(&w->error, BPX_ERR_DEVICE, UINT32_MAX, -1,
+                          "cuda: the device reported an invalid box it cannot name");
+    if (bpx__cuda_device_centres(cu))
+        return report_bad_centre(w, bpx__cuda_device_centres(cu), index);
+    if (bpx__cuda_device_boxes(cu))
+        return report_bad_box(w, bpx__cuda_device_boxes(cu), index);
+    // The host's own boxes or centres, checked before they were sent: never seen.
+    return bpx__error(&w->error, BPX_ERR_DEVICE, index, -1,
+                      "cuda: the device made an invalid box %u of valid host data", index);
 }
 
 static bpx_status cuda_compare(bpx_world *w)
@@ -59,12 +94,8 @@ static bpx_status cuda_compare(bpx_world *w)
     s = bpx__cuda_finish(cu, NULL); // a device cycle still in flight
     if (s == BPX_OK || s == BPX_ERR_CAPACITY || s == BPX_ERR_NOT_FINITE)
         s = bpx__cuda_find(cu, soa.lo, soa.hi, soa.n, &count);
-    if (s == BPX_ERR_NOT_FINITE) {
-        uint32_t index = 0;
-        bool min_greater = false;
-        if (bpx__cuda_bad_box(cu, &index, &min_greater))
-            return report_bad_box(w, bpx__cuda_device_boxes(cu), index);
-    }
+    if (s == BPX_ERR_NOT_FINITE)
+        return report_bad_input(w, cu);
     if (s == BPX_OK && !bpx__list_reserve(&block->hits, count))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %llu pairs", (unsigned long long)count);
@@ -89,12 +120,25 @@ static void cuda_destroy(bpx_world *w)
     w->backend_state = NULL;
 }
 
-// New host boxes: the device boxes, if any, are no longer the world's.
+// New host boxes or centres: the device boxes or centres, if any, are no longer the world's.
+// The cycle's centres go to the device's updater (12 bytes an object over the link, not 24),
+// unless objects were removed by id (inert in the host's boxes alone) or the device could not
+// take them: then the host's boxes, which the world made from the same centres.
 static void cuda_boxes_set(bpx_world *w, const float *centres)
 {
-    (void)centres;
-    if (w->backend_state)
-        bpx__cuda_use_device_boxes(w->backend_state, NULL, 0);
+    bpx_cuda *cu = w->backend_state;
+    bool updater = centres && !w->dead;
+    if (!cu) {
+        if (!updater || bpx__cuda_open(&cu) != BPX_OK)
+            return;
+        w->backend_state = cu;
+    }
+    if (updater) {
+        const float *const minima[3] = {w->minima[0], w->minima[1], w->minima[2]};
+        if (bpx__cuda_use_centres(cu, centres, false, minima, w->extent_count) == BPX_OK)
+            return;
+    }
+    bpx__cuda_use_device_boxes(cu, NULL, 0);
 }
 
 const bpx_backend_impl bpx__cuda_backend = {
@@ -158,6 +202,39 @@ bpx_status bpx_cuda_set_boxes_device(bpx_world *w, const bpx_box *boxes, uint32_
     return BPX_OK;
 }
 
+bpx_status bpx_cuda_set_centres_device(bpx_world *w, const float *centres, uint32_t n)
+{
+    bpx_cuda *cu = NULL;
+    bpx_status s = cuda_world(w, &cu);
+    if (s != BPX_OK)
+        return s;
+    if (!centres && n > 0)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "centres is NULL");
+    if (!w->extents_loaded || w->dead)
+        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          w->dead ? "set_centres_device: objects were removed by id"
+                                  : "set_centres_device before load_extents");
+    if (n != w->extent_count)
+        return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "%u centres for %u loaded extents", n, w->extent_count);
+    uint64_t start = bpx__now_ns();
+    if ((s = bpx__cuda_finish(cu, NULL)) == BPX_ERR_DEVICE)
+        return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: the last device cycle failed");
+    const float *const minima[3] = {w->minima[0], w->minima[1], w->minima[2]};
+    bool bad = false;
+    if ((s = bpx__cuda_check_device_centres(cu, centres, minima, n, &bad)) != BPX_OK)
+        return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: checking the device centres failed");
+    uint32_t index = 0;
+    bool min_greater = false;
+    if (bad && bpx__cuda_bad_box(cu, &index, &min_greater))
+        return report_bad_centre(w, centres, index);
+    if ((s = bpx__cuda_use_centres(cu, centres, true, minima, n)) != BPX_OK)
+        return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: the device centres not taken");
+    w->boxes_on_device = true; // the host's boxes are the last host centres': no queries
+    w->stats.update_ns = bpx__now_ns() - start;
+    return BPX_OK;
+}
+
 bpx_status bpx_cuda_collide_device(bpx_world *w, void *stream)
 {
     bpx_cuda *cu = NULL;
@@ -205,12 +282,8 @@ bpx_status bpx_cuda_finish(bpx_world *w, size_t *count)
     s = bpx__cuda_finish(cu, &found);
     if (count)
         *count = (size_t)found;
-    if (s == BPX_ERR_NOT_FINITE) {
-        uint32_t index = 0;
-        bool min_greater = false;
-        if (bpx__cuda_bad_box(cu, &index, &min_greater))
-            return report_bad_box(w, bpx__cuda_device_boxes(cu), index);
-    }
+    if (s == BPX_ERR_NOT_FINITE)
+        return report_bad_input(w, cu);
     if (s == BPX_ERR_CAPACITY)
         return bpx__error(&w->error, s, UINT32_MAX, -1,
                           "cuda: %llu pairs found, the device buffer held fewer; the next cycle "

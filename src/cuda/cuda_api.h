@@ -16,7 +16,7 @@ typedef struct bpx_cuda_timing {
     uint64_t in_ns, device_ns, out_ns;
     uint64_t bytes_in, bytes_out;
     uint64_t tests; ///< box-pair tests: brute n(n-1)/2, the tree path's leaf tests
-    bool tree;      ///< the last cycle ran the tree path (else the one-block brute force)
+    bool tree;      ///< the last cycle ran the tree path (else the small brute force)
 } bpx_cuda_timing;
 
 /// Whether a CUDA device can run this build's kernels. On false *reason says why (static text);
@@ -38,11 +38,23 @@ bpx_status bpx__cuda_read_pairs(bpx_cuda *cu, bpx_pair *out, uint64_t count);
 
 /// Boxes in device memory (include/bpx/cuda.h): checks n boxes at once (*bad: one is invalid;
 /// bpx__cuda_bad_box says which), without keeping them.
-bpx_status bpx__cuda_check_device_boxes(bpx_cuda *cu, const bpx_box *boxes, uint32_t n,
-                                        bool *bad);
-/// From now on each cycle reads these boxes in place (NULL: the host's boxes again).
+bpx_status bpx__cuda_check_device_boxes(bpx_cuda *cu, const bpx_box *boxes, uint32_t n, bool *bad);
+/// From now on each cycle reads these boxes in place (NULL: the host's boxes again, and the
+/// minima are sent again before the next centres: load_extents may have changed them).
 void bpx__cuda_use_device_boxes(bpx_cuda *cu, const bpx_box *boxes, uint32_t n);
-/// The first invalid box of the last check or device-box cycle, if any.
+/// The paper's two-phase mode: from now on each cycle's boxes are made on the device from n
+/// centres (x, y, z each) and the loaded minima (three arrays, sent once per load_extents). Host
+/// centres (on_device false) are copied now, into pinned memory, and cross the link at each
+/// cycle: 12 bytes an object instead of a box's 24. Device centres are read in place at every
+/// cycle. On error the context reads what it read before.
+bpx_status bpx__cuda_use_centres(bpx_cuda *cu, const float *centres, bool on_device,
+                                 const float *const minima[3], uint32_t n);
+/// Centres in device memory: checks the boxes that n of them make with the minima at once (*bad:
+/// one is not finite; bpx__cuda_bad_box says which object), without keeping them.
+bpx_status bpx__cuda_check_device_centres(bpx_cuda *cu, const float *centres,
+                                          const float *const minima[3], uint32_t n, bool *bad);
+/// The first invalid box (or object, for centres) of the last check or cycle that read the
+/// caller's device data, if any.
 bool bpx__cuda_bad_box(const bpx_cuda *cu, uint32_t *index, bool *min_greater);
 
 /// One cycle whose pairs and count stay in device memory, enqueued on stream (NULL: the
@@ -57,9 +69,11 @@ bpx_status bpx__cuda_finish(bpx_cuda *cu, uint64_t *count);
 void bpx__cuda_device_result(const bpx_cuda *cu, const bpx_pair **pairs,
                              const unsigned long long **count, size_t *capacity);
 
-/// One box from device memory (to name a bad one), and the device boxes in use (or NULL).
-bpx_status bpx__cuda_copy_box(bpx_box *out, const bpx_box *device_box);
+/// A few bytes from device memory (one box or centre, to name a bad one); the device boxes and
+/// the device centres in use (or NULL).
+bpx_status bpx__cuda_copy_in(void *out, const void *device, size_t bytes);
 const bpx_box *bpx__cuda_device_boxes(const bpx_cuda *cu);
+const float *bpx__cuda_device_centres(const bpx_cuda *cu);
 
 bpx_cuda_timing bpx__cuda_timing(const bpx_cuda *cu);
 /// The stream the context works on (a cudaStream_t).

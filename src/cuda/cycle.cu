@@ -22,6 +22,11 @@ namespace {
 
 enum { event_start, event_in, event_device, event_out, event_count };
 
+// Where a cycle's boxes come from: the host's boxes (sent), the caller's device boxes (read in
+// place), or boxes the device's updater makes from centres and the stored minima: the host's
+// centres (sent, 12 bytes an object) or the caller's device centres (read in place).
+enum class source { host_boxes, device_boxes, host_centres, device_centres };
+
 // Boxes up to this many go through pinned staging in one copy (cheap to pack on the host);
 // beyond it each SoA array is copied straight from the world's memory.
 constexpr uint32_t staged_max = 65536;
@@ -55,7 +60,18 @@ struct bpx_cuda {
     int bits;         // bits of a pair key's j
     int key_buffer;   // which keys buffer the last sort left sorted
     uint64_t last_count;
-    const bpx_box *user_boxes; // boxes read in place from device memory each cycle, or NULL
+    source input;
+    const bpx_box *user_boxes; // device boxes read in place each cycle (device_boxes)
+    const float *user_centres; // device centres read in place each cycle (device_centres)
+    float *centres;            // the host's centres on the device (host_centres)
+    uint32_t centres_capacity; // objects it holds
+    float *centres_staging;    // pinned: the host's centres, copied when they are given
+    uint32_t centres_staging_capacity;
+    float *minima; // 3 planes of minima_capacity: the loaded extents' minima
+    uint32_t minima_capacity;
+    bool minima_current; // they are the world's (until the next load_extents)
+    const float *cycle_centres; // the centres the small comparator makes its boxes from
+    bpx_cuda_small_scratch *small; // the small comparator's rows (allocated at its first cycle)
     unsigned long long host_have; // pairs of the last host cycle already in host_head
     bool tree_path;
     bool pending_head; // a device-resident cycle's head is on its way to host_head
@@ -101,18 +117,18 @@ bpx_cuda_head *device_head(const bpx_cuda *cu)
     return reinterpret_cast<bpx_cuda_head *>(cu->out);
 }
 
-// Room for n boxes' 6 float arrays in *arrays, device memory or (pinned) host memory, grown
-// geometrically; what they held is not kept.
-bpx_status reserve_box_arrays(float **arrays, uint32_t *capacity, uint32_t n, bool pinned)
+// Room for n objects' `per` floats each (6 for boxes, 3 for centres or minima) in *arrays,
+// device memory or (pinned) host memory, grown geometrically; what they held is not kept.
+bpx_status reserve_floats(float **arrays, uint32_t *capacity, uint32_t n, int per, bool pinned)
 {
     if (n <= *capacity)
         return BPX_OK;
     uint32_t grown_to = (uint32_t)grown(*capacity, n);
-    size_t bytes = sizeof(float) * 6 * (size_t)grown_to;
+    size_t bytes = sizeof(float) * (size_t)per * (size_t)grown_to;
     float *fresh = nullptr;
     cudaError_t e = pinned ? cudaMallocHost(&fresh, bytes) : cudaMalloc(&fresh, bytes);
     if (e != cudaSuccess)
-        return fail(e, pinned ? "cudaMallocHost (box staging)" : "cudaMalloc (boxes)");
+        return fail(e, pinned ? "cudaMallocHost (staging)" : "cudaMalloc (boxes, centres)");
     if (pinned)
         cudaFreeHost(*arrays);
     else
@@ -193,6 +209,23 @@ bpx_status reserve_host_pairs(bpx_cuda *cu, unsigned long long pairs)
     return BPX_OK;
 }
 
+// The small comparator's scratch, once; its block counter starts at zero (each cycle's last block
+// leaves it so).
+bpx_status reserve_small(bpx_cuda *cu)
+{
+    if (cu->small)
+        return BPX_OK;
+    bpx_cuda_small_scratch *scratch = nullptr;
+    CU(cudaMalloc(&scratch, sizeof *scratch));
+    cudaError_t e = cudaMemset(&scratch->done, 0, sizeof scratch->done);
+    if (e != cudaSuccess) {
+        cudaFree(scratch);
+        return fail(e, "cudaMemset (small comparator)");
+    }
+    cu->small = scratch;
+    return BPX_OK;
+}
+
 // Temporary storage for both sorts at the current capacities.
 bpx_status reserve_sort(bpx_cuda *cu)
 {
@@ -222,7 +255,7 @@ bpx_status upload(bpx_cuda *cu, cudaStream_t s, const float *const lo[3], const 
     if (n == 0) // no arrays yet: no 2D copy of null pointers with pitch 0 (may be refused)
         return BPX_OK;
     if (n <= staged_max) {
-        if (bpx_status st = reserve_box_arrays(&cu->staging, &cu->staging_capacity, n, true);
+        if (bpx_status st = reserve_floats(&cu->staging, &cu->staging_capacity, n, 6, true);
             st != BPX_OK)
             return st;
         for (int a = 0; a < 6; a++)
@@ -363,6 +396,41 @@ void probe_device()
     probe_ok = true;
 }
 
+// A check of the caller's device boxes or centres: the head's verdict reset, the checking
+// kernel enqueued by `enqueue`, the verdict read back.
+template <class Enqueue> bpx_status check_on_device(bpx_cuda *cu, bool *bad, Enqueue enqueue)
+{
+    *bad = false;
+    CU(cudaSetDevice(cu->device));
+    if (bpx_status st = reserve_pairs(cu, 0); st != BPX_OK)
+        return st;
+    if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
+        return st;
+    CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, cu->stream));
+    CU(enqueue());
+    CU(cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
+                       cudaMemcpyDeviceToHost, cu->stream));
+    CU(cudaStreamSynchronize(cu->stream));
+    *bad = cu->host_head->bad != ~0ull;
+    return BPX_OK;
+}
+
+// The loaded extents' minima onto the device, once per load_extents (no cycle may be in flight:
+// the copies do not wait for the context's stream).
+bpx_status upload_minima(bpx_cuda *cu, const float *const minima[3], uint32_t n)
+{
+    if (cu->minima_current)
+        return BPX_OK;
+    if (bpx_status st = reserve_floats(&cu->minima, &cu->minima_capacity, n, 3, false);
+        st != BPX_OK)
+        return st;
+    for (int a = 0; a < 3 && n; a++)
+        CU(cudaMemcpy(cu->minima + (size_t)a * cu->minima_capacity, minima[a],
+                      sizeof(float) * n, cudaMemcpyHostToDevice));
+    cu->minima_current = true;
+    return BPX_OK;
+}
+
 } // namespace
 
 extern "C" {
@@ -407,6 +475,10 @@ void bpx__cuda_close(bpx_cuda *cu)
         cudaStreamSynchronize(cu->stream);
     cudaFree(cu->boxes);
     cudaFreeHost(cu->staging);
+    cudaFree(cu->centres);
+    cudaFreeHost(cu->centres_staging);
+    cudaFree(cu->minima);
+    cudaFree(cu->small);
     cudaFree(cu->tree_memory);
     cudaFree(cu->keys[0]);
     cudaFree(cu->keys[1]);
@@ -422,23 +494,50 @@ void bpx__cuda_close(bpx_cuda *cu)
     bpx__free(cu, sizeof *cu);
 }
 
-// Boxes in, from the host's SoA arrays or the caller's device buffer (converted and checked).
+// Boxes in: the host's SoA arrays sent, the caller's device boxes converted and checked, or
+// boxes made from centres by the device's updater (and checked). With `small` (the small
+// comparator follows) the updater is left to that kernel, so the cycle stays one launch:
+// cu->cycle_centres says where its centres are.
 static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3],
-                           const float *const hi[3], uint32_t n)
+                           const float *const hi[3], uint32_t n, bool small)
 {
-    if (bpx_status st = reserve_box_arrays(&cu->boxes, &cu->box_capacity, n, false); st != BPX_OK)
+    cu->cycle_centres = nullptr;
+    if (bpx_status st = reserve_floats(&cu->boxes, &cu->box_capacity, n, 6, false); st != BPX_OK)
         return st;
     CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, s));
-    if (!cu->user_boxes)
+    if (cu->input == source::host_boxes)
         return upload(cu, s, lo, hi, n);
     float *dlo[3], *dhi[3];
     for (int a = 0; a < 3; a++) {
         dlo[a] = cu->boxes + (size_t)a * cu->box_capacity;
         dhi[a] = cu->boxes + (size_t)(3 + a) * cu->box_capacity;
     }
-    if (n)
+    if (n == 0)
+        return BPX_OK;
+    if (cu->input == source::device_boxes) {
         CU(bpx__cuda_launch_convert(s, cu->user_boxes, n, dlo, dhi, device_head(cu)));
+        return BPX_OK;
+    }
+    const float *centres = cu->user_centres;
+    if (cu->input == source::host_centres) {
+        CU(cudaMemcpyAsync(cu->centres, cu->centres_staging, sizeof(float) * 3 * (size_t)n,
+                           cudaMemcpyHostToDevice, s));
+        cu->timing.bytes_in = 12ull * n;
+        centres = cu->centres;
+    }
+    if (small) {
+        cu->cycle_centres = centres;
+        return BPX_OK;
+    }
+    CU(bpx__cuda_launch_update(s, centres, cu->minima, cu->minima_capacity, n, dlo, dhi,
+                               device_head(cu)));
     return BPX_OK;
+}
+
+// The caller's device boxes or centres fix the count; the host's follow the world's.
+static bool input_on_device(const bpx_cuda *cu)
+{
+    return cu->input == source::device_boxes || cu->input == source::device_centres;
 }
 
 static unsigned long long small_pairs(uint32_t n)
@@ -452,7 +551,7 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     *count = 0;
     cu->timing = bpx_cuda_timing{};
     cu->host_have = 0;
-    if (cu->user_boxes)
+    if (input_on_device(cu))
         n = cu->n;
     cu->n = n;
     cu->tree_path = n > BPX_CUDA_SMALL_MAX;
@@ -471,14 +570,18 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     if (bpx_status s = reserve_host_pairs(cu, guess); s != BPX_OK)
         return s;
     CU(cudaEventRecord(cu->events[event_start], cu->stream));
-    if (bpx_status s = boxes_in(cu, cu->stream, lo, hi, n); s != BPX_OK)
+    if (bpx_status s = boxes_in(cu, cu->stream, lo, hi, n, !cu->tree_path && n >= 2);
+        s != BPX_OK)
         return s;
     CU(cudaEventRecord(cu->events[event_in], cu->stream));
     point_tree_at_boxes(cu, n);
     if (n < 2) {
         CU(cudaMemsetAsync(device_head(cu), 0, 8, cu->stream));
     } else if (!cu->tree_path) {
-        CU(bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, n, device_head(cu),
+        if (bpx_status s = reserve_small(cu); s != BPX_OK)
+            return s;
+        CU(bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, cu->cycle_centres,
+                                  cu->minima, cu->minima_capacity, n, cu->small, device_head(cu),
                                   device_pairs(cu)));
         cu->timing.tests = small_pairs(n);
     } else {
@@ -496,7 +599,7 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
         CU(cudaStreamSynchronize(cu->stream));
         // A bad device box is reported before anything grows: its count means nothing (an
         // infinite box can ask for n^2 / 2 pairs).
-        if (cu->user_boxes && cu->host_head->bad != ~0ull)
+        if (cu->host_head->bad != ~0ull)
             return BPX_ERR_NOT_FINITE;
         unsigned long long found = cu->host_head->count;
         if (found > cu->pair_capacity) { // grow to the exact need and walk again
@@ -516,7 +619,7 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     CU(cudaMemcpyAsync(cu->host_head, cu->out, pair_bytes(guess), cudaMemcpyDeviceToHost,
                        cu->stream));
     CU(cudaStreamSynchronize(cu->stream));
-    if (cu->user_boxes && cu->host_head->bad != ~0ull)
+    if (cu->host_head->bad != ~0ull)
         return BPX_ERR_NOT_FINITE; // the caller asks bpx__cuda_bad_box which and why
     *count = cu->host_head->count;
     cu->last_count = *count;
@@ -560,28 +663,62 @@ bool bpx__cuda_bad_box(const bpx_cuda *cu, uint32_t *index, bool *min_greater)
 bpx_status bpx__cuda_check_device_boxes(bpx_cuda *cu, const bpx_box *boxes, uint32_t n,
                                         bool *bad)
 {
+    float *none[3] = {nullptr, nullptr, nullptr};
+    return check_on_device(cu, bad, [&] {
+        return n ? bpx__cuda_launch_convert(cu->stream, boxes, n, none, none, device_head(cu))
+                 : cudaSuccess;
+    });
+}
+
+bpx_status bpx__cuda_check_device_centres(bpx_cuda *cu, const float *centres,
+                                          const float *const minima[3], uint32_t n, bool *bad)
+{
     *bad = false;
     CU(cudaSetDevice(cu->device));
-    if (bpx_status st = reserve_pairs(cu, 0); st != BPX_OK)
+    if (bpx_status st = upload_minima(cu, minima, n); st != BPX_OK)
         return st;
-    if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
-        return st;
-    CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, cu->stream));
-    if (n) {
-        float *none[3] = {nullptr, nullptr, nullptr};
-        CU(bpx__cuda_launch_convert(cu->stream, boxes, n, none, none, device_head(cu)));
-    }
-    CU(cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
-                       cudaMemcpyDeviceToHost, cu->stream));
-    CU(cudaStreamSynchronize(cu->stream));
-    *bad = cu->host_head->bad != ~0ull;
-    return BPX_OK;
+    float *none[3] = {nullptr, nullptr, nullptr};
+    return check_on_device(cu, bad, [&] {
+        return n ? bpx__cuda_launch_update(cu->stream, centres, cu->minima, cu->minima_capacity,
+                                           n, none, none, device_head(cu))
+                 : cudaSuccess;
+    });
 }
 
 void bpx__cuda_use_device_boxes(bpx_cuda *cu, const bpx_box *boxes, uint32_t n)
 {
+    cu->input = boxes ? source::device_boxes : source::host_boxes;
     cu->user_boxes = boxes;
+    cu->user_centres = nullptr;
     cu->n = n;
+    if (!boxes) // set_boxes or load_extents: the minima may be others from now on
+        cu->minima_current = false;
+}
+
+bpx_status bpx__cuda_use_centres(bpx_cuda *cu, const float *centres, bool on_device,
+                                 const float *const minima[3], uint32_t n)
+{
+    CU(cudaSetDevice(cu->device));
+    // A device cycle in flight may still read the staging or the minima.
+    if (cu->pending_head)
+        CU(cudaEventSynchronize(cu->events[event_out]));
+    if (bpx_status st = upload_minima(cu, minima, n); st != BPX_OK)
+        return st;
+    if (!on_device) {
+        if (bpx_status st = reserve_floats(&cu->centres_staging, &cu->centres_staging_capacity, n,
+                                           3, true);
+            st != BPX_OK)
+            return st;
+        if (bpx_status st = reserve_floats(&cu->centres, &cu->centres_capacity, n, 3, false);
+            st != BPX_OK)
+            return st;
+        memcpy(cu->centres_staging, centres, sizeof(float) * 3 * (size_t)n);
+    }
+    cu->input = on_device ? source::device_centres : source::host_centres;
+    cu->user_boxes = nullptr;
+    cu->user_centres = on_device ? centres : nullptr;
+    cu->n = n;
+    return BPX_OK;
 }
 
 bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *const lo[3],
@@ -589,7 +726,7 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
 {
     CU(cudaSetDevice(cu->device));
     cudaStream_t s = stream ? static_cast<cudaStream_t>(stream) : cu->stream;
-    if (cu->user_boxes)
+    if (input_on_device(cu))
         n = cu->n;
     cu->n = n;
     cu->timing = bpx_cuda_timing{};
@@ -608,16 +745,21 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         return st;
     if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
         return st;
-    bpx_status status = boxes_in(cu, s, lo, hi, n);
+    bpx_status status = boxes_in(cu, s, lo, hi, n, n >= 2 && n <= BPX_CUDA_SMALL_MAX);
     point_tree_at_boxes(cu, n);
     if (status != BPX_OK) {
     } else if (n < 2) {
         cudaError_t e = cudaMemsetAsync(device_head(cu), 0, 8, s);
         status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemsetAsync");
     } else if (n <= BPX_CUDA_SMALL_MAX) {
-        cudaError_t e = bpx__cuda_launch_small(s, cu->tree.lo, cu->tree.hi, n, device_head(cu),
-                                               device_pairs(cu));
-        status = e == cudaSuccess ? BPX_OK : fail(e, "small_kernel");
+        status = reserve_small(cu);
+        cudaError_t e = status != BPX_OK ? cudaSuccess
+                                         : bpx__cuda_launch_small(
+                                               s, cu->tree.lo, cu->tree.hi, cu->cycle_centres,
+                                               cu->minima, cu->minima_capacity, n, cu->small,
+                                               device_head(cu), device_pairs(cu));
+        if (e != cudaSuccess)
+            status = fail(e, "small_kernel");
         cu->tree_path = false;
     } else {
         cu->tree_path = true;
@@ -675,15 +817,20 @@ void bpx__cuda_device_result(const bpx_cuda *cu, const bpx_pair **pairs,
     *capacity = (size_t)cu->pair_capacity;
 }
 
-bpx_status bpx__cuda_copy_box(bpx_box *out, const bpx_box *device_box)
+bpx_status bpx__cuda_copy_in(void *out, const void *device, size_t bytes)
 {
-    CU(cudaMemcpy(out, device_box, sizeof *out, cudaMemcpyDeviceToHost));
+    CU(cudaMemcpy(out, device, bytes, cudaMemcpyDeviceToHost));
     return BPX_OK;
 }
 
 const bpx_box *bpx__cuda_device_boxes(const bpx_cuda *cu)
 {
     return cu->user_boxes;
+}
+
+const float *bpx__cuda_device_centres(const bpx_cuda *cu)
+{
+    return cu->user_centres;
 }
 
 bpx_cuda_timing bpx__cuda_timing(const bpx_cuda *cu)

@@ -6,6 +6,8 @@
 
 #include "kernels.cuh"
 #include "tree.cuh"
+#include "small.cuh"
+#include "update.cuh"
 
 namespace {
 
@@ -19,40 +21,77 @@ unsigned int grid_for(uint32_t n)
 
 using namespace bpx_tree;
 
-// ---- small: one block, every box in shared memory -------------------------------------------
+// ---- small: a warp per box, the last block to finish writes the pairs in order ----------------
 
+// Each warp takes one row (box i): its hit words over the later boxes (small.cuh) and its count
+// go to the scratch. Every block then counts itself done; the last one (the others' writes are
+// visible to it: each thread fenced them before its block's count) scans the rows' counts and
+// writes every pair at its place, one row per warp at a time. One launch a cycle, spread over
+// n / 32 SMs; with centres each lane makes its boxes from them (the updater, fused in), and the
+// row's own warp checks its box.
 __global__ void __launch_bounds__(BPX_CUDA_SMALL_MAX)
-    small_kernel(const float *lx, const float *ly, const float *lz, const float *hx,
-                 const float *hy, const float *hz, uint32_t n, bpx_cuda_head *head,
-                 bpx_pair *pairs)
+    small_kernel(bpx_small::input in, uint32_t n, bpx_cuda_small_scratch *scratch,
+                 bpx_cuda_head *head, bpx_pair *pairs)
 {
-    __shared__ float s[6][BPX_CUDA_SMALL_MAX];
+    constexpr unsigned full = 0xffffffffu;
+    constexpr uint32_t warps = BPX_CUDA_SMALL_MAX / 32, row_words = BPX_CUDA_SMALL_MAX / 32;
+    const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+    const uint32_t row = blockIdx.x * warps + warp;
+    if (row < n) {
+        float alo[3], ahi[3];
+        int bad = bpx_small::box(in, row, alo, ahi);
+        if (bad >= 0 && lane == 0)
+            atomicMin(&head->bad, ((unsigned long long)row << 32) | (4u + (uint32_t)bad));
+        uint32_t count = 0, steps = bpx_small::words(row, n);
+        for (uint32_t k = 0; k < steps; k++) {
+            uint32_t j = bpx_small::other(row, k, lane);
+            bool hit = false;
+            if (j < n) {
+                float blo[3], bhi[3];
+                bpx_small::box(in, j, blo, bhi);
+                hit = bpx_small::overlap(alo, ahi, blo, bhi);
+            }
+            uint32_t word = __ballot_sync(full, hit);
+            if (lane == 0)
+                scratch->masks[row * row_words + k] = word;
+            count += __popc(word);
+        }
+        if (lane == 0)
+            scratch->counts[row] = count;
+    }
+    __threadfence(); // this thread's words are out before its block counts itself done
+    __syncthreads();
+    __shared__ bool last;
+    if (threadIdx.x == 0)
+        last = atomicAdd(&scratch->done, 1u) == gridDim.x - 1;
+    __syncthreads();
+    if (!last)
+        return;
+    __threadfence();
+    // The rows' counts, scanned: where each row's pairs start.
     using scan_t = cub::BlockScan<uint32_t, BPX_CUDA_SMALL_MAX>;
     __shared__ typename scan_t::TempStorage scan_storage;
-    const uint32_t i = threadIdx.x;
-    if (i < n) {
-        s[0][i] = lx[i], s[1][i] = ly[i], s[2][i] = lz[i];
-        s[3][i] = hx[i], s[4][i] = hy[i], s[5][i] = hz[i];
+    __shared__ uint32_t start[BPX_CUDA_SMALL_MAX];
+    uint32_t mine = threadIdx.x < n ? __ldcg(&scratch->counts[threadIdx.x]) : 0u, total = 0;
+    scan_t(scan_storage).ExclusiveSum(mine, mine, total);
+    start[threadIdx.x] = mine;
+    if (threadIdx.x == 0) {
+        head->count = total; // head->bad is the cycle's check (reset before it), not touched here
+        scratch->done = 0;   // for the next cycle
     }
     __syncthreads();
-    float ax = 0, ay = 0, az = 0, bx = 0, by = 0, bz = 0;
-    uint32_t count = 0;
-    if (i < n) {
-        ax = s[0][i], ay = s[1][i], az = s[2][i], bx = s[3][i], by = s[4][i], bz = s[5][i];
-        for (uint32_t j = i + 1; j < n; j++)
-            count += ax <= s[3][j] && s[0][j] <= bx && ay <= s[4][j] && s[1][j] <= by &&
-                     az <= s[5][j] && s[2][j] <= bz;
+    for (uint32_t i = warp; i < n; i += warps) {
+        uint32_t steps = bpx_small::words(i, n), at = start[i];
+        // One load per lane (a row has at most 32 words), then each word from its lane.
+        uint32_t held = lane < steps ? __ldcg(&scratch->masks[i * row_words + lane]) : 0u;
+        for (uint32_t k = 0; k < steps; k++) {
+            uint32_t word = __shfl_sync(full, held, k);
+            if ((word >> lane) & 1u)
+                pairs[at + bpx_small::before(word, lane)] =
+                    bpx_pair{i, bpx_small::other(i, k, lane)};
+            at += __popc(word);
+        }
     }
-    uint32_t offset, total;
-    scan_t(scan_storage).ExclusiveSum(count, offset, total);
-    if (i < n && count) {
-        for (uint32_t j = i + 1; j < n; j++)
-            if (ax <= s[3][j] && s[0][j] <= bx && ay <= s[4][j] && s[1][j] <= by &&
-                az <= s[5][j] && s[2][j] <= bz)
-                pairs[offset++] = bpx_pair{i, j};
-    }
-    if (i == 0)
-        head->count = total; // not head->bad: the device boxes' check (convert_kernel) is there
 }
 
 // ---- tree: bounds, Morton keys, build, refit, traverse --------------------------------------
@@ -228,14 +267,37 @@ __global__ void convert_kernel(const bpx_box *boxes, uint32_t n, float *lx, floa
         atomicMin(&head->bad, ((unsigned long long)i << 32) | code);
 }
 
+// The paper's updater (update.cuh): centres and stored minima to the SoA boxes, checking each
+// box (the first object whose box is not finite into head, code 4 + axis: NOT_FINITE).
+__global__ void update_kernel(const float *centres, const float *minima, uint32_t stride,
+                              uint32_t n, float *lx, float *ly, float *lz, float *hx, float *hy,
+                              float *hz, bpx_cuda_head *head)
+{
+    uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n)
+        return;
+    float lo[3], hi[3];
+    int bad = bpx_update::box_of(centres, minima, minima + stride, minima + 2 * (size_t)stride, i,
+                                 lo, hi);
+    if (lx) { // else only the check
+        lx[i] = lo[0], ly[i] = lo[1], lz[i] = lo[2];
+        hx[i] = hi[0], hy[i] = hi[1], hz[i] = hi[2];
+    }
+    if (bad >= 0)
+        atomicMin(&head->bad, ((unsigned long long)i << 32) | (4u + (uint32_t)bad));
+}
+
 } // namespace
 
 cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
-                                   const float *const hi[3], uint32_t n, bpx_cuda_head *head,
+                                   const float *const hi[3], const float *centres,
+                                   const float *minima, uint32_t stride, uint32_t n,
+                                   bpx_cuda_small_scratch *scratch, bpx_cuda_head *head,
                                    bpx_pair *pairs)
 {
-    small_kernel<<<1, BPX_CUDA_SMALL_MAX, 0, stream>>>(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], n,
-                                                       head, pairs);
+    bpx_small::input in = {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}, centres, minima, stride};
+    unsigned int blocks = (n + 31) / 32; // a warp per row
+    small_kernel<<<blocks, BPX_CUDA_SMALL_MAX, 0, stream>>>(in, n, scratch, head, pairs);
     return cudaGetLastError();
 }
 
@@ -298,5 +360,14 @@ cudaError_t bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, 
 {
     convert_kernel<<<grid_for(n), block_threads, 0, stream>>>(boxes, n, lo[0], lo[1], lo[2], hi[0],
                                                               hi[1], hi[2], head);
+    return cudaGetLastError();
+}
+
+cudaError_t bpx__cuda_launch_update(cudaStream_t stream, const float *centres,
+                                    const float *minima, uint32_t stride, uint32_t n,
+                                    float *const lo[3], float *const hi[3], bpx_cuda_head *head)
+{
+    update_kernel<<<grid_for(n), block_threads, 0, stream>>>(
+        centres, minima, stride, n, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], head);
     return cudaGetLastError();
 }

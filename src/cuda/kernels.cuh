@@ -2,8 +2,9 @@
 //
 // Two comparators, both exact (float comparisons of the caller's own coordinates; node bounds
 // are minima and maxima of them, so culling never rounds) and both in (i, j) order:
-//   small  n <= BPX_CUDA_SMALL_MAX: one block holds every box in shared memory, counts each
-//          row's hits, scans the counts and writes the pairs in place: one launch per cycle.
+//   small  n <= BPX_CUDA_SMALL_MAX: a warp per box tests the later boxes 32 at a time into hit
+//          words; the last block to finish scans the rows' counts and writes every pair at its
+//          place: one launch per cycle.
 //   tree   a linear BVH (Karras 2012) built every cycle over the boxes' centres in Morton
 //          order; each box walks it for the boxes later in that order, so every pair is found
 //          once; the pairs, packed as 64-bit (i, j) keys, are radix sorted into (i, j) order.
@@ -19,6 +20,14 @@ enum { BPX_CUDA_SMALL_MAX = 1024 };
 /// over 30 bits ties an inert box with a live one in the top cell (0x3FFFFFFF), leaves the codes
 /// unsorted, and the node build then makes no tree (test_cuda_twin sorts by the same bits).
 enum { BPX_CUDA_MORTON_SORT_BITS = 32 };
+
+/// The small comparator's scratch in device memory: each row's (box's) hit words over the later
+/// boxes and its count; `done` counts the blocks that finished (zero between cycles).
+struct bpx_cuda_small_scratch {
+    uint32_t done;
+    uint32_t counts[BPX_CUDA_SMALL_MAX];
+    uint32_t masks[BPX_CUDA_SMALL_MAX * (BPX_CUDA_SMALL_MAX / 32)];
+};
 
 /// The result block at the head of the pair buffer, read back in the same copy as the first
 /// pairs: the pair count, and for device input the first bad box as (index << 32) | code, code
@@ -50,8 +59,13 @@ struct bpx_cuda_tree {
     uint32_t *flags;              // refit arrivals, zeroed each cycle
 };
 
+/// The small comparator (n >= 2); with centres (not NULL) it makes the boxes itself from them
+/// and the minima (three planes `stride` apart), checking each (the paper's updater, in the same
+/// launch). scratch->done must be zero (it is left so).
 cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
-                                   const float *const hi[3], uint32_t n, bpx_cuda_head *head,
+                                   const float *const hi[3], const float *centres,
+                                   const float *minima, uint32_t stride, uint32_t n,
+                                   bpx_cuda_small_scratch *scratch, bpx_cuda_head *head,
                                    bpx_pair *pairs);
 
 cudaError_t bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t);
@@ -69,3 +83,8 @@ cudaError_t bpx__cuda_launch_unpack(cudaStream_t stream, const unsigned long lon
 /// Device input: AoS boxes to the SoA arrays, checking each (first bad box into head).
 cudaError_t bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, uint32_t n,
                                      float *const lo[3], float *const hi[3], bpx_cuda_head *head);
+/// The paper's updater: n centres (x, y, z each) and the minima (three planes `stride` apart) to
+/// the SoA arrays (lo NULL: only the check), the first object whose box is not finite into head.
+cudaError_t bpx__cuda_launch_update(cudaStream_t stream, const float *centres,
+                                    const float *minima, uint32_t stride, uint32_t n,
+                                    float *const lo[3], float *const hi[3], bpx_cuda_head *head);

@@ -7,6 +7,12 @@ bpx_status bpx_cuda_set_boxes_device(bpx_world *world, const bpx_box *boxes, uin
     return world ? BPX_ERR_BACKEND_UNAVAILABLE : BPX_ERR_NULL_ARGUMENT;
 }
 
+bpx_status bpx_cuda_set_centres_device(bpx_world *world, const float *centres, uint32_t n)
+{
+    (void)centres, (void)n;
+    return world ? BPX_ERR_BACKEND_UNAVAILABLE : BPX_ERR_NULL_ARGUMENT;
+}
+
 bpx_status bpx_cuda_collide_device(bpx_world *world, void *stream)
 {
     (void)stream;

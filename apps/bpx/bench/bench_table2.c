@@ -240,7 +240,8 @@ int bench_table2(const bench_table2_options *o)
                              "paper share |\n|---:|---:|---:|---:|---:|---:|---:|\n",
                              bpx_backend_name(variants[v].backend),
                              variants[v].backend == BPX_BACKEND_CUDA
-                                 ? "boxes over the link, one launch"
+                                 ? "centres over the link, the paper's updater in the "
+                                   "comparator's launch"
                                  : "centres over the link, the paper's updater");
                 for (int r = 0; r < ROWS; r++) {
                     const bench_result *x = &results[r][v];
