@@ -593,6 +593,61 @@ static void test_centres_errors(uint32_t n)
     free(minima);
     free(boxes);
 }
+
+// Ids removed or moved by id after the centres or the device data were given change the host's
+// boxes alone: host centres give way to them at the next cycle (the removed object pairs with
+// nothing, the moved one where it went); device boxes and centres are refused (BAD_STATE).
+static void test_removed_after_centres(uint32_t n)
+{
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 2.0f, 4, boxes);
+    float *centres = check_alloc(12 * (size_t)n), *minima = check_alloc(12 * (size_t)n);
+    split_boxes(boxes, n, centres, minima);
+    bpx_world *cuda = cuda_world(false), *oracle = oracle_world(n);
+    bpx_world *worlds[2] = {cuda, oracle};
+    const uint32_t gone[3] = {0, n / 2, n - 1}, moved = n / 3;
+    const bpx_box there = boxes[n / 4];
+    for (int k = 0; k < 2; k++) {
+        CHECK_STATUS(bpx_world_load_extents(worlds[k], minima, n), BPX_OK);
+        CHECK_STATUS(bpx_world_update_centres(worlds[k], centres), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(worlds[k]), BPX_OK);
+    }
+    same_pairs(cuda, oracle, "centres before removal");
+    for (int k = 0; k < 2; k++) {
+        CHECK_STATUS(bpx_world_remove_boxes(worlds[k], gone, 3), BPX_OK);
+        CHECK_STATUS(bpx_world_move_boxes(worlds[k], &moved, &there, 1), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(worlds[k]), BPX_OK);
+    }
+    char what[64];
+    snprintf(what, sizeof what, "n=%u: centres, then removed and moved ids", n);
+    same_pairs(cuda, oracle, what);
+    bpx_world_destroy(cuda);
+    // Device boxes, then an id removed: the device's boxes cannot follow.
+    cuda = cuda_world(false);
+    bpx_box *d_boxes = to_device(boxes, n);
+    CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+    CHECK_STATUS(bpx_world_remove_boxes(cuda, gone, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_BAD_STATE);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_ERR_BAD_STATE);
+    bpx_world_destroy(cuda);
+    // Device centres, then an id moved: the same.
+    cuda = cuda_world(false);
+    float *d_centres = centres_to_device(centres, n);
+    CHECK_STATUS(bpx_world_load_extents(cuda, minima, n), BPX_OK);
+    CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_centres, n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+    CHECK_STATUS(bpx_world_move_boxes(cuda, &moved, &there, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_BAD_STATE);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_ERR_BAD_STATE);
+    bpx_world_destroy(cuda);
+    bpx_world_destroy(oracle);
+    cudaFree(d_boxes);
+    cudaFree(d_centres);
+    free(centres);
+    free(minima);
+    free(boxes);
+}
 #endif
 
 int main(void)
@@ -627,6 +682,8 @@ int main(void)
     test_centres();
     test_centres_errors(3000);
     test_centres_errors(500);
+    test_removed_after_centres(500);  // the small comparator
+    test_removed_after_centres(3000); // the tree
 #endif
     return check_finish("test_cuda", 1);
 }

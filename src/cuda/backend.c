@@ -80,6 +80,20 @@ static bpx_status report_bad_input(bpx_world *w, bpx_cuda *cu)
                       "cuda: the device made an invalid box %u of valid host data", index);
 }
 
+// Ids added, removed or moved (add/remove/move_boxes) change the host's boxes alone: host centres
+// give way to those boxes; the caller's device boxes or centres cannot follow (BAD_STATE).
+static bpx_status cuda_check_source(bpx_world *w, bpx_cuda *cu)
+{
+    if (!w->dead)
+        return BPX_OK;
+    if (bpx__cuda_device_boxes(cu) || bpx__cuda_device_centres(cu))
+        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          "cuda: boxes added, removed or moved by id since the device data was "
+                          "set");
+    bpx__cuda_use_device_boxes(cu, NULL, 0);
+    return BPX_OK;
+}
+
 static bpx_status cuda_compare(bpx_world *w)
 {
     bpx_cuda *cu = NULL;
@@ -92,8 +106,11 @@ static bpx_status cuda_compare(bpx_world *w)
     bpx_soa soa = bpx__world_soa(w);
     uint64_t count = 0;
     s = bpx__cuda_finish(cu, NULL); // a device cycle still in flight
-    if (s == BPX_OK || s == BPX_ERR_CAPACITY || s == BPX_ERR_NOT_FINITE)
+    if (s == BPX_OK || s == BPX_ERR_CAPACITY || s == BPX_ERR_NOT_FINITE) {
+        if ((s = cuda_check_source(w, cu)) != BPX_OK)
+            return s;
         s = bpx__cuda_find(cu, soa.lo, soa.hi, soa.n, &count);
+    }
     if (s == BPX_ERR_NOT_FINITE)
         return report_bad_input(w, cu);
     if (s == BPX_OK && !bpx__list_reserve(&block->hits, count))
@@ -244,6 +261,8 @@ bpx_status bpx_cuda_collide_device(bpx_world *w, void *stream)
     if (w->category || w->def.track_events)
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
                           "collide_device: filters and events need the host's pairs");
+    if ((s = cuda_check_source(w, cu)) != BPX_OK)
+        return s;
     bpx_soa soa = bpx__world_soa(w);
     s = bpx__cuda_collide_device(cu, stream, soa.lo, soa.hi, soa.n);
     if (s != BPX_OK)
