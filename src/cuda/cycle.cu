@@ -415,8 +415,10 @@ template <class Enqueue> bpx_status check_on_device(bpx_cuda *cu, bool *bad, Enq
     return BPX_OK;
 }
 
-// The loaded extents' minima onto the device, once per load_extents (no cycle may be in flight:
-// the copies do not wait for the context's stream).
+// The loaded extents' minima onto the device, once per load_extents (no cycle may be in flight
+// on another stream). On the context's stream, which the kernels that read them follow: a
+// cudaMemcpy from pageable memory may return before its DMA ends, and the legacy stream it runs
+// on does not order the context's non-blocking stream.
 bpx_status upload_minima(bpx_cuda *cu, const float *const minima[3], uint32_t n)
 {
     if (cu->minima_current)
@@ -425,8 +427,8 @@ bpx_status upload_minima(bpx_cuda *cu, const float *const minima[3], uint32_t n)
         st != BPX_OK)
         return st;
     for (int a = 0; a < 3 && n; a++)
-        CU(cudaMemcpy(cu->minima + (size_t)a * cu->minima_capacity, minima[a],
-                      sizeof(float) * n, cudaMemcpyHostToDevice));
+        CU(cudaMemcpyAsync(cu->minima + (size_t)a * cu->minima_capacity, minima[a],
+                           sizeof(float) * n, cudaMemcpyHostToDevice, cu->stream));
     cu->minima_current = true;
     return BPX_OK;
 }
