@@ -218,11 +218,20 @@ static void test_refusals(void)
 }
 
 #if BPX_TEST_CUDA
+// A copy to the device that has landed before the world reads it: a cudaMemcpy from pageable
+// memory may return before its DMA ends, and the world's non-blocking stream does not wait for
+// the legacy stream the copy runs on.
+static bool copy_to_device(void *d, const void *h, size_t bytes)
+{
+    return cudaMemcpy(d, h, bytes, cudaMemcpyHostToDevice) == cudaSuccess &&
+           cudaDeviceSynchronize() == cudaSuccess;
+}
+
 static bpx_box *to_device(const bpx_box *boxes, uint32_t n)
 {
     void *d = NULL;
     CHECK(cudaMalloc(&d, sizeof(bpx_box) * (n ? n : 1)) == cudaSuccess);
-    CHECK(cudaMemcpy(d, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess);
+    CHECK(copy_to_device(d, boxes, sizeof(bpx_box) * n));
     return d;
 }
 
@@ -341,7 +350,7 @@ static void test_device_first_cycle_growth(void)
     for (uint32_t i = 100; i < n; i++)
         for (int a = 0; a < 3; a++)
             boxes[i].min[a] = -INFINITY, boxes[i].max[a] = INFINITY;
-    CHECK(cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess);
+    CHECK(copy_to_device(d_boxes, boxes, sizeof(bpx_box) * n));
     CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
     CHECK_MSG(bpx_world_error(cuda)->index == 100, "named box %u, want 100",
               bpx_world_error(cuda)->index);
@@ -364,7 +373,7 @@ static void test_device_bad_count(void)
     for (uint32_t i = 100; i < n; i++)
         for (int a = 0; a < 3; a++)
             bad[i].min[a] = -INFINITY, bad[i].max[a] = INFINITY;
-    CHECK(cudaMemcpy(d_bad, bad, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess);
+    CHECK(copy_to_device(d_bad, bad, sizeof(bpx_box) * n));
     bpx_world *cuda = cuda_world(false);
     CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
@@ -374,7 +383,7 @@ static void test_device_bad_count(void)
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_ERR_NOT_FINITE);
     CHECK(bpx_world_error(cuda)->index == 100);
-    CHECK(cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess);
+    CHECK(copy_to_device(d_boxes, boxes, sizeof(bpx_box) * n));
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
     CHECK(count == good);
@@ -438,7 +447,7 @@ static float *centres_to_device(const float *centres, uint32_t n)
 {
     void *d = NULL;
     CHECK(cudaMalloc(&d, 12 * (size_t)(n ? n : 1)) == cudaSuccess);
-    CHECK(cudaMemcpy(d, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) == cudaSuccess);
+    CHECK(copy_to_device(d, centres, 12 * (size_t)n));
     return d;
 }
 
@@ -497,8 +506,7 @@ static void test_centres(void)
                               what, (unsigned long long)bpx_world_stats(cuda).bytes_in);
                     same_pairs(cuda, oracle, what);
                 } else { // device centres, read in place; then device-resident
-                    CHECK(cudaMemcpy(d_centres, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) ==
-                          cudaSuccess);
+                    CHECK(copy_to_device(d_centres, centres, 12 * (size_t)n));
                     CHECK_STATUS(bpx_cuda_set_centres_device(cuda, d_centres, n), BPX_OK);
                     CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
                     CHECK(bpx_world_stats(cuda).bytes_in == 0);
@@ -579,7 +587,7 @@ static void test_centres_errors(uint32_t n)
     bpx_world_pairs(cuda, &again);
     CHECK(again == first);
     centres[3 * nan_at + 2] = 0.0f;
-    CHECK(cudaMemcpy(d_good, centres, 12 * (size_t)n, cudaMemcpyHostToDevice) == cudaSuccess);
+    CHECK(copy_to_device(d_good, centres, 12 * (size_t)n));
     CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
     CHECK_MSG(bpx_world_error(cuda)->index == big && bpx_world_error(cuda)->axis == 0,
               "n=%u: named object %u", n, bpx_world_error(cuda)->index);

@@ -151,16 +151,20 @@ int main(int argc, char **argv)
         // Variants alternate cycle by cycle, on the same boxes, so drift hits them alike. The
         // device boxes are checked when set: they hold the scene first, not what cudaMalloc left
         // (memory an earlier size's worlds freed: NaNs, min > max).
-        bool ok =
-            cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) == cudaSuccess;
+        bool ok = cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) ==
+                      cudaSuccess &&
+                  cudaDeviceSynchronize() == cudaSuccess;
         if (!ok)
             fprintf(stderr, "bpx_gpubench: copying the boxes to the device failed\n");
         ok = ok && check(bpx_cuda_set_boxes_device(resident, d_boxes, n), resident, "set device");
         // The device boxes are read in place: each cycle's copy below changes them.
         while (ok && cycles < max_cycles && (cycles < warm + 5 || now_s() - start < 3 * seconds)) {
             scene_move(boxes, n, 0.05f, &rng);
+            // Landed before the world's non-blocking stream reads them: a cudaMemcpy from
+            // pageable memory may return before its DMA ends.
             if (cudaMemcpy(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice) !=
-                cudaSuccess) {
+                    cudaSuccess ||
+                cudaDeviceSynchronize() != cudaSuccess) {
                 fprintf(stderr, "bpx_gpubench: copying the boxes to the device failed\n");
                 ok = false;
                 break;

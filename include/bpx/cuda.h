@@ -14,7 +14,9 @@
 //   returns without waiting: kernels you enqueue after it on that stream see the pairs and their
 //   count. Work on other streams must wait for it (an event) before reading them.
 // - Device boxes are read in place at each cycle: change them between cycles on the stream the
-//   cycle runs on, or finish that work before the call.
+//   cycle runs on, or finish that work before the call. The world's stream is non-blocking: it
+//   does not wait for the legacy default stream, where a plain cudaMemcpy from pageable memory
+//   may still be copying when it returns (synchronise the device or that stream first).
 // - A world is used by one host thread at a time, like every world.
 #pragma once
 
