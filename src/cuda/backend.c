@@ -80,17 +80,19 @@ static bpx_status report_bad_input(bpx_world *w, bpx_cuda *cu)
                       "cuda: the device made an invalid box %u of valid host data", index);
 }
 
-// Ids added, removed or moved (add/remove/move_boxes) change the host's boxes alone: host centres
-// give way to those boxes; the caller's device boxes or centres cannot follow (BAD_STATE).
+// Ids added, removed or moved (add/remove/move_boxes) since the input was given change the
+// host's boxes alone (and their version): host centres give way to those boxes; the caller's
+// device boxes or centres cannot follow (BAD_STATE).
 static bpx_status cuda_check_source(bpx_world *w, bpx_cuda *cu)
 {
-    if (!w->dead)
+    if (bpx__cuda_input_version(cu) == w->boxes_version)
         return BPX_OK;
     if (bpx__cuda_device_boxes(cu) || bpx__cuda_device_centres(cu))
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
                           "cuda: boxes added, removed or moved by id since the device data was "
                           "set");
     bpx__cuda_use_device_boxes(cu, NULL, 0);
+    bpx__cuda_set_input_version(cu, w->boxes_version);
     return BPX_OK;
 }
 
@@ -150,6 +152,7 @@ static void cuda_boxes_set(bpx_world *w, const float *centres)
             return;
         w->backend_state = cu;
     }
+    bpx__cuda_set_input_version(cu, w->boxes_version);
     if (updater) {
         const float *const minima[3] = {w->minima[0], w->minima[1], w->minima[2]};
         if (bpx__cuda_use_centres(cu, centres, false, minima, w->extent_count) == BPX_OK)
@@ -214,6 +217,7 @@ bpx_status bpx_cuda_set_boxes_device(bpx_world *w, const bpx_box *boxes, uint32_
                           "no memory for %u boxes", n);
     }
     bpx__cuda_use_device_boxes(cu, boxes, n);
+    bpx__cuda_set_input_version(cu, w->boxes_version);
     w->boxes_on_device = true;
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
@@ -247,6 +251,7 @@ bpx_status bpx_cuda_set_centres_device(bpx_world *w, const float *centres, uint3
         return report_bad_centre(w, centres, index);
     if ((s = bpx__cuda_use_centres(cu, centres, true, minima, n)) != BPX_OK)
         return bpx__error(&w->error, s, UINT32_MAX, -1, "cuda: the device centres not taken");
+    bpx__cuda_set_input_version(cu, w->boxes_version);
     w->boxes_on_device = true; // the host's boxes are the last host centres': no queries
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;

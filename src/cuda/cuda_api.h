@@ -78,6 +78,10 @@ const float *bpx__cuda_device_centres(const bpx_cuda *cu);
 bpx_cuda_timing bpx__cuda_timing(const bpx_cuda *cu);
 /// The stream the context works on (a cudaStream_t).
 void *bpx__cuda_stream(const bpx_cuda *cu);
+/// The world's boxes_version when the context's input (boxes, centres) was last given: a later
+/// one means ids were added, removed or moved since (the host's boxes alone changed).
+uint64_t bpx__cuda_input_version(const bpx_cuda *cu);
+void bpx__cuda_set_input_version(bpx_cuda *cu, uint64_t version);
 
 #ifdef __cplusplus
 }

@@ -75,6 +75,7 @@ struct bpx_cuda {
     unsigned long long host_have; // pairs of the last host cycle already in host_head
     bool tree_path;
     bool pending_head; // a device-resident cycle's head is on its way to host_head
+    uint64_t version;  // the world's boxes_version when its input was last given
     bpx_cuda_timing timing;
 };
 
@@ -843,6 +844,16 @@ bpx_cuda_timing bpx__cuda_timing(const bpx_cuda *cu)
 void *bpx__cuda_stream(const bpx_cuda *cu)
 {
     return cu->stream;
+}
+
+uint64_t bpx__cuda_input_version(const bpx_cuda *cu)
+{
+    return cu->version;
+}
+
+void bpx__cuda_set_input_version(bpx_cuda *cu, uint64_t version)
+{
+    cu->version = version;
 }
 
 } // extern "C"
