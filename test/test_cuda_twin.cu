@@ -127,6 +127,34 @@ void check_scene(const std::vector<bpx_box> &boxes, const char *what)
               diff);
 }
 
+// A world on Algorithm 1, for the host's updater.
+bpx_world *reference_world()
+{
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = BPX_BACKEND_REFERENCE;
+    bpx_world *w = nullptr;
+    CHECK(bpx_world_create(&def, &w) == BPX_OK);
+    return w;
+}
+
+// Boxes as the paper's two-phase mode keeps them: centres (x, y, z per object), origin-centred
+// minima (<= 0) as the world loads them, and the same minima as three planes of n, as the device
+// keeps them.
+struct two_phase {
+    std::vector<float> centres, minima, planes;
+    explicit two_phase(const std::vector<bpx_box> &boxes)
+    {
+        const size_t n = boxes.size(), floats = 3 * n + 3;
+        centres.resize(floats), minima.resize(floats), planes.resize(floats);
+        for (size_t i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) {
+                centres[3 * i + a] = 0.5f * boxes[i].min[a] + 0.5f * boxes[i].max[a];
+                minima[3 * i + a] = -(0.5f * boxes[i].max[a] - 0.5f * boxes[i].min[a]);
+                planes[(size_t)a * n + i] = minima[3 * i + a];
+            }
+    }
+};
+
 // The small comparator (small.cuh) as its kernel runs it, lanes and warps in loops: each row's
 // hit words (a ballot: bit l for lane l), the rows' counts scanned, each hit written at its place.
 std::vector<bpx_pair> small_twin(const bpx_small::input &in, uint32_t n)
@@ -189,21 +217,13 @@ void check_small(const std::vector<bpx_box> &boxes, const char *what)
                 want.push_back(bpx_pair{i, j});
     std::vector<bpx_pair> got = small_twin(in, n);
     CHECK_MSG(got.size() == want.size() &&
-                  (want.empty() || memcmp(got.data(), want.data(), sizeof(bpx_pair) * want.size()) == 0),
+                  (want.empty() ||
+                   memcmp(got.data(), want.data(), sizeof(bpx_pair) * want.size()) == 0),
               "%s: small comparator %zu pairs, want %zu", what, got.size(), want.size());
     // Centres: the boxes the host's updater makes from them, on a reference world.
-    const size_t floats = 3 * (size_t)n + 3;
-    std::vector<float> centres(floats), minima(floats), planes(floats);
-    for (uint32_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            centres[3 * (size_t)i + a] = 0.5f * boxes[i].min[a] + 0.5f * boxes[i].max[a];
-            minima[3 * (size_t)i + a] = -(0.5f * boxes[i].max[a] - 0.5f * boxes[i].min[a]);
-            planes[(size_t)a * n + i] = minima[3 * (size_t)i + a];
-        }
-    bpx_world_def def = bpx_default_world_def();
-    def.backend = BPX_BACKEND_REFERENCE;
-    bpx_world *w = nullptr;
-    CHECK(bpx_world_create(&def, &w) == BPX_OK);
+    two_phase split(boxes);
+    std::vector<float> &centres = split.centres, &minima = split.minima, &planes = split.planes;
+    bpx_world *w = reference_world();
     if (bpx_world_load_extents(w, minima.data(), n) == BPX_OK &&
         bpx_world_update_centres(w, centres.data()) == BPX_OK) {
         CHECK(bpx_world_collide(w) == BPX_OK);
@@ -225,18 +245,9 @@ void check_small(const std::vector<bpx_box> &boxes, const char *what)
 void check_updater(const std::vector<bpx_box> &boxes, const char *what)
 {
     const uint32_t n = (uint32_t)boxes.size();
-    const size_t floats = 3 * (size_t)n + 3;
-    std::vector<float> centres(floats), minima(floats), planes(floats);
-    for (uint32_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            centres[3 * (size_t)i + a] = 0.5f * boxes[i].min[a] + 0.5f * boxes[i].max[a];
-            minima[3 * (size_t)i + a] = -(0.5f * boxes[i].max[a] - 0.5f * boxes[i].min[a]);
-            planes[(size_t)a * n + i] = minima[3 * (size_t)i + a];
-        }
-    bpx_world_def def = bpx_default_world_def();
-    def.backend = BPX_BACKEND_REFERENCE;
-    bpx_world *w = nullptr;
-    CHECK(bpx_world_create(&def, &w) == BPX_OK);
+    two_phase split(boxes);
+    std::vector<float> &centres = split.centres, &minima = split.minima, &planes = split.planes;
+    bpx_world *w = reference_world();
     CHECK(bpx_world_load_extents(w, minima.data(), n) == BPX_OK);
     for (int bad = 0; bad < 3; bad++) {
         // bad 1: object n/2's centre NaN on y, infinite on z; bad 2: also an overflow at n/3, on z.
