@@ -1,8 +1,8 @@
 // The opencl backend's tree, for large sets: a linear BVH over the boxes' Morton-ordered centres
 // (Karras 2012) built every cycle, walked once per box over the later Morton positions, the pairs
 // appended as 64-bit keys and radix sorted into (i, j) order (kernels/tree.cl, kernels/lbvh.h).
-// At constant density each box's walk tests a few dozen nodes, growing only with the tree's
-// depth (log n), whatever the boxes' sizes, where the sweep's candidates per box grow like
+// At constant density each box's walk, from its leaf up, tests about twenty nodes, growing only
+// with the tree's depth (half a test per level), whatever the boxes' sizes, where the sweep's candidates per box grow like
 // n^(2/3).
 
 #include <string.h>
@@ -44,13 +44,15 @@ static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids, cl_ulo
                                ARG(st->sorted_hi.mem),
                                ARG(n),
                                ARG(ids),
+                               ARG(st->leaf_parent.mem),
+                               ARG(st->node_parent.mem),
                                ARG(st->nodes.mem),
                                ARG(bits),
                                ARG(st->pair_keys[0].mem),
                                ARG(capacity),
                                ARG(st->tree_small.mem),
                                ARG(st->walk_tests.mem)};
-    return bpx__cl_launch(st, K_TREE_WALK, n - 1, 0, 10, args);
+    return bpx__cl_launch(st, K_TREE_WALK, n - 1, 0, 12, args);
 }
 
 // Everything up to the walks (n >= 2, keys uploaded): the bounds and the pair counter reset,
