@@ -2,8 +2,8 @@
 // (Karras 2012) built every cycle, walked once per box over the later Morton positions, the pairs
 // appended as 64-bit keys and radix sorted into (i, j) order (kernels/tree.cl, kernels/lbvh.h).
 // At constant density each box's walk, from its leaf up, tests about twenty nodes, growing only
-// with the tree's depth (half a test per level), whatever the boxes' sizes, where the sweep's candidates per box grow like
-// n^(2/3).
+// with the tree's depth (half a test per level), whatever the boxes' sizes, where the sweep's
+// candidates per box grow like n^(2/3).
 
 #include <string.h>
 
@@ -27,6 +27,18 @@ static bpx_status reserve_pairs(cl_state *st, uint64_t keys)
     for (int k = 0; k < 2; k++)
         TRY(bpx__cl_dbuf_reserve(st, &st->pair_keys[k], keys * sizeof(cl_ulong)));
     return bpx__cl_dbuf_reserve(st, &st->pairs, keys * sizeof(bpx_pair));
+}
+
+// The pair keys that all three pair buffers have room for. reserve_pairs grows them one by one,
+// so a failed creation can leave the first grown and the others not: the walks and the sort
+// must then see the smallest, or the sort's passes write past the second key buffer.
+static uint64_t pair_room(const cl_state *st)
+{
+    uint64_t room = st->pair_keys[0].size / sizeof(cl_ulong);
+    uint64_t other = st->pair_keys[1].size / sizeof(cl_ulong);
+    uint64_t pairs = st->pairs.size / sizeof(bpx_pair);
+    room = other < room ? other : room;
+    return pairs < room ? pairs : room;
 }
 
 // tree_small holds the scene's bounds (six words) and the walks' pair counter (two: the count and
@@ -132,9 +144,9 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     cl_mem ids;
     cl_uint bits;
     TRY(build(st, n, &ids, &bits));
-    if (st->pair_keys[0].size == 0)
+    if (pair_room(st) < st->first_pair_capacity)
         TRY(reserve_pairs(st, st->first_pair_capacity));
-    TRY(walk(st, n, bits, ids, st->pair_keys[0].size / sizeof(cl_ulong)));
+    TRY(walk(st, n, bits, ids, pair_room(st)));
     // The walks' bounds tests (the cycle's statistics) summed into register 3, read back behind
     // the count: one wait for both.
     TRY(bpx__cl_sum(st, st->walk_tests.mem, n - 1, 3));
@@ -151,10 +163,10 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     bool wrapped = found[7] != 0;
     if (wrapped)
         return BPX_ERR_DEVICE_MEMORY; // 2^32 pairs or more: brute force reads them in windows
-    if (total > st->pair_keys[0].size / sizeof(cl_ulong)) {
+    if (total > pair_room(st)) {
         TRY(reserve_pairs(st, total));
         TRY(reset(st));
-        TRY(walk(st, n, bits, ids, st->pair_keys[0].size / sizeof(cl_ulong)));
+        TRY(walk(st, n, bits, ids, pair_room(st)));
         st->counters.emit_reruns++;
     }
     if (total > 0) {
