@@ -203,6 +203,9 @@ static const char *build(cache_entry *e, cl_platform_id platform, int platform_i
         d->scan_wg /= 2;
     if (d->scan_wg > max_group || d->max_alloc == 0)
         return "device work-groups too small for the kernels";
+    bool cpu = type_mask(device) == BPX_OPENCL_CPU;
+    d->radix_bits = cpu ? BPX_CL_RADIX_BITS_CPU : BPX_CL_RADIX_BITS;
+    d->radix_items = cpu ? BPX_CL_RADIX_ITEMS_CPU : BPX_CL_RADIX_ITEMS;
     // bpx_brute_small keeps six key planes, the row offsets and the scan's parts in local memory.
     cl_ulong local_memory = 0;
     clGetDeviceInfo(device, CL_DEVICE_LOCAL_MEM_SIZE, sizeof local_memory, &local_memory, NULL);
@@ -212,9 +215,7 @@ static const char *build(cache_entry *e, cl_platform_id platform, int platform_i
     if (d->small_wg > max_group ||
         local_memory < 7 * BPX_CL_SMALL_N * sizeof(cl_uint) + d->small_wg * sizeof(cl_ulong) + 1024)
         d->small_wg = 0;
-    d->small_n = d->small_wg == 0                      ? 0
-                 : type_mask(device) == BPX_OPENCL_CPU ? BPX_CL_SMALL_N_CPU
-                                                       : BPX_CL_SMALL_N_GPU;
+    d->small_n = d->small_wg == 0 ? 0 : cpu ? BPX_CL_SMALL_N_CPU : BPX_CL_SMALL_N_GPU;
 
     cl_int err;
     d->context = clCreateContext(NULL, 1, &device, NULL, NULL, &err);
@@ -233,9 +234,9 @@ static const char *build(cache_entry *e, cl_platform_id platform, int platform_i
     char options[OPTIONS_MAX];
     snprintf(options, sizeof options,
              "-cl-std=CL1.2 -DBPX_TILE=%u -DBPX_SCAN_WG=%u -DBPX_STASH=%u -DBPX_SMALL_N=%u "
-             "-DBPX_SMALL_WG=%u %s",
+             "-DBPX_SMALL_WG=%u -DBPX_RADIX_BITS=%u -DBPX_RADIX_ITEMS=%u %s",
              d->tile, d->scan_wg, BPX_CL_STASH, BPX_CL_SMALL_N, d->small_wg ? d->small_wg : 32u,
-             user_options);
+             d->radix_bits, d->radix_items, user_options);
     err = clBuildProgram(d->program, 1, &device, options, NULL, NULL);
     if (err != CL_SUCCESS) {
         log_build_failure(d, d->program, err);

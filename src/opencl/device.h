@@ -9,8 +9,19 @@
 
 /// Work-group size of the scan and radix-sort kernels (BPX_SCAN_WG; power of two).
 #define BPX_CL_SCAN_WG_MAX 128u
-/// Values per work-item in the scan and radix-sort kernels (BPX_SCAN_ITEMS in scan.cl).
+/// Values per work-item in the scan kernels (BPX_SCAN_ITEMS in scan.cl).
 #define BPX_CL_SCAN_ITEMS 8u
+/// The radix sort's digit (bits per pass) and elements per work-item (kernels/sort.cl): 4 bits
+/// and 8 elements (16 counts per item, in registers on a GPU), and on a CPU device 6 bits and 64
+/// elements: 6 passes over the 32-bit Morton codes rather than 8, 6-7 over the pair keys of 100k
+/// to 1M boxes rather than 9-10. On PoCL (2 EPYC cores) the tree's two sorts at 1M boxes took
+/// 42 and 18 ms against 55 and 32 with 4 bits (fastest of 15 cycles each), and 4 and 2 ms
+/// against 5 and 3 at 100k; 8 bits (256 counts per item) was slower at 100k and no faster at 1M.
+/// bench/results/epyc-2c-opencl-tree/clscale_linear.md.
+#define BPX_CL_RADIX_BITS 4u
+#define BPX_CL_RADIX_ITEMS 8u
+#define BPX_CL_RADIX_BITS_CPU 6u
+#define BPX_CL_RADIX_ITEMS_CPU 64u
 /// Hits a row keeps on the device before its group must compare again to emit (BPX_STASH).
 #define BPX_CL_STASH 4u
 /// Small sets: one work-group of up to BPX_CL_SMALL_WG_MAX items finds all pairs in one launch
@@ -35,11 +46,13 @@ typedef struct bpx_cl_device {
     cl_program program;
     int platform_index;
     int device_index;
-    unsigned tile;     ///< comparator tile width and work-group size (the backend's m)
-    unsigned scan_wg;  ///< work-group size of scans and sorts
-    unsigned small_wg; ///< work-group size of bpx_brute_small; 0: local memory too small for it
-    unsigned small_n;  ///< bpx_brute_small for sets up to this many boxes (0: never)
-    bool denormals;    ///< single-precision subnormals supported (else the host does the updater)
+    unsigned tile;        ///< comparator tile width and work-group size (the backend's m)
+    unsigned scan_wg;     ///< work-group size of scans and sorts
+    unsigned radix_bits;  ///< bits per radix-sort pass (BPX_RADIX_BITS)
+    unsigned radix_items; ///< elements per radix-sort work-item (BPX_RADIX_ITEMS)
+    unsigned small_wg;    ///< work-group size of bpx_brute_small; 0: local memory too small for it
+    unsigned small_n;     ///< bpx_brute_small for sets up to this many boxes (0: never)
+    bool denormals; ///< single-precision subnormals supported (else the host does the updater)
     cl_ulong global_memory;
     cl_ulong max_alloc;
     char name[96];

@@ -42,22 +42,24 @@ bpx_status bpx__cl_scan(cl_state *st, cl_mem in, uint32_t count, cl_mem out, cl_
     return bpx__cl_launch(st, K_SCAN_APPLY, groups * wg, wg, 4, apply);
 }
 
-// Per pass: each group's digit counts, their scan (digit-major: equal digits keep group order),
-// the scatter. `values` NULL: 64-bit keys alone, else 32-bit keys with 32-bit values.
+// Per pass (a digit of radix_bits): each group's digit counts, their scan (digit-major: equal
+// digits keep group order), the scatter. `values` NULL: 64-bit keys alone, else 32-bit keys with
+// 32-bit values.
 static bpx_status radix_passes(cl_state *st, dbuf *keys, dbuf *values, uint32_t count,
                                unsigned bits, int *result)
 {
     *result = 0;
     if (count < 2)
         return BPX_OK;
-    size_t wg = st->dev->scan_wg;
-    size_t groups = (count + wg * BPX_CL_SCAN_ITEMS - 1) / (wg * BPX_CL_SCAN_ITEMS);
-    uint32_t bins = 16 * (uint32_t)groups;
+    size_t wg = st->dev->scan_wg, chunk = wg * st->dev->radix_items;
+    size_t groups = (count + chunk - 1) / chunk;
+    unsigned digit = st->dev->radix_bits;
+    uint32_t bins = (1u << digit) * (uint32_t)groups;
     TRY(bpx__cl_dbuf_reserve(st, &st->hist, bins * sizeof(cl_uint)));
     TRY(bpx__cl_dbuf_reserve(st, &st->hist_offsets, bins * sizeof(cl_ulong)));
     cl_uint count_arg = count;
     int cur = 0;
-    for (unsigned shift = 0; shift < bits; shift += 4) {
+    for (unsigned shift = 0; shift < bits; shift += digit) {
         cl_uint shift_arg = shift;
         const kernel_arg c[] = {ARG(keys[cur].mem), ARG(count_arg), ARG(shift_arg),
                                 ARG(st->hist.mem)};

@@ -1,9 +1,9 @@
 // The opencl backend's tree, for large sets: a linear BVH over the boxes' Morton-ordered centres
 // (Karras 2012) built every cycle, walked once per box over the later Morton positions, the pairs
 // appended as 64-bit keys and radix sorted into (i, j) order (kernels/tree.cl, kernels/lbvh.h).
-// At constant density each box's walk tests a few dozen nodes, growing only with the tree's
-// depth (log n), whatever the boxes' sizes, where the sweep's candidates per box grow like
-// n^(2/3).
+// At constant density each box's walk, from its leaf up, tests about twenty nodes, growing only
+// with the tree's depth (half a test per level), whatever the boxes' sizes, where the sweep's
+// candidates per box grow like n^(2/3).
 
 #include <string.h>
 
@@ -29,6 +29,18 @@ static bpx_status reserve_pairs(cl_state *st, uint64_t keys)
     return bpx__cl_dbuf_reserve(st, &st->pairs, keys * sizeof(bpx_pair));
 }
 
+// The pair keys that all three pair buffers have room for. reserve_pairs grows them one by one,
+// so a failed creation can leave the first grown and the others not: the walks and the sort
+// must then see the smallest, or the sort's passes write past the second key buffer.
+static uint64_t pair_room(const cl_state *st)
+{
+    uint64_t room = st->pair_keys[0].size / sizeof(cl_ulong);
+    uint64_t other = st->pair_keys[1].size / sizeof(cl_ulong);
+    uint64_t pairs = st->pairs.size / sizeof(bpx_pair);
+    room = other < room ? other : room;
+    return pairs < room ? pairs : room;
+}
+
 // tree_small holds the scene's bounds (six words) and the walks' pair counter (two: the count and
 // a wrap flag); bpx_tree_reset clears them.
 static bpx_status reset(cl_state *st)
@@ -44,13 +56,15 @@ static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids, cl_ulo
                                ARG(st->sorted_hi.mem),
                                ARG(n),
                                ARG(ids),
+                               ARG(st->leaf_parent.mem),
+                               ARG(st->node_parent.mem),
                                ARG(st->nodes.mem),
                                ARG(bits),
                                ARG(st->pair_keys[0].mem),
                                ARG(capacity),
                                ARG(st->tree_small.mem),
                                ARG(st->walk_tests.mem)};
-    return bpx__cl_launch(st, K_TREE_WALK, n - 1, 0, 10, args);
+    return bpx__cl_launch(st, K_TREE_WALK, n - 1, 0, 12, args);
 }
 
 // Everything up to the walks (n >= 2, keys uploaded): the bounds and the pair counter reset,
@@ -130,9 +144,9 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     cl_mem ids;
     cl_uint bits;
     TRY(build(st, n, &ids, &bits));
-    if (st->pair_keys[0].size == 0)
+    if (pair_room(st) < st->first_pair_capacity)
         TRY(reserve_pairs(st, st->first_pair_capacity));
-    TRY(walk(st, n, bits, ids, st->pair_keys[0].size / sizeof(cl_ulong)));
+    TRY(walk(st, n, bits, ids, pair_room(st)));
     // The walks' bounds tests (the cycle's statistics) summed into register 3, read back behind
     // the count: one wait for both.
     TRY(bpx__cl_sum(st, st->walk_tests.mem, n - 1, 3));
@@ -149,10 +163,10 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
     bool wrapped = found[7] != 0;
     if (wrapped)
         return BPX_ERR_DEVICE_MEMORY; // 2^32 pairs or more: brute force reads them in windows
-    if (total > st->pair_keys[0].size / sizeof(cl_ulong)) {
+    if (total > pair_room(st)) {
         TRY(reserve_pairs(st, total));
         TRY(reset(st));
-        TRY(walk(st, n, bits, ids, st->pair_keys[0].size / sizeof(cl_ulong)));
+        TRY(walk(st, n, bits, ids, pair_room(st)));
         st->counters.emit_reruns++;
     }
     if (total > 0) {

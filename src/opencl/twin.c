@@ -197,8 +197,8 @@ bpx_status bpx__opencl_twin_tree_pairs(const bpx_box *boxes, uint32_t n, size_t 
         counter[0] = counter[1] = 0;
         uint64_t walked = 0;
         for (uint32_t p = 0; p + 1 < n; p++)
-            walked += bpx_lbvh_walk(p, t.slo, t.shi, t.ids, t.nodes, bits, t.keys, t.key_capacity,
-                                    counter);
+            walked += bpx_lbvh_walk(p, t.slo, t.shi, t.ids, t.leaf_parent, t.node_parent, t.nodes,
+                                    bits, t.keys, t.key_capacity, counter);
         if (tests)
             *tests = walked;
         if (counter[0] <= t.key_capacity || pass > 0)

@@ -7,10 +7,11 @@
 // codes stay in box order; bpx_sweep_gather (sweep.cl) puts the boxes' keys in that order;
 // bpx_tree_build makes the n - 1 internal nodes, one per item;
 // bpx_tree_refit climbs from every leaf, the second child at each node carrying on;
-// bpx_tree_walk walks once per box over the later Morton positions and appends each pair as a
-// 64-bit key (min id << bits | max id) through one atomic counter; the 64-bit radix sort puts the
-// keys in (i, j) order and bpx_tree_unpack makes them pairs. The per-item steps are lbvh.h's,
-// which the host twin runs too. Keys are this program's box keys (twin.h), x, y, z, 0 per box.
+// bpx_tree_walk walks once per box, from its leaf up (the build's parents), over the later Morton
+// positions and appends each pair as a 64-bit key (min id << bits | max id) through one atomic
+// counter; the 64-bit radix sort puts the keys in (i, j) order and bpx_tree_unpack makes them
+// pairs. The per-item steps are lbvh.h's, which the host twin runs too. Keys are this program's
+// box keys (twin.h), x, y, z, 0 per box.
 
 // The cycle's small words: the scene's centre bounds (six order keys: min x, y, z, max x, y, z)
 // at [0, 6), the walks' pair counter at 6 and its wrap flag at 7.
@@ -113,15 +114,16 @@ __kernel void bpx_tree_refit(__global const uint *lo, __global const uint *hi, u
 /// order, ids the box at each position; each item's bounds tests go to tests[k] for the cycle's
 /// statistics.
 __kernel void bpx_tree_walk(__global const uint *lo, __global const uint *hi, uint n,
-                            __global const uint *ids, __global const uint *nodes, uint bits,
-                            __global ulong *out,
-                            ulong capacity, __global uint *small, __global uint *tests)
+                            __global const uint *ids, __global const uint *leaf_parent,
+                            __global const uint *node_parent, __global const uint *nodes,
+                            uint bits, __global ulong *out, ulong capacity, __global uint *small,
+                            __global uint *tests)
 {
     uint k = get_global_id(0);
     if (k + 1 >= n)
         return;
-    tests[k] = bpx_lbvh_walk(k, lo, hi, ids, nodes, bits, out, capacity,
-                             small + BPX_TREE_COUNTER);
+    tests[k] = bpx_lbvh_walk(k, lo, hi, ids, leaf_parent, node_parent, nodes, bits, out,
+                             capacity, small + BPX_TREE_COUNTER);
 }
 
 __kernel void bpx_tree_unpack(__global const ulong *keys, uint count, uint bits,
