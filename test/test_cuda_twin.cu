@@ -84,9 +84,10 @@ std::vector<bpx_pair> twin_pairs(const std::vector<bpx_box> &boxes)
     const int bits = bpx_tree::key_bits(n);
     std::vector<unsigned long long> found;
     for (uint32_t t = 0; t + 1 < n; t++)
-        bpx_tree::walk(
-            t, nodes.data(), leaf_lo.data(), leaf_hi.data(),
-            [&](uint32_t i, uint32_t j) { found.push_back(bpx_tree::pair_key(i, j, bits)); });
+        bpx_tree::walk(t, nodes.data(), leaf_lo.data(), leaf_hi.data(), leaf_parent.data(),
+                       node_parent.data(), [&](uint32_t i, uint32_t j) {
+                           found.push_back(bpx_tree::pair_key(i, j, bits));
+                       });
     const size_t count = found.size();
     found.resize(count + 3, ~0ull);
     const unsigned long long sorted_key_bits = 2 * bits < 64 ? (1ull << (2 * bits)) - 1 : ~0ull;

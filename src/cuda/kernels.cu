@@ -197,7 +197,9 @@ __device__ void emit_flush(unsigned long long *buffer, int count, unsigned long 
 // that goes out with one atomic per flush.
 __global__ void traverse_kernel(const bpx_cuda_node *__restrict__ nodes,
                                 const float4 *__restrict__ leaf_lo,
-                                const float4 *__restrict__ leaf_hi, uint32_t n, int bits,
+                                const float4 *__restrict__ leaf_hi,
+                                const uint32_t *__restrict__ leaf_parent,
+                                const uint32_t *__restrict__ node_parent, uint32_t n, int bits,
                                 unsigned long long *keys, unsigned long long capacity,
                                 bpx_cuda_head *head)
 {
@@ -205,7 +207,7 @@ __global__ void traverse_kernel(const bpx_cuda_node *__restrict__ nodes,
     unsigned long long buffer[emit_buffer];
     int count = 0;
     if (t + 1 < n) {
-        walk(t, nodes, leaf_lo, leaf_hi, [&](uint32_t i, uint32_t j) {
+        walk(t, nodes, leaf_lo, leaf_hi, leaf_parent, node_parent, [&](uint32_t i, uint32_t j) {
             if (count == emit_buffer) {
                 emit_flush(buffer, count, keys, capacity, head);
                 count = 0;
@@ -338,8 +340,9 @@ cudaError_t bpx__cuda_launch_traverse(cudaStream_t stream, const bpx_cuda_tree *
                                       unsigned long long *keys, unsigned long long capacity,
                                       bpx_cuda_head *head)
 {
-    traverse_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(t->nodes, t->leaf_lo, t->leaf_hi,
-                                                                  t->n, bits, keys, capacity, head);
+    traverse_kernel<<<grid_for(t->n), block_threads, 0, stream>>>(
+        t->nodes, t->leaf_lo, t->leaf_hi, t->leaf_parent, t->node_parent, t->n, bits, keys,
+        capacity, head);
     return cudaGetLastError();
 }
 

@@ -3,7 +3,8 @@
 // twin proves the algorithm on machines without a GPU. The Morton code and the node build are
 // src/kernels/lbvh_build.h's, which the opencl backend's program and its twin run too; the refit
 // and the walk here work on float bounds, the opencl backend's (src/opencl/kernels/lbvh.h) on
-// the boxes' integer keys, with the same rules. SPDX-License-Identifier: MIT
+// the boxes' integer keys, with the same rules (the walk from each leaf up).
+// SPDX-License-Identifier: MIT
 #pragma once
 
 #include <cstdint>
@@ -113,15 +114,28 @@ BPX_HD void refit_leaf(uint32_t t, const float4 *leaf_lo, const float4 *leaf_hi,
     }
 }
 
-/// The walk of the box at Morton position t (t + 1 < n) over the positions after t: a subtree
-/// whose last position is <= t is skipped whole. A left child's last position is its own index
-/// (the split); a right child's is its parent's, which is > t from the root (n - 1) down, so
-/// only left children are ever skipped. emit(i, j), i < j, for each overlapping pair; every
-/// pair is emitted by exactly one walk, the one from its lower Morton position.
+/// A walk's hit: box `me` and the box at Morton position `at`, emitted as (i, j), i < j.
+#pragma nv_exec_check_disable
+template <class Emit>
+BPX_HD void emit_hit(uint32_t me, uint32_t at, const float4 *leaf_lo, Emit &emit)
+{
+    uint32_t other = bits_of(leaf_lo[at].w);
+    emit(me < other ? me : other, me < other ? other : me);
+}
+
+/// The walk of the box at Morton position t (t + 1 < n) over the positions after t only, from its
+/// leaf up (the opencl backend's walk, src/opencl/kernels/lbvh.h): at each ancestor whose left
+/// child holds t, the right child (positions after t only) is tested and, when it overlaps,
+/// walked down; the walk ends at the root. Every pair is emitted by exactly one walk, the one
+/// from its lower Morton position, at the two leaves' lowest common ancestor. Starting at the
+/// root instead tests both children of every node on t's own path, none of them finding a pair:
+/// from the leaf the tests per box grow by half a test per level rather than by 1.5.
+/// emit(i, j), i < j, for each overlapping pair.
 #pragma nv_exec_check_disable
 template <class Emit>
 BPX_HD void walk(uint32_t t, const bpx_cuda_node *nodes, const float4 *leaf_lo,
-                 const float4 *leaf_hi, Emit emit)
+                 const float4 *leaf_hi, const uint32_t *leaf_parent, const uint32_t *node_parent,
+                 Emit emit)
 {
     enum { stack_depth = 64 }; // the tree's depth is at most 30 Morton bits + 32 index bits
     float4 alo = leaf_lo[t], ahi = leaf_hi[t];
@@ -129,42 +143,59 @@ BPX_HD void walk(uint32_t t, const bpx_cuda_node *nodes, const float4 *leaf_lo,
         return;
     const uint32_t me = bits_of(alo.w);
     uint32_t stack[stack_depth];
-    int top = 0;
-    uint32_t node = 0;
+    uint32_t up = leaf_parent[t];
     for (;;) {
-        const bpx_cuda_node *nd = nodes + node;
+        uint32_t p = up >> 1;
+        if ((up & 1u) == 0u) { // t is in p's left child: its right child comes after t
 #ifdef __CUDA_ARCH__
-        float4 l0 = __ldg(&nd->lo[0]), h0 = __ldg(&nd->hi[0]);
-        float4 l1 = __ldg(&nd->lo[1]), h1 = __ldg(&nd->hi[1]);
+            float4 rl = __ldg(&nodes[p].lo[1]), rh = __ldg(&nodes[p].hi[1]);
 #else
-        float4 l0 = nd->lo[0], h0 = nd->hi[0], l1 = nd->lo[1], h1 = nd->hi[1];
+            float4 rl = nodes[p].lo[1], rh = nodes[p].hi[1];
 #endif
-        uint32_t left = bits_of(l0.w), right = bits_of(l1.w);
-        uint32_t left_at = left & ~BPX_CUDA_LEAF, right_at = right & ~BPX_CUDA_LEAF;
-        bool go_left = left_at > t && overlap(alo, ahi, l0, h0);
-        bool go_right = overlap(alo, ahi, l1, h1);
-        if (go_left && (left & BPX_CUDA_LEAF)) {
-            uint32_t other = bits_of(leaf_lo[left_at].w);
-            emit(me < other ? me : other, me < other ? other : me);
-            go_left = false;
+            uint32_t child = bits_of(rl.w);
+            if (!overlap(alo, ahi, rl, rh)) {
+            } else if (child & BPX_CUDA_LEAF) {
+                emit_hit(me, child & ~BPX_CUDA_LEAF, leaf_lo, emit);
+            } else { // down the right child's subtree: every position in it comes after t
+                int top = 0;
+                uint32_t node = child;
+                for (;;) {
+                    const bpx_cuda_node *nd = nodes + node;
+#ifdef __CUDA_ARCH__
+                    float4 l0 = __ldg(&nd->lo[0]), h0 = __ldg(&nd->hi[0]);
+                    float4 l1 = __ldg(&nd->lo[1]), h1 = __ldg(&nd->hi[1]);
+#else
+                    float4 l0 = nd->lo[0], h0 = nd->hi[0], l1 = nd->lo[1], h1 = nd->hi[1];
+#endif
+                    uint32_t left = bits_of(l0.w), right = bits_of(l1.w);
+                    bool go_left = overlap(alo, ahi, l0, h0);
+                    bool go_right = overlap(alo, ahi, l1, h1);
+                    if (go_left && (left & BPX_CUDA_LEAF)) {
+                        emit_hit(me, left & ~BPX_CUDA_LEAF, leaf_lo, emit);
+                        go_left = false;
+                    }
+                    if (go_right && (right & BPX_CUDA_LEAF)) {
+                        emit_hit(me, right & ~BPX_CUDA_LEAF, leaf_lo, emit);
+                        go_right = false;
+                    }
+                    if (go_left && go_right) {
+                        stack[top++] = right;
+                        node = left;
+                    } else if (go_left) {
+                        node = left;
+                    } else if (go_right) {
+                        node = right;
+                    } else {
+                        if (top == 0)
+                            break;
+                        node = stack[--top];
+                    }
+                }
+            }
         }
-        if (go_right && (right & BPX_CUDA_LEAF)) {
-            uint32_t other = bits_of(leaf_lo[right_at].w);
-            emit(me < other ? me : other, me < other ? other : me);
-            go_right = false;
-        }
-        if (go_left && go_right) {
-            stack[top++] = right_at;
-            node = left_at;
-        } else if (go_left) {
-            node = left_at;
-        } else if (go_right) {
-            node = right_at;
-        } else {
-            if (top == 0)
-                break;
-            node = stack[--top];
-        }
+        if (p == 0u)
+            break; // the root
+        up = node_parent[p];
     }
 }
 

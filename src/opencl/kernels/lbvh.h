@@ -7,7 +7,7 @@
 // Each step is one item's work: the centre of one box, the refit from one leaf, the walk of one
 // box. The device runs the items in parallel, the twin in loops, so the twin's pairs are the
 // device's pairs and a test proves the algorithm on the host. The cuda backend
-// (src/cuda/tree.cuh) refits the same way on float bounds; its walk still starts at the root.
+// (src/cuda/tree.cuh) refits and walks the same way on float bounds.
 //
 // Exactness: every decision about a pair compares the caller's own coordinates as order keys
 // (twin.h), and a node's bounds are minima and maxima of those keys, so culling never rounds.
