@@ -12,10 +12,11 @@
 # returned files into bench/results/<device>/ (the device's name is in run.log) and commit them.
 # That leaves ~4 minutes on a warm machine to rerun one phase (PHASES="scale" bench/gpu/run.sh
 # $OUT 200, say). PHASES (default all, in this order): build cuda_test gpubench table2 suites
-# clresident scale.
+# sanitizer clresident scale.
 #
 # The 8 files (a device call returns at most 8): run.log (machine, driver, toolkit, commit, the
-# phases with their times and exit codes, each test's verdict), tests.log (the tests' output),
+# phases with their times and exit codes, each test's and sanitizer's verdict), tests.log (the
+# tests' and compute-sanitizer's output),
 # gpubench.md/.csv (cuda device-resident and over the link against the host's grid on every
 # thread, n = 500 .. 10M, exactness checked), table2.md (the paper's Table 2 with the
 # communication share of cuda and opencl), clresident.md (the opencl tree with pairs out to the
@@ -51,6 +52,20 @@ suite() {
     tail -n +$((before + 1)) "$out/tests.log" | grep -E "Test +#|tests passed|tests failed" >>"$log"
     return "$rc"
 }
+# sanitize: compute-sanitizer's memcheck, racecheck and synccheck over test_cuda --quick (every
+# path on small sets), in turn, as long as the phase's time lasts.
+sanitize() {
+    cs=$(command -v compute-sanitizer ||
+        find /usr/local/cuda/bin /usr/local/cuda/compute-sanitizer /opt/nvidia -maxdepth 2 \
+            -name compute-sanitizer -type f 2>/dev/null | head -1)
+    [ -n "$cs" ] || { echo "no compute-sanitizer" >>"$log"; return 77; }
+    for tool in memcheck racecheck synccheck; do
+        echo "== compute-sanitizer --tool $tool test_cuda --quick" >>"$out/tests.log"
+        "$cs" --tool "$tool" --error-exitcode 1 "$build/test/test_cuda" --quick \
+            >>"$out/tests.log" 2>&1
+        echo "compute-sanitizer $tool: exit $?" >>"$log"
+    done
+}
 if [ "${1:-}" = "--do" ]; then
     shift
     "$@"
@@ -59,7 +74,7 @@ fi
 
 out=${1:?usage: bench/gpu/run.sh OUT_DIR [BUDGET_S]}
 budget=${2:-480}
-phases=${PHASES:-build cuda_test gpubench table2 suites clresident scale}
+phases=${PHASES:-build cuda_test gpubench table2 suites sanitizer clresident scale}
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
 log=$out/run.log
@@ -138,6 +153,7 @@ phase table2 70 sh -c "'$build/bpx' bench --table2 --backend sap,cuda,opencl --c
     >'$out/table2.md' 2>&1"
 # The suites that run every available backend, and the opencl backend's own tests, on the GPU.
 phase suites 150 "$self" --do suite 140 8 '^(test_differential|test_determinism|test_hybrid|test_errors|test_out_of_memory|test_opencl|test_opencl_tree|test_opencl_resident|test_opencl_faults)$'
+phase sanitizer 120 "$self" --do sanitize
 phase clresident 60 sh -c "'$build/bench/opencl/bpx_clscale' --sizes 100000,1000000,10000000 \
     --scene uniform,heavy --method tree --mode host,resident --cycles 7 >'$out/clresident.md' 2>&1"
 phase scale 120 sh -c "'$build/bpx' bench --backend cuda,opencl,hybrid,grid,sap \
