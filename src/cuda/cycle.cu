@@ -70,7 +70,6 @@ struct bpx_cuda {
     float *minima; // 3 planes of minima_capacity: the loaded extents' minima
     uint32_t minima_capacity;
     bool minima_current; // they are the world's (until the next load_extents)
-    const float *cycle_centres; // the centres the small comparator makes its boxes from
     bpx_cuda_small_scratch *small; // the small comparator's rows (allocated at its first cycle)
     unsigned long long host_have; // pairs of the last host cycle already in host_head
     bool tree_path;
@@ -500,11 +499,12 @@ void bpx__cuda_close(bpx_cuda *cu)
 // Boxes in: the host's SoA arrays sent, the caller's device boxes converted and checked, or
 // boxes made from centres by the device's updater (and checked). With `small` (the small
 // comparator follows) the updater is left to that kernel, so the cycle stays one launch:
-// cu->cycle_centres says where its centres are.
+// *small_centres says where its centres are (NULL: the boxes are in place).
 static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3],
-                           const float *const hi[3], uint32_t n, bool small)
+                           const float *const hi[3], uint32_t n, bool small,
+                           const float **small_centres)
 {
-    cu->cycle_centres = nullptr;
+    *small_centres = nullptr;
     if (bpx_status st = reserve_floats(&cu->boxes, &cu->box_capacity, n, 6, false); st != BPX_OK)
         return st;
     CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, s));
@@ -529,7 +529,7 @@ static bpx_status boxes_in(bpx_cuda *cu, cudaStream_t s, const float *const lo[3
         centres = cu->centres;
     }
     if (small) {
-        cu->cycle_centres = centres;
+        *small_centres = centres;
         return BPX_OK;
     }
     CU(bpx__cuda_launch_update(s, centres, cu->minima, cu->minima_capacity, n, dlo, dhi,
@@ -573,7 +573,9 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     if (bpx_status s = reserve_host_pairs(cu, guess); s != BPX_OK)
         return s;
     CU(cudaEventRecord(cu->events[event_start], cu->stream));
-    if (bpx_status s = boxes_in(cu, cu->stream, lo, hi, n, !cu->tree_path && n >= 2);
+    const float *small_centres = nullptr;
+    if (bpx_status s = boxes_in(cu, cu->stream, lo, hi, n, !cu->tree_path && n >= 2,
+                                &small_centres);
         s != BPX_OK)
         return s;
     CU(cudaEventRecord(cu->events[event_in], cu->stream));
@@ -583,7 +585,7 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     } else if (!cu->tree_path) {
         if (bpx_status s = reserve_small(cu); s != BPX_OK)
             return s;
-        CU(bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, cu->cycle_centres,
+        CU(bpx__cuda_launch_small(cu->stream, cu->tree.lo, cu->tree.hi, small_centres,
                                   cu->minima, cu->minima_capacity, n, cu->small, device_head(cu),
                                   device_pairs(cu)));
         cu->timing.tests = small_pairs(n);
@@ -748,7 +750,9 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         return st;
     if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
         return st;
-    bpx_status status = boxes_in(cu, s, lo, hi, n, n >= 2 && n <= BPX_CUDA_SMALL_MAX);
+    const float *small_centres = nullptr;
+    bpx_status status =
+        boxes_in(cu, s, lo, hi, n, n >= 2 && n <= BPX_CUDA_SMALL_MAX, &small_centres);
     point_tree_at_boxes(cu, n);
     if (status != BPX_OK) {
     } else if (n < 2) {
@@ -758,7 +762,7 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         status = reserve_small(cu);
         cudaError_t e = status != BPX_OK ? cudaSuccess
                                          : bpx__cuda_launch_small(
-                                               s, cu->tree.lo, cu->tree.hi, cu->cycle_centres,
+                                               s, cu->tree.lo, cu->tree.hi, small_centres,
                                                cu->minima, cu->minima_capacity, n, cu->small,
                                                device_head(cu), device_pairs(cu));
         if (e != cudaSuccess)
