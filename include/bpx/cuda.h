@@ -63,7 +63,7 @@ BPX_API bpx_status bpx_cuda_set_centres_device(bpx_world *world, const float *ce
 /// sent first. No host round trip happens inside the cycle: the count
 /// follows the pairs into pinned host memory, and the next call reads it to size the buffer.
 /// Errors (of the enqueueing; the cycle's own outcome is bpx_cuda_finish's): NULL_ARGUMENT,
-/// BACKEND_UNAVAILABLE, DEVICE, DEVICE_MEMORY. Filters (bpx_world_set_filters) and events are
+/// BACKEND_UNAVAILABLE, DEVICE, DEVICE_MEMORY, OUT_OF_MEMORY (pinned host memory). Filters (bpx_world_set_filters) and events are
 /// not applied to device-resident pairs: BAD_STATE when either is in use.
 BPX_API bpx_status bpx_cuda_collide_device(bpx_world *world, void *stream);
 

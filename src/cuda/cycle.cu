@@ -87,6 +87,13 @@ bpx_status fail(cudaError_t e, const char *what)
     return e == cudaErrorMemoryAllocation ? BPX_ERR_DEVICE_MEMORY : BPX_ERR_DEVICE;
 }
 
+// Pinned host memory that cannot be had is the host's lack (OUT_OF_MEMORY), not the device's.
+bpx_status fail_pinned(cudaError_t e, const char *what)
+{
+    bpx_status s = fail(e, what);
+    return s == BPX_ERR_DEVICE_MEMORY ? BPX_ERR_OUT_OF_MEMORY : s;
+}
+
 #define CU(call)                                                                                   \
     do {                                                                                           \
         cudaError_t e_ = (call);                                                                   \
@@ -128,7 +135,8 @@ bpx_status reserve_floats(float **arrays, uint32_t *capacity, uint32_t n, int pe
     float *fresh = nullptr;
     cudaError_t e = pinned ? cudaMallocHost(&fresh, bytes) : cudaMalloc(&fresh, bytes);
     if (e != cudaSuccess)
-        return fail(e, pinned ? "cudaMallocHost (staging)" : "cudaMalloc (boxes, centres)");
+        return pinned ? fail_pinned(e, "cudaMallocHost (staging)")
+                      : fail(e, "cudaMalloc (boxes, centres)");
     if (pinned)
         cudaFreeHost(*arrays);
     else
@@ -202,7 +210,8 @@ bpx_status reserve_host_pairs(bpx_cuda *cu, unsigned long long pairs)
         return BPX_OK;
     unsigned long long cap = grown(cu->host_pairs_capacity, pairs);
     void *host = nullptr;
-    CU(cudaMallocHost(&host, pair_bytes(cap)));
+    if (cudaError_t e = cudaMallocHost(&host, pair_bytes(cap)); e != cudaSuccess)
+        return fail_pinned(e, "cudaMallocHost (pairs)");
     cudaFreeHost(cu->host_head);
     cu->host_head = static_cast<bpx_cuda_head *>(host);
     cu->host_pairs_capacity = cap;
