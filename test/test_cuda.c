@@ -1,6 +1,6 @@
 // The cuda backend beyond what the suites that loop over every backend check (test_differential
 // and test_determinism run it wherever it is available): both comparators (brute force up to 1024
-// boxes, the tree beyond) on every scene kind over moving cycles, against sap (itself checked
+// boxes, the tree beyond) on every scene kind over moving cycles, against prune (itself checked
 // against the reference) and at small n against the reference; the same bytes on a second
 // world; device-resident round trips (boxes in device memory, pairs left on the device, then
 // read back and compared); a pair buffer too small (CAPACITY with the needed count, then room;
@@ -20,6 +20,9 @@
 
 #if BPX_TEST_CUDA
 #include <cuda_runtime_api.h>
+#endif
+#if BPX_TEST_FAKE_CUDA
+#include "fake_cuda.h"
 #endif
 
 // A device failure names the CUDA call and error only through the logger (the world's error
@@ -41,14 +44,23 @@ static bpx_world *cuda_world(bool events)
     return w;
 }
 
-static bpx_world *oracle_world(uint32_t n)
+static bpx_world *oracle_world_events(uint32_t n, bool events)
 {
     bpx_world_def def = bpx_default_world_def();
-    def.backend = n <= 3000 ? BPX_BACKEND_REFERENCE : BPX_BACKEND_SAP;
+    def.track_events = events;
+    // prune beyond 3000 boxes: sap runs out of memory on the denormal scene at 120000 boxes
+    // (3% of its boxes span the whole lattice on one axis; 16.8 GB at the peak, then
+    // OUT_OF_MEMORY), prune finds its 984905 pairs.
+    def.backend = n <= 3000 ? BPX_BACKEND_REFERENCE : BPX_BACKEND_PRUNE;
     def.worker_count = 2;
     bpx_world *w = NULL;
     CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
     return w;
+}
+
+static bpx_world *oracle_world(uint32_t n)
+{
+    return oracle_world_events(n, false);
 }
 
 static bool same_pairs(bpx_world *a, bpx_world *b, const char *what)
@@ -109,7 +121,7 @@ static void test_scenes(void)
     bpx_world_destroy(cuda);
 }
 
-// Heavy-tailed and uniform scenes at the benchmark's density, against sap; a second cuda world
+// Heavy-tailed and uniform scenes at the benchmark's density, against prune; a second cuda world
 // gives the same bytes.
 static void test_large(void)
 {
@@ -150,7 +162,7 @@ static void test_objects_and_events(void)
     enum { n = 5000 };
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
     scene_uniform_density(n, 2.0f, 3, boxes);
-    bpx_world *cuda = cuda_world(true), *oracle = oracle_world(n);
+    bpx_world *cuda = cuda_world(true), *oracle = oracle_world_events(n, true);
     uint32_t ids[n];
     CHECK_STATUS(bpx_world_add_boxes(cuda, boxes, n, ids), BPX_OK);
     CHECK_STATUS(bpx_world_add_boxes(oracle, boxes, n, ids), BPX_OK);
@@ -322,8 +334,8 @@ static void test_device_errors(uint32_t n)
     // The good buffer turns bad between cycles.
     CHECK(cudaMemcpy(good, bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess);
     CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
-    CHECK_MSG(bpx_world_error(cuda)->index == nan_at, "n=%u: named box %u, want %u", n,
-              bpx_world_error(cuda)->index, nan_at);
+    CHECK_MSG(bpx_world_error(cuda)->index == nan_at, "n=%u: named box %u, want %u (%s)", n,
+              bpx_world_error(cuda)->index, nan_at, bpx_world_error(cuda)->message);
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     CHECK_STATUS(bpx_cuda_finish(cuda, NULL), BPX_ERR_NOT_FINITE);
     CHECK(bpx_world_error(cuda)->index == nan_at);
@@ -668,6 +680,107 @@ static void test_removed_after_centres(uint32_t n)
 }
 #endif
 
+#if BPX_TEST_FAKE_CUDA
+// The fake device (test/fake_cuda/) fails its k-th allocation from here on, for every k a few
+// cycles make, on the host path (both comparators, host boxes and host centres) and the
+// device-resident one: each failure is a status (DEVICE_MEMORY, or OUT_OF_MEMORY for pinned
+// host memory), nothing is lost (with allocations back, the same world gives the oracle's pairs),
+// and destroying the world frees every allocation.
+static void run_cycles(bpx_world *w, const bpx_box *boxes, uint32_t n, const float *centres,
+                       const float *minima, bool resident, bpx_status *first)
+{
+    bpx_status s =
+        centres ? bpx_world_load_extents(w, minima, n) : bpx_world_set_boxes(w, boxes, n);
+    if (s == BPX_OK && centres)
+        s = bpx_world_update_centres(w, centres);
+    for (int cycle = 0; cycle < 2 && s == BPX_OK; cycle++) {
+        s = resident ? bpx_cuda_collide_device(w, NULL) : bpx_world_collide(w);
+        if (s == BPX_OK && resident)
+            s = bpx_cuda_finish(w, NULL);
+        if (s == BPX_ERR_CAPACITY)
+            s = BPX_OK; // the next cycle has room
+    }
+    *first = s;
+}
+
+static void test_allocation_failures(void)
+{
+    const uint32_t sizes[] = {700, 3000};
+    for (size_t z = 0; z < sizeof sizes / sizeof sizes[0]; z++) {
+        const uint32_t n = sizes[z];
+        bpx_box *boxes = malloc(sizeof(bpx_box) * n);
+        float *centres = malloc(sizeof(float) * 3 * n), *minima = malloc(sizeof(float) * 3 * n);
+        CHECK(boxes && centres && minima);
+        scene_uniform_density(n, 1.0f, 11 + n, boxes);
+        split_boxes(boxes, n, centres, minima);
+        for (int mode = 0; mode < 3; mode++) { // host boxes, host centres, device-resident
+            const float *c = mode == 1 ? centres : NULL;
+            bpx_world *oracle = oracle_world(n);
+            bpx_status o = c ? bpx_world_load_extents(oracle, minima, n)
+                             : bpx_world_set_boxes(oracle, boxes, n);
+            if (o == BPX_OK && c)
+                o = bpx_world_update_centres(oracle, c);
+            CHECK_STATUS(o, BPX_OK);
+            CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+            int failures = 0;
+            for (long k = 0;; k++) {
+                long before = bpx_fake_cuda_live_blocks();
+                bpx_world *w = cuda_world(false);
+                bpx_fake_cuda_fail_allocations_after(k);
+                bpx_status s;
+                run_cycles(w, boxes, n, c, minima, mode == 2, &s);
+                bpx_fake_cuda_fail_allocations_after(-1);
+                if (s == BPX_OK) { // k passed every allocation the cycles make
+                    bpx_world_destroy(w);
+                    break;
+                }
+                failures++;
+                CHECK_MSG(s == BPX_ERR_DEVICE_MEMORY || s == BPX_ERR_OUT_OF_MEMORY,
+                          "n = %u, mode %d, allocation %ld failed: %s", n, mode, k,
+                          bpx_status_name(s));
+                run_cycles(w, boxes, n, c, minima, mode == 2, &s);
+                CHECK_MSG(s == BPX_OK, "n = %u, mode %d, after allocation %ld failed: %s", n, mode,
+                          k, bpx_status_name(s));
+                if (mode == 2) { // the device's pairs, read back
+                    size_t count = 0;
+                    CHECK_STATUS(bpx_cuda_collide_device(w, NULL), BPX_OK);
+                    CHECK_STATUS(bpx_cuda_finish(w, &count), BPX_OK);
+                    const bpx_pair *dp = NULL;
+                    CHECK_STATUS(bpx_cuda_device_pairs(w, &dp, NULL, NULL), BPX_OK);
+                    size_t want = 0;
+                    const bpx_pair *wp = bpx_world_pairs(oracle, &want);
+                    bpx_pair *back = malloc(sizeof(bpx_pair) * (count ? count : 1));
+                    CHECK(back && cudaMemcpy(back, dp, sizeof(bpx_pair) * count,
+                                             cudaMemcpyDeviceToHost) == cudaSuccess);
+                    CHECK_MSG(count == want && pairs_first_diff(back, count, wp, want) == want,
+                              "n = %u, resident, after allocation %ld failed: pairs differ", n, k);
+                    free(back);
+                } else {
+                    CHECK(same_pairs(w, oracle, "after a failed allocation"));
+                }
+                bpx_world_destroy(w);
+                CHECK_MSG(bpx_fake_cuda_live_blocks() == before,
+                          "n = %u, mode %d, allocation %ld: %ld allocations left", n, mode, k,
+                          bpx_fake_cuda_live_blocks() - before);
+                CHECK_MSG(k < 200, "n = %u, mode %d: no end to the allocations", n, mode);
+                if (k >= 200)
+                    break;
+            }
+            CHECK_MSG(failures > 0, "n = %u, mode %d: no allocation to fail", n, mode);
+            printf("allocation failures (n = %u, %s): %d, each a status, nothing lost\n", n,
+                   mode == 0   ? "host boxes"
+                   : mode == 1 ? "host centres"
+                               : "device-resident",
+                   failures);
+            bpx_world_destroy(oracle);
+        }
+        free(boxes);
+        free(centres);
+        free(minima);
+    }
+}
+#endif
+
 int main(int argc, char **argv)
 {
     quick = argc > 1 && strcmp(argv[1], "--quick") == 0;
@@ -704,6 +817,11 @@ int main(int argc, char **argv)
     test_centres_errors(500);
     test_removed_after_centres(500);  // the small comparator
     test_removed_after_centres(3000); // the tree
+#endif
+#if BPX_TEST_FAKE_CUDA
+    test_allocation_failures();
+    CHECK_MSG(bpx_fake_cuda_live_blocks() == 0, "%ld device or pinned allocations never freed",
+              bpx_fake_cuda_live_blocks());
 #endif
     return check_finish("test_cuda", 1);
 }

@@ -402,6 +402,12 @@ static int run_opencl_configs(void)
 int main(int argc, char **argv)
 {
     bool opencl_only = argc > 1 && strcmp(argv[1], "--opencl") == 0;
+    // --cuda: the cuda backend alone (on the fake device, test/fake_cuda/, in CI).
+    bool cuda_only = argc > 1 && strcmp(argv[1], "--cuda") == 0;
+    if (cuda_only && !bpx_backend_query(BPX_BACKEND_CUDA).available) {
+        printf("test_determinism --cuda: cuda unavailable\n");
+        return check_finish("test_determinism --cuda", 0);
+    }
     bpx_backend_info opencl = bpx_backend_query(BPX_BACKEND_OPENCL);
     if (opencl_only && !opencl.available) {
         // Skipped only without OpenCL at all (as test_opencl); a device that fails to build the
@@ -452,7 +458,8 @@ int main(int argc, char **argv)
     int configs = 0;
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
         // opencl has its own run (--opencl).
-        if (b == BPX_BACKEND_OPENCL || !bpx_backend_query((bpx_backend)b).available) {
+        if (b == BPX_BACKEND_OPENCL || !bpx_backend_query((bpx_backend)b).available ||
+            (cuda_only && b != BPX_BACKEND_CUDA)) {
             continue;
         }
         for (int s = 0; s < BPX_SIMD_COUNT; s++) {
@@ -483,6 +490,11 @@ int main(int argc, char **argv)
     }
     printf("%d configurations, %d task-hook enqueues with >1 worker\n", configs,
            total_enqueues_parallel);
+    if (cuda_only) {
+        for (int c = 0; c < case_count; c++)
+            free(cases[c].boxes);
+        return check_finish("test_determinism --cuda", configs > 0);
+    }
     check_set_context("task hooks");
     // A 5000-box cycle on 8 workers must have split work through the host's task system.
     CHECK(total_enqueues_parallel > 0);

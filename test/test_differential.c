@@ -25,6 +25,9 @@ typedef struct config {
 // sweep, the tree) besides its auto rule, so that every path meets every scene kind at every
 // size; skipped (77) without an OpenCL device. Without it: every other backend.
 static bool opencl_only;
+// `--cuda`: the cuda backend alone (test_differential_fake_cuda runs it on the fake device,
+// test/fake_cuda/); skipped (77) where cuda is unavailable.
+static bool cuda_only;
 
 enum { max_configs = 64 };
 
@@ -128,7 +131,8 @@ static int build_configs(config *cfgs)
         bpx_backend_info info = bpx_backend_query((bpx_backend)b);
         printf("backend %-10s available=%d detail='%s' reason='%s'\n", name_or(info.name),
                (int)info.available, info.detail, name_or(info.reason));
-        if (b == BPX_BACKEND_REFERENCE || b == BPX_BACKEND_OPENCL || !info.available) {
+        if (b == BPX_BACKEND_REFERENCE || b == BPX_BACKEND_OPENCL || !info.available ||
+            (cuda_only && b != BPX_BACKEND_CUDA)) {
             continue;
         }
         for (int s = 0; s < BPX_SIMD_COUNT; s++) {
@@ -262,7 +266,7 @@ static void check_one_shot(const bpx_box *boxes, uint32_t n, const pair_list *wa
     bpx_pair *buf = check_alloc(sizeof(bpx_pair) * (want->count + slack));
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
         if (!bpx_backend_query((bpx_backend)b).available ||
-            (b == BPX_BACKEND_OPENCL) != opencl_only) {
+            (b == BPX_BACKEND_OPENCL) != opencl_only || (cuda_only && b != BPX_BACKEND_CUDA)) {
             continue;
         }
         fill_sentinel(buf, want->count + slack);
@@ -452,9 +456,17 @@ int main(int argc, char **argv)
 {
     double t0 = now_s();
     opencl_only = argc > 1 && strcmp(argv[1], "--opencl") == 0;
-    printf("test_differential%s: scene seeds 1..3 (n <= 257), 1..2 (n <= 1234), 1 (n = 4099); "
+    cuda_only = argc > 1 && strcmp(argv[1], "--cuda") == 0;
+    const char *title = opencl_only ? "test_differential --opencl"
+                        : cuda_only ? "test_differential --cuda"
+                                    : "test_differential";
+    printf("%s: scene seeds 1..3 (n <= 257), 1..2 (n <= 1234), 1 (n = 4099); "
            "updater seeds 100..104; simd best=%s\n",
-           opencl_only ? " --opencl" : "", name_or(bpx_simd_name(bpx_simd_best())));
+           title, name_or(bpx_simd_name(bpx_simd_best())));
+    if (cuda_only && !bpx_backend_query(BPX_BACKEND_CUDA).available) {
+        printf("cuda unavailable: %s\n", name_or(bpx_backend_query(BPX_BACKEND_CUDA).reason));
+        return check_finish(title, 0);
+    }
     config cfgs[max_configs];
     int cfg_count = 0;
     if (opencl_only) {
@@ -486,5 +498,5 @@ int main(int argc, char **argv)
     for (int c = 0; c < cfg_count; c++) {
         bpx_world_destroy(cfgs[c].world);
     }
-    return check_finish(opencl_only ? "test_differential --opencl" : "test_differential", 1);
+    return check_finish(title, 1);
 }

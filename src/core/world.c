@@ -463,10 +463,14 @@ static bpx_status compare(bpx_world *w, size_t *total)
     w->result_valid = status == BPX_OK; // nothing partial is ever reported
     if (status == BPX_ERR_OUT_OF_MEMORY || status == BPX_ERR_TOO_MANY_PAIRS)
         bpx__emitter_release(w); // a cycle too big for memory leaves none of it held
-    if (status != BPX_OK) {
+    // A backend that named what failed (a device box, its index and axis; the failing call)
+    // keeps its error; the callers cleared it before the cycle.
+    if (status != BPX_OK && w->error.status != status) {
         return bpx__error(&w->error, status, UINT32_MAX, -1, "%s, %u boxes: %s",
                           w->backend->name, w->n, bpx_status_string(status));
     }
+    if (status != BPX_OK)
+        return status;
     uint64_t tests = 0;
     for (int b = 0; b < w->block_count; b++)
         tests += w->blocks[b].tests;

@@ -32,7 +32,10 @@ if(BPX_CUDA)
     set(CMAKE_CUDA_STANDARD 17)
     set(CMAKE_CUDA_STANDARD_REQUIRED ON)
     find_package(CUDAToolkit REQUIRED)
-    list(APPEND BPX_SOURCES src/cuda/backend.c src/cuda/cycle.cu src/cuda/kernels.cu)
+    # The kernels and sorts are an object library of their own (bpx_cuda_kernels, made by
+    # bpx_cuda_kernel_objects): the fake device's tests (test/fake_cuda/) link the same host
+    # objects with host loops in their place.
+    list(APPEND BPX_SOURCES src/cuda/backend.c src/cuda/cycle.cu)
     list(APPEND BPX_SIMD_DEFINES BPX_HAVE_CUDA=1)
     add_feature_info(cuda BPX_CUDA "the cuda backend (CUDA ${CUDAToolkit_VERSION})")
     # For the installed package: consumers of the static library link the CUDA runtime too.
@@ -43,6 +46,19 @@ else()
     list(APPEND BPX_SOURCES src/cuda/stub.c)
     add_feature_info(cuda BPX_CUDA "the cuda backend")
 endif()
+
+# After bpx_objects: the kernels' objects, built like the library's own, appended to the list
+# named by `objects` (nothing without CUDA).
+function(bpx_cuda_kernel_objects objects)
+    if(BPX_CUDA)
+        add_library(bpx_cuda_kernels OBJECT src/cuda/kernels.cu)
+        foreach(property INCLUDE_DIRECTORIES COMPILE_DEFINITIONS)
+            set_property(TARGET bpx_cuda_kernels PROPERTY ${property}
+                         $<TARGET_PROPERTY:bpx_objects,${property}>)
+        endforeach()
+        set(${objects} ${${objects}} $<TARGET_OBJECTS:bpx_cuda_kernels> PARENT_SCOPE)
+    endif()
+endfunction()
 
 function(bpx_cuda_link target)
     if(BPX_CUDA)

@@ -2,8 +2,10 @@
 // and the order of copies, kernels and sorts (kernels.cu). SPDX-License-Identifier: MIT
 //
 // Buffers only grow, geometrically, so cycles at a steady n allocate nothing. Sorting is CUB's
-// (the toolkit's CCCL): the Morton keys with the box ids, then the pair keys.
-#include <cub/device/device_radix_sort.cuh>
+// (the toolkit's CCCL), behind kernels.cu like every launch: the Morton keys with the box ids,
+// then the pair keys. This file itself holds no device code: the fake device
+// (test/fake_cuda/) runs it as it is, with host loops for the kernels and sorts.
+#include <cuda_runtime_api.h>
 
 #include <cstdio>
 #include <cstring>
@@ -240,14 +242,8 @@ bpx_status reserve_sort(bpx_cuda *cu)
 {
     if (cu->sort_temp_bytes)
         return BPX_OK;
-    size_t a = 0, b = 0;
-    cub::DoubleBuffer<uint32_t> mk(cu->tree.morton[0], cu->tree.morton[1]);
-    cub::DoubleBuffer<uint32_t> ids(cu->tree.ids[0], cu->tree.ids[1]);
-    CU(cub::DeviceRadixSort::SortPairs(nullptr, a, mk, ids, (int64_t)cu->tree_capacity, 0,
-                                       BPX_CUDA_MORTON_SORT_BITS));
-    cub::DoubleBuffer<unsigned long long> keys(cu->keys[0], cu->keys[1]);
-    CU(cub::DeviceRadixSort::SortKeys(nullptr, b, keys, (int64_t)cu->pair_capacity, 0, 64));
-    size_t bytes = a > b ? a : b;
+    size_t bytes = 0;
+    CU(bpx__cuda_sort_temp_bytes(cu->tree_capacity, cu->pair_capacity, &bytes));
     void *temp = nullptr;
     CU(cudaMalloc(&temp, bytes));
     cudaFree(cu->sort_temp);
@@ -308,14 +304,7 @@ bpx_status enqueue_tree(bpx_cuda *cu, cudaStream_t s)
     CU(cudaMemsetAsync(t->flags, 0, 4 * (size_t)n, s));
     CU(bpx__cuda_launch_bounds(s, t));
     CU(bpx__cuda_launch_morton(s, t));
-    cub::DoubleBuffer<uint32_t> mk(t->morton[0], t->morton[1]);
-    cub::DoubleBuffer<uint32_t> ids(t->ids[0], t->ids[1]);
-    size_t bytes = cu->sort_temp_bytes;
-    CU(cub::DeviceRadixSort::SortPairs(cu->sort_temp, bytes, mk, ids, (int64_t)n, 0,
-                                       BPX_CUDA_MORTON_SORT_BITS, s));
-    t->current = mk.selector;
-    if (ids.selector != mk.selector) // CUB keeps both in step; the tree relies on it
-        return fail(cudaErrorUnknown, "SortPairs (buffers out of step)");
+    CU(bpx__cuda_sort_morton(s, cu->sort_temp, cu->sort_temp_bytes, t));
     CU(bpx__cuda_launch_build(s, t));
     return BPX_OK;
 }
@@ -332,13 +321,9 @@ bpx_status enqueue_walk(bpx_cuda *cu, cudaStream_t s)
 // The sort of `items` keys and their unpacking into the pair buffer.
 bpx_status enqueue_sort(bpx_cuda *cu, cudaStream_t s, unsigned long long items)
 {
-    cub::DoubleBuffer<unsigned long long> keys(cu->keys[0], cu->keys[1]);
-    size_t bytes = cu->sort_temp_bytes;
-    if (items > 1)
-        CU(cub::DeviceRadixSort::SortKeys(cu->sort_temp, bytes, keys, (int64_t)items, 0,
-                                          2 * cu->bits, s));
-    cu->key_buffer = keys.selector;
-    CU(bpx__cuda_launch_unpack(s, keys.Current(), cu->bits, items, device_head(cu),
+    CU(bpx__cuda_sort_pair_keys(s, cu->sort_temp, cu->sort_temp_bytes, cu->keys, items,
+                                2 * cu->bits, &cu->key_buffer));
+    CU(bpx__cuda_launch_unpack(s, cu->keys[cu->key_buffer], cu->bits, items, device_head(cu),
                                device_pairs(cu)));
     return BPX_OK;
 }
@@ -358,11 +343,6 @@ const char *probe_reason = "";
 char probe_detail[96];
 char probe_old_driver[96];
 bool probe_ok;
-
-__global__ void probe_kernel(int *out)
-{
-    *out = 42;
-}
 
 void probe_device()
 {
@@ -393,8 +373,9 @@ void probe_device()
         cudaGetLastError();
         return;
     }
-    probe_kernel<<<1, 1>>>(d);
-    e = cudaMemcpy(&h, d, sizeof h, cudaMemcpyDeviceToHost);
+    e = bpx__cuda_launch_probe(d);
+    if (e == cudaSuccess)
+        e = cudaMemcpy(&h, d, sizeof h, cudaMemcpyDeviceToHost);
     cudaFree(d);
     if (e != cudaSuccess || h != 42) {
         probe_reason = "this build has no kernels for the device (CMAKE_CUDA_ARCHITECTURES)";

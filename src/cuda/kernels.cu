@@ -3,6 +3,7 @@
 // No fast math anywhere (the build refuses it): comparisons decide every pair, and the only
 // arithmetic, the centres behind the Morton order, only orders the tree, never decides a pair.
 #include <cub/block/block_scan.cuh>
+#include <cub/device/device_radix_sort.cuh>
 
 #include "kernels.cuh"
 #include "tree.cuh"
@@ -245,8 +246,7 @@ __global__ void unpack_kernel(const unsigned long long *keys, int bits,
     pairs[k] = key_pair(keys[k], bits);
 }
 
-// The host's rule (src/core/validate.c): the first bad box; in it, a non-finite coordinate
-// (min before max, axis by axis) before a min > max.
+// The first bad box (update.cuh's check, the host's rule) into head.
 __global__ void convert_kernel(const bpx_box *boxes, uint32_t n, float *lx, float *ly, float *lz,
                                float *hx, float *hy, float *hz, bpx_cuda_head *head)
 {
@@ -258,14 +258,7 @@ __global__ void convert_kernel(const bpx_box *boxes, uint32_t n, float *lx, floa
         lx[i] = b.min[0], ly[i] = b.min[1], lz[i] = b.min[2];
         hx[i] = b.max[0], hy[i] = b.max[1], hz[i] = b.max[2];
     }
-    uint32_t code = 0;
-    for (int a = 2; a >= 0; a--)
-        if (!(b.min[a] <= b.max[a]))
-            code = 2u * 4u + (uint32_t)a;
-    for (int a = 2; a >= 0; a--)
-        if (!isfinite(b.min[a]) || !isfinite(b.max[a]))
-            code = 1u * 4u + (uint32_t)a;
-    if (code)
+    if (uint32_t code = bpx_update::box_check(b.min, b.max))
         atomicMin(&head->bad, ((unsigned long long)i << 32) | code);
 }
 
@@ -289,7 +282,54 @@ __global__ void update_kernel(const float *centres, const float *minima, uint32_
         atomicMin(&head->bad, ((unsigned long long)i << 32) | (4u + (uint32_t)bad));
 }
 
+__global__ void probe_kernel(int *out)
+{
+    *out = 42;
+}
+
 } // namespace
+
+cudaError_t bpx__cuda_launch_probe(int *out)
+{
+    probe_kernel<<<1, 1>>>(out);
+    return cudaGetLastError();
+}
+
+cudaError_t bpx__cuda_sort_temp_bytes(uint32_t boxes, unsigned long long keys, size_t *bytes)
+{
+    size_t a = 0, b = 0;
+    cub::DoubleBuffer<uint32_t> mk(nullptr, nullptr), ids(nullptr, nullptr);
+    cudaError_t e = cub::DeviceRadixSort::SortPairs(nullptr, a, mk, ids, (int64_t)boxes, 0,
+                                                    BPX_CUDA_MORTON_SORT_BITS);
+    cub::DoubleBuffer<unsigned long long> pk(nullptr, nullptr);
+    if (e == cudaSuccess)
+        e = cub::DeviceRadixSort::SortKeys(nullptr, b, pk, (int64_t)keys, 0, 64);
+    *bytes = a > b ? a : b;
+    return e;
+}
+
+cudaError_t bpx__cuda_sort_morton(cudaStream_t stream, void *temp, size_t bytes, bpx_cuda_tree *t)
+{
+    cub::DoubleBuffer<uint32_t> mk(t->morton[0], t->morton[1]), ids(t->ids[0], t->ids[1]);
+    cudaError_t e = cub::DeviceRadixSort::SortPairs(temp, bytes, mk, ids, (int64_t)t->n, 0,
+                                                    BPX_CUDA_MORTON_SORT_BITS, stream);
+    t->current = mk.selector;
+    if (e == cudaSuccess && ids.selector != mk.selector) // CUB keeps both in step; the tree relies on it
+        e = cudaErrorUnknown;
+    return e;
+}
+
+cudaError_t bpx__cuda_sort_pair_keys(cudaStream_t stream, void *temp, size_t bytes,
+                                     unsigned long long *const keys[2], unsigned long long items,
+                                     int end_bit, int *current)
+{
+    cub::DoubleBuffer<unsigned long long> k(keys[0], keys[1]);
+    cudaError_t e = items > 1 ? cub::DeviceRadixSort::SortKeys(temp, bytes, k, (int64_t)items, 0,
+                                                               end_bit, stream)
+                              : cudaSuccess;
+    *current = k.selector;
+    return e;
+}
 
 cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
                                    const float *const hi[3], const float *centres,

@@ -59,6 +59,22 @@ struct bpx_cuda_tree {
     uint32_t *flags;              // refit arrivals, zeroed each cycle
 };
 
+/// The probe's kernel, on the legacy stream: writes 42 to *out (a device int).
+cudaError_t bpx__cuda_launch_probe(int *out);
+
+/// Temporary storage, in bytes, for both sorts: up to `boxes` Morton codes with their ids, up to
+/// `keys` pair keys.
+cudaError_t bpx__cuda_sort_temp_bytes(uint32_t boxes, unsigned long long keys, size_t *bytes);
+/// CUB's radix sort of the t->n Morton codes with their ids, stable, by
+/// BPX_CUDA_MORTON_SORT_BITS; t->current says which of the double buffers holds the result.
+cudaError_t bpx__cuda_sort_morton(cudaStream_t stream, void *temp, size_t bytes,
+                                  bpx_cuda_tree *t);
+/// CUB's radix sort of `items` pair keys in keys[0] by their low end_bit bits (keys[1] its other
+/// buffer); *current says which buffer holds the result.
+cudaError_t bpx__cuda_sort_pair_keys(cudaStream_t stream, void *temp, size_t bytes,
+                                     unsigned long long *const keys[2], unsigned long long items,
+                                     int end_bit, int *current);
+
 /// The small comparator (n >= 2); with centres (not NULL) it makes the boxes itself from them
 /// and the minima (three planes `stride` apart), checking each (the paper's updater, in the same
 /// launch). scratch->done must be zero (it is left so).

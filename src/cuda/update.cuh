@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cfloat>
+#include <cmath>
 #include <cstdint>
 
 namespace bpx_update {
@@ -26,6 +27,21 @@ __host__ __device__ inline int box_of(const float *centres, const float *mx, con
             bad = a;
     }
     return bad;
+}
+
+/// The host's rule for a caller's box (src/core/validate.c), as the device checks it: 4 + axis
+/// for the first non-finite coordinate (min before max, axis by axis), else 8 + axis for the
+/// first min > max, else 0.
+__host__ __device__ inline uint32_t box_check(const float min[3], const float max[3])
+{
+    uint32_t code = 0;
+    for (int a = 2; a >= 0; a--)
+        if (!(min[a] <= max[a]))
+            code = 2u * 4u + (uint32_t)a;
+    for (int a = 2; a >= 0; a--)
+        if (!isfinite(min[a]) || !isfinite(max[a]))
+            code = 1u * 4u + (uint32_t)a;
+    return code;
 }
 
 } // namespace bpx_update

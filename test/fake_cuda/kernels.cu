@@ -1,0 +1,324 @@
+// The fake device's kernels: every launch and sort of src/cuda/kernels.cuh done at once on the
+// host, with the same per-item code as the real kernels (tree.cuh, small.cuh, update.cuh) in
+// loops, and std::stable_sort where CUB's radix sort runs (both stable, by the same bits).
+// SPDX-License-Identifier: MIT
+//
+// With runtime.c in place of the CUDA runtime, the cuda backend's host code (cycle.cu,
+// backend.c) runs unchanged on machines without a GPU: its buffer sizes, copies, regrowth,
+// device-resident protocol and error paths are tested in CI. Strict, to find the host code's
+// mistakes: each array a kernel touches must lie in one device allocation (else abort), the
+// scratch and flags the host must have cleared are checked, and each sort leaves its result in
+// the buffer that n's parity picks, so a caller that ignores CUB's selector reads unsorted keys.
+// What it cannot show is the kernels' own concurrency (warps, atomics, fences): that is the GPU
+// run's (bench/gpu/run.sh).
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <numeric>
+#include <vector>
+
+#include "cuda/kernels.cuh"
+#include "cuda/small.cuh"
+#include "cuda/tree.cuh"
+#include "cuda/update.cuh"
+
+#include "fake_cuda.h"
+
+namespace
+{
+
+template <class T> void need(const T *p, unsigned long long count, const char *what)
+{
+    bpx_fake_cuda_require_device(p, sizeof(T) * (size_t)count, what);
+}
+
+void need_planes(const float *const planes[3], uint32_t n, const char *what)
+{
+    for (int a = 0; a < 3; a++)
+        need(planes[a], n, what);
+}
+
+void bad_box(bpx_cuda_head *head, uint32_t i, uint32_t code)
+{
+    unsigned long long bad = ((unsigned long long)i << 32) | code;
+    head->bad = bad < head->bad ? bad : head->bad;
+}
+
+// Where a sort leaves its result: the buffer that `items`'s parity picks (CUB picks by its
+// passes), so that both selectors are met.
+int result_buffer(unsigned long long items)
+{
+    return (int)(items & 1);
+}
+
+} // namespace
+
+cudaError_t bpx__cuda_launch_probe(int *out)
+{
+    need(out, 1, "probe");
+    *out = 42;
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_sort_temp_bytes(uint32_t boxes, unsigned long long keys, size_t *bytes)
+{
+    (void)boxes, (void)keys;
+    *bytes = 256; // some, as CUB always asks for some
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_sort_morton(cudaStream_t, void *temp, size_t bytes, bpx_cuda_tree *t)
+{
+    const uint32_t n = t->n;
+    need(static_cast<unsigned char *>(temp), bytes, "sort_morton temp");
+    for (int b = 0; b < 2; b++) {
+        need(t->morton[b], n, "sort_morton codes");
+        need(t->ids[b], n, "sort_morton ids");
+    }
+    const uint32_t mask =
+        BPX_CUDA_MORTON_SORT_BITS < 32 ? (1u << BPX_CUDA_MORTON_SORT_BITS) - 1 : ~0u;
+    std::vector<uint32_t> order(n);
+    std::iota(order.begin(), order.end(), 0u);
+    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+        return (t->morton[0][a] & mask) < (t->morton[0][b] & mask);
+    });
+    std::vector<uint32_t> codes(n), ids(n);
+    for (uint32_t k = 0; k < n; k++)
+        codes[k] = t->morton[0][order[k]], ids[k] = t->ids[0][order[k]];
+    t->current = result_buffer(n);
+    std::copy(codes.begin(), codes.end(), t->morton[t->current]);
+    std::copy(ids.begin(), ids.end(), t->ids[t->current]);
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_sort_pair_keys(cudaStream_t, void *temp, size_t bytes,
+                                     unsigned long long *const keys[2], unsigned long long items,
+                                     int end_bit, int *current)
+{
+    *current = 0;
+    if (items <= 1)
+        return cudaSuccess; // CUB is not called for fewer than two
+    need(static_cast<unsigned char *>(temp), bytes, "sort_pair_keys temp");
+    need(keys[0], items, "sort_pair_keys keys");
+    need(keys[1], items, "sort_pair_keys keys");
+    const unsigned long long mask = end_bit < 64 ? (1ull << end_bit) - 1 : ~0ull;
+    std::vector<unsigned long long> sorted(keys[0], keys[0] + items);
+    std::stable_sort(sorted.begin(), sorted.end(), [&](unsigned long long a, unsigned long long b) {
+        return (a & mask) < (b & mask);
+    });
+    *current = result_buffer(items);
+    std::copy(sorted.begin(), sorted.end(), keys[*current]);
+    return cudaSuccess;
+}
+
+// The small kernel's result (kernels.cu): each row's hit words and count into the scratch, the
+// rows' counts scanned, each pair at its place, the count into the head, `done` left zero.
+cudaError_t bpx__cuda_launch_small(cudaStream_t, const float *const lo[3], const float *const hi[3],
+                                   const float *centres, const float *minima, uint32_t stride,
+                                   uint32_t n, bpx_cuda_small_scratch *scratch, bpx_cuda_head *head,
+                                   bpx_pair *pairs)
+{
+    constexpr uint32_t row_words = BPX_CUDA_SMALL_MAX / 32;
+    if (n < 2 || n > BPX_CUDA_SMALL_MAX) {
+        fprintf(stderr, "fake cuda: small comparator launched for n = %u\n", n);
+        abort();
+    }
+    need(scratch, 1, "small scratch");
+    need(head, 1, "small head");
+    if (centres) {
+        need(centres, 3ull * n, "small centres");
+        need(minima, 2ull * stride + n, "small minima");
+    } else {
+        need_planes(lo, n, "small boxes");
+        need_planes(hi, n, "small boxes");
+    }
+    if (scratch->done != 0) {
+        fprintf(stderr, "fake cuda: small comparator launched with done = %u\n", scratch->done);
+        abort();
+    }
+    bpx_small::input in = {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}, centres, minima, stride};
+    uint32_t total = 0;
+    for (uint32_t row = 0; row < n; row++) {
+        float alo[3], ahi[3];
+        int bad = bpx_small::box(in, row, alo, ahi);
+        if (bad >= 0)
+            bad_box(head, row, 4u + (uint32_t)bad);
+        uint32_t count = 0;
+        for (uint32_t k = 0; k < bpx_small::words(row, n); k++) {
+            uint32_t word = 0;
+            for (uint32_t lane = 0; lane < 32; lane++) {
+                uint32_t j = bpx_small::other(row, k, lane);
+                float blo[3], bhi[3];
+                if (j < n &&
+                    (bpx_small::box(in, j, blo, bhi), bpx_small::overlap(alo, ahi, blo, bhi)))
+                    word |= 1u << lane;
+            }
+            scratch->masks[row * row_words + k] = word;
+            count += (uint32_t)__builtin_popcount(word);
+        }
+        scratch->counts[row] = count;
+        total += count;
+    }
+    need(pairs, total, "small pairs");
+    uint32_t at = 0;
+    for (uint32_t i = 0; i < n; i++)
+        for (uint32_t k = 0; k < bpx_small::words(i, n); k++) {
+            uint32_t word = scratch->masks[i * row_words + k];
+            for (uint32_t lane = 0; lane < 32; lane++)
+                if ((word >> lane) & 1u)
+                    pairs[at + bpx_small::before(word, lane)] =
+                        bpx_pair{i, bpx_small::other(i, k, lane)};
+            at += (uint32_t)__builtin_popcount(word);
+        }
+    head->count = total;
+    scratch->done = 0;
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_launch_bounds(cudaStream_t, const bpx_cuda_tree *t)
+{
+    need_planes(t->lo, t->n, "bounds boxes");
+    need_planes(t->hi, t->n, "bounds boxes");
+    need(t->scene, 6, "bounds scene");
+    for (uint32_t i = 0; i < t->n; i++) {
+        if (!bpx_tree::live(t->lo[0][i], t->hi[0][i]))
+            continue;
+        const float blo[3] = {t->lo[0][i], t->lo[1][i], t->lo[2][i]};
+        const float bhi[3] = {t->hi[0][i], t->hi[1][i], t->hi[2][i]};
+        float c[3];
+        bpx_tree::centre(blo, bhi, c);
+        for (int a = 0; a < 3; a++) {
+            uint32_t k = bpx_tree::order_key(c[a]);
+            t->scene[a] = std::min(t->scene[a], k);
+            t->scene[3 + a] = std::max(t->scene[3 + a], k);
+        }
+    }
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_launch_morton(cudaStream_t, const bpx_cuda_tree *t)
+{
+    need(t->morton[0], t->n, "morton codes");
+    need(t->ids[0], t->n, "morton ids");
+    need(t->scene, 6, "morton scene");
+    for (uint32_t i = 0; i < t->n; i++) {
+        t->ids[0][i] = i;
+        if (!bpx_tree::live(t->lo[0][i], t->hi[0][i])) {
+            t->morton[0][i] = ~0u;
+            continue;
+        }
+        const float blo[3] = {t->lo[0][i], t->lo[1][i], t->lo[2][i]};
+        const float bhi[3] = {t->hi[0][i], t->hi[1][i], t->hi[2][i]};
+        float c[3];
+        bpx_tree::centre(blo, bhi, c);
+        t->morton[0][i] = bpx_tree::morton(c, t->scene);
+    }
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_launch_build(cudaStream_t, const bpx_cuda_tree *t)
+{
+    const uint32_t n = t->n;
+    const uint32_t *ids = t->ids[t->current], *codes = t->morton[t->current];
+    need(ids, n, "build ids");
+    need(codes, n, "build codes");
+    need(t->leaf_lo, n, "build leaves");
+    need(t->leaf_hi, n, "build leaves");
+    need(t->nodes, n - 1, "build nodes");
+    need(t->leaf_parent, n, "build parents");
+    need(t->node_parent, n - 1, "build parents");
+    need(t->flags, n - 1, "build flags");
+    for (uint32_t k = 0; k + 1 < n; k++)
+        if (t->flags[k] != 0) {
+            fprintf(stderr, "fake cuda: the refit's arrival flags were not cleared\n");
+            abort();
+        }
+    for (uint32_t k = 0; k < n; k++) {
+        uint32_t i = ids[k];
+        t->leaf_lo[k] = make_float4(t->lo[0][i], t->lo[1][i], t->lo[2][i], bpx_tree::float_of(i));
+        t->leaf_hi[k] = make_float4(t->hi[0][i], t->hi[1][i], t->hi[2][i], 0.0f);
+    }
+    for (int k = 0; k < (int)n - 1; k++)
+        bpx_tree::build_node(codes, (int)n, k, t->leaf_parent, t->node_parent);
+    uint32_t *flags = t->flags;
+    for (uint32_t k = 0; k < n; k++)
+        bpx_tree::refit_leaf(k, t->leaf_lo, t->leaf_hi, t->leaf_parent, t->node_parent, t->nodes,
+                             [flags](uint32_t p) { return flags[p]++; });
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_launch_traverse(cudaStream_t, const bpx_cuda_tree *t, int bits,
+                                      unsigned long long *keys, unsigned long long capacity,
+                                      bpx_cuda_head *head)
+{
+    need(head, 1, "traverse head");
+    for (uint32_t k = 0; k + 1 < t->n; k++)
+        bpx_tree::walk(k, t->nodes, t->leaf_lo, t->leaf_hi, t->leaf_parent, t->node_parent,
+                       [&](uint32_t i, uint32_t j) {
+                           unsigned long long at = head->count++;
+                           if (at < capacity) {
+                               need(keys + at, 1, "traverse keys");
+                               keys[at] = bpx_tree::pair_key(i, j, bits);
+                           }
+                       });
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_launch_unpack(cudaStream_t, const unsigned long long *keys, int bits,
+                                    unsigned long long capacity, const bpx_cuda_head *head,
+                                    bpx_pair *pairs)
+{
+    if (capacity == 0)
+        return cudaSuccess;
+    need(head, 1, "unpack head");
+    unsigned long long count = std::min(head->count, capacity);
+    need(keys, count, "unpack keys");
+    need(pairs, count, "unpack pairs");
+    for (unsigned long long k = 0; k < count; k++)
+        pairs[k] = bpx_tree::key_pair(keys[k], bits);
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_launch_convert(cudaStream_t, const bpx_box *boxes, uint32_t n,
+                                     float *const lo[3], float *const hi[3], bpx_cuda_head *head)
+{
+    need(boxes, n, "convert boxes");
+    need(head, 1, "convert head");
+    if (lo[0]) {
+        need_planes(lo, n, "convert planes");
+        need_planes(hi, n, "convert planes");
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        const bpx_box &b = boxes[i];
+        if (lo[0])
+            for (int a = 0; a < 3; a++)
+                lo[a][i] = b.min[a], hi[a][i] = b.max[a];
+        if (uint32_t code = bpx_update::box_check(b.min, b.max))
+            bad_box(head, i, code);
+    }
+    return cudaSuccess;
+}
+
+cudaError_t bpx__cuda_launch_update(cudaStream_t, const float *centres, const float *minima,
+                                    uint32_t stride, uint32_t n, float *const lo[3],
+                                    float *const hi[3], bpx_cuda_head *head)
+{
+    need(centres, 3ull * n, "update centres");
+    need(minima, 2ull * stride + n, "update minima");
+    need(head, 1, "update head");
+    if (lo[0]) {
+        need_planes(lo, n, "update planes");
+        need_planes(hi, n, "update planes");
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        float blo[3], bhi[3];
+        int bad = bpx_update::box_of(centres, minima, minima + stride, minima + 2 * (size_t)stride,
+                                     i, blo, bhi);
+        if (lo[0])
+            for (int a = 0; a < 3; a++)
+                lo[a][i] = blo[a], hi[a][i] = bhi[a];
+        if (bad >= 0)
+            bad_box(head, i, 4u + (uint32_t)bad);
+    }
+    return cudaSuccess;
+}
