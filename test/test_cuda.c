@@ -332,7 +332,8 @@ static void test_device_errors(uint32_t n)
     size_t first = 0;
     bpx_world_pairs(cuda, &first);
     // The good buffer turns bad between cycles.
-    CHECK(cudaMemcpy(good, bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess);
+    CHECK(cudaMemcpy(good, bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess &&
+          cudaDeviceSynchronize() == cudaSuccess); // landed before the world's stream reads it
     CHECK_STATUS(bpx_world_collide(cuda), BPX_ERR_NOT_FINITE);
     CHECK_MSG(bpx_world_error(cuda)->index == nan_at, "n=%u: named box %u, want %u (%s)", n,
               bpx_world_error(cuda)->index, nan_at, bpx_world_error(cuda)->message);
@@ -397,7 +398,8 @@ static void test_device_bad_count(void)
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     size_t good = 0, count = 0, capacity = 0;
     CHECK_STATUS(bpx_cuda_finish(cuda, &good), BPX_OK);
-    CHECK(cudaMemcpy(d_boxes, d_bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess);
+    CHECK(cudaMemcpy(d_boxes, d_bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess &&
+          cudaDeviceSynchronize() == cudaSuccess); // landed before the world's stream reads it
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_ERR_NOT_FINITE);
     CHECK(bpx_world_error(cuda)->index == 100);

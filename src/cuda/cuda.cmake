@@ -22,13 +22,15 @@ if(BPX_CUDA)
     enable_language(CUDA)
     # Exactness: fast math flushes subnormal coordinates to zero in the comparisons that decide
     # the pairs; refused. No contraction into FMA (as -ffp-contract=off for C): the centres
-    # behind the Morton codes round as on the host, so the host twin builds the device's tree.
+    # behind the Morton codes round as on the host, so the host twin builds the device's tree
+    # (and nvcc's host compiler contracts nothing either: the twins are host code).
     string(TOUPPER "${CMAKE_BUILD_TYPE}" bpx_cuda_config)
     if("${CMAKE_CUDA_FLAGS} ${CMAKE_CUDA_FLAGS_${bpx_cuda_config}}" MATCHES
        "use_fast_math|ftz=true")
         message(FATAL_ERROR "the cuda backend is exact only without fast math / -ftz=true")
     endif()
-    add_compile_options("$<$<COMPILE_LANGUAGE:CUDA>:--fmad=false>")
+    add_compile_options("$<$<COMPILE_LANGUAGE:CUDA>:--fmad=false>"
+                        "$<$<COMPILE_LANGUAGE:CUDA>:-Xcompiler=-ffp-contract=off>")
     set(CMAKE_CUDA_STANDARD 17)
     set(CMAKE_CUDA_STANDARD_REQUIRED ON)
     find_package(CUDAToolkit REQUIRED)

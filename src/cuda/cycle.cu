@@ -221,14 +221,18 @@ bpx_status reserve_host_pairs(bpx_cuda *cu, unsigned long long pairs)
 }
 
 // The small comparator's scratch, once; its block counter starts at zero (each cycle's last block
-// leaves it so).
+// leaves it so). The zero has landed before any stream's kernel reads it: a cudaMemset on the
+// legacy stream may still be pending when it returns, and the world's non-blocking stream (or the
+// caller's) does not wait for it.
 bpx_status reserve_small(bpx_cuda *cu)
 {
     if (cu->small)
         return BPX_OK;
     bpx_cuda_small_scratch *scratch = nullptr;
     CU(cudaMalloc(&scratch, sizeof *scratch));
-    cudaError_t e = cudaMemset(&scratch->done, 0, sizeof scratch->done);
+    cudaError_t e = cudaMemsetAsync(&scratch->done, 0, sizeof scratch->done, cu->stream);
+    if (e == cudaSuccess)
+        e = cudaStreamSynchronize(cu->stream);
     if (e != cudaSuccess) {
         cudaFree(scratch);
         return fail(e, "cudaMemset (small comparator)");
@@ -463,6 +467,8 @@ void bpx__cuda_close(bpx_cuda *cu)
 {
     if (!cu)
         return;
+    if (cu->pending_head) // a device-resident cycle, perhaps on the caller's stream
+        cudaEventSynchronize(cu->events[event_out]);
     if (cu->stream)
         cudaStreamSynchronize(cu->stream);
     cudaFree(cu->boxes);
@@ -538,8 +544,8 @@ static unsigned long long small_pairs(uint32_t n)
     return (unsigned long long)n * (n ? n - 1 : 0) / 2;
 }
 
-bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *const hi[3],
-                          uint32_t n, uint64_t *count)
+static bpx_status find(bpx_cuda *cu, const float *const lo[3], const float *const hi[3],
+                       uint32_t n, uint64_t *count)
 {
     *count = 0;
     cu->timing = bpx_cuda_timing{};
@@ -622,6 +628,18 @@ bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *c
     cu->timing.bytes_out = pair_bytes(guess);
     cu->timing.tree = cu->tree_path;
     return BPX_OK;
+}
+
+// A host cycle. One that fails part-way ends what it had enqueued before it returns: no copy
+// from the pinned staging and no kernel over the buffers still runs when the next call rewrites
+// or frees them.
+bpx_status bpx__cuda_find(bpx_cuda *cu, const float *const lo[3], const float *const hi[3],
+                          uint32_t n, uint64_t *count)
+{
+    bpx_status status = find(cu, lo, hi, n, count);
+    if (status != BPX_OK && cudaStreamSynchronize(cu->stream) != cudaSuccess)
+        cudaGetLastError();
+    return status;
 }
 
 bpx_status bpx__cuda_read_pairs(bpx_cuda *cu, bpx_pair *out, uint64_t count)

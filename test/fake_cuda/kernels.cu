@@ -7,13 +7,17 @@
 // backend.c) runs unchanged on machines without a GPU: its buffer sizes, copies, regrowth,
 // device-resident protocol and error paths are tested in CI. Strict, to find the host code's
 // mistakes: each array a kernel touches must lie in one device allocation (else abort), the
-// scratch and flags the host must have cleared are checked, and each sort leaves its result in
-// the buffer that n's parity picks, so a caller that ignores CUB's selector reads unsorted keys.
+// scratch and flags the host must have cleared are checked, each sort leaves its result in the
+// other buffer than the last one did and a pattern in its other buffer (a caller that ignored
+// CUB's selector would read rubbish), each sort refuses temporary storage sized for fewer items,
+// and a launch over no items is refused as the GPU refuses an empty grid.
 // What it cannot show is the kernels' own concurrency (warps, atomics, fences): that is the GPU
 // run's (bench/gpu/run.sh).
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <numeric>
 #include <vector>
 
@@ -30,6 +34,17 @@ namespace
 template <class T> void need(const T *p, unsigned long long count, const char *what)
 {
     bpx_fake_cuda_require_device(p, sizeof(T) * (size_t)count, what);
+    if (reinterpret_cast<uintptr_t>(p) % alignof(T) != 0) { // a misaligned address on the GPU
+        fprintf(stderr, "fake cuda: %s at %p is not aligned to %zu bytes\n", what,
+                static_cast<const void *>(p), alignof(T));
+        abort();
+    }
+}
+
+// A launch whose grid would be empty: the GPU refuses it (the host must not make it).
+cudaError_t empty_grid(uint32_t n)
+{
+    return n == 0 ? cudaErrorInvalidConfiguration : cudaSuccess;
 }
 
 void need_planes(const float *const planes[3], uint32_t n, const char *what)
@@ -44,11 +59,26 @@ void bad_box(bpx_cuda_head *head, uint32_t i, uint32_t code)
     head->bad = bad < head->bad ? bad : head->bad;
 }
 
-// Where a sort leaves its result: the buffer that `items`'s parity picks (CUB picks by its
-// passes), so that both selectors are met.
-int result_buffer(unsigned long long items)
+// Where a sort leaves its result: each sort the other buffer than the last (CUB picks by its
+// passes), so that both selectors are met whatever the sizes.
+int result_buffer()
 {
-    return (int)(items & 1);
+    static int next; // the fake runs on the calling thread: a test's worlds take turns
+    next ^= 1;
+    return next;
+}
+
+// The temporary storage a sort of `items` keys of `key_bytes` asks for: some, growing with the
+// items as CUB's does, so that storage sized for fewer items is refused as CUB refuses it.
+size_t temp_need(unsigned long long items, size_t key_bytes)
+{
+    return 256 + 2 * key_bytes * (size_t)items;
+}
+
+// What CUB leaves in a sort's other buffer: its passes' leftovers, here a pattern.
+template <class T> void scramble(T *buffer, unsigned long long count)
+{
+    memset(buffer, 0xa5, sizeof(T) * (size_t)count);
 }
 
 } // namespace
@@ -62,15 +92,18 @@ cudaError_t bpx__cuda_launch_probe(int *out)
 
 cudaError_t bpx__cuda_sort_temp_bytes(uint32_t boxes, unsigned long long keys, size_t *bytes)
 {
-    (void)boxes, (void)keys;
-    *bytes = 256; // some, as CUB always asks for some
+    *bytes = std::max(temp_need(boxes, 8), temp_need(keys, 8));
     return cudaSuccess;
 }
 
 cudaError_t bpx__cuda_sort_morton(cudaStream_t, void *temp, size_t bytes, bpx_cuda_tree *t)
 {
     const uint32_t n = t->n;
-    need(static_cast<unsigned char *>(temp), bytes, "sort_morton temp");
+    if (n == 0)
+        return cudaSuccess; // CUB returns at once, the selector unmoved
+    if (bytes < temp_need(n, 8))
+        return cudaErrorInvalidValue;
+    need(static_cast<unsigned char *>(temp), temp_need(n, 8), "sort_morton temp");
     for (int b = 0; b < 2; b++) {
         need(t->morton[b], n, "sort_morton codes");
         need(t->ids[b], n, "sort_morton ids");
@@ -85,9 +118,11 @@ cudaError_t bpx__cuda_sort_morton(cudaStream_t, void *temp, size_t bytes, bpx_cu
     std::vector<uint32_t> codes(n), ids(n);
     for (uint32_t k = 0; k < n; k++)
         codes[k] = t->morton[0][order[k]], ids[k] = t->ids[0][order[k]];
-    t->current = result_buffer(n);
+    t->current = result_buffer();
     std::copy(codes.begin(), codes.end(), t->morton[t->current]);
     std::copy(ids.begin(), ids.end(), t->ids[t->current]);
+    scramble(t->morton[!t->current], n);
+    scramble(t->ids[!t->current], n);
     return cudaSuccess;
 }
 
@@ -98,7 +133,9 @@ cudaError_t bpx__cuda_sort_pair_keys(cudaStream_t, void *temp, size_t bytes,
     *current = 0;
     if (items <= 1)
         return cudaSuccess; // CUB is not called for fewer than two
-    need(static_cast<unsigned char *>(temp), bytes, "sort_pair_keys temp");
+    if (bytes < temp_need(items, 8))
+        return cudaErrorInvalidValue;
+    need(static_cast<unsigned char *>(temp), temp_need(items, 8), "sort_pair_keys temp");
     need(keys[0], items, "sort_pair_keys keys");
     need(keys[1], items, "sort_pair_keys keys");
     const unsigned long long mask = end_bit < 64 ? (1ull << end_bit) - 1 : ~0ull;
@@ -106,8 +143,9 @@ cudaError_t bpx__cuda_sort_pair_keys(cudaStream_t, void *temp, size_t bytes,
     std::stable_sort(sorted.begin(), sorted.end(), [&](unsigned long long a, unsigned long long b) {
         return (a & mask) < (b & mask);
     });
-    *current = result_buffer(items);
+    *current = result_buffer();
     std::copy(sorted.begin(), sorted.end(), keys[*current]);
+    scramble(keys[!*current], items);
     return cudaSuccess;
 }
 
@@ -177,6 +215,8 @@ cudaError_t bpx__cuda_launch_small(cudaStream_t, const float *const lo[3], const
 
 cudaError_t bpx__cuda_launch_bounds(cudaStream_t, const bpx_cuda_tree *t)
 {
+    if (cudaError_t e = empty_grid(t->n))
+        return e;
     need_planes(t->lo, t->n, "bounds boxes");
     need_planes(t->hi, t->n, "bounds boxes");
     need(t->scene, 6, "bounds scene");
@@ -198,6 +238,10 @@ cudaError_t bpx__cuda_launch_bounds(cudaStream_t, const bpx_cuda_tree *t)
 
 cudaError_t bpx__cuda_launch_morton(cudaStream_t, const bpx_cuda_tree *t)
 {
+    if (cudaError_t e = empty_grid(t->n))
+        return e;
+    need_planes(t->lo, t->n, "morton boxes");
+    need_planes(t->hi, t->n, "morton boxes");
     need(t->morton[0], t->n, "morton codes");
     need(t->ids[0], t->n, "morton ids");
     need(t->scene, 6, "morton scene");
@@ -219,7 +263,11 @@ cudaError_t bpx__cuda_launch_morton(cudaStream_t, const bpx_cuda_tree *t)
 cudaError_t bpx__cuda_launch_build(cudaStream_t, const bpx_cuda_tree *t)
 {
     const uint32_t n = t->n;
+    if (cudaError_t e = empty_grid(n))
+        return e;
     const uint32_t *ids = t->ids[t->current], *codes = t->morton[t->current];
+    need_planes(t->lo, n, "build boxes");
+    need_planes(t->hi, n, "build boxes");
     need(ids, n, "build ids");
     need(codes, n, "build codes");
     need(t->leaf_lo, n, "build leaves");
@@ -251,7 +299,14 @@ cudaError_t bpx__cuda_launch_traverse(cudaStream_t, const bpx_cuda_tree *t, int 
                                       unsigned long long *keys, unsigned long long capacity,
                                       bpx_cuda_head *head)
 {
+    if (cudaError_t e = empty_grid(t->n))
+        return e;
     need(head, 1, "traverse head");
+    need(t->nodes, t->n - 1, "traverse nodes");
+    need(t->leaf_lo, t->n, "traverse leaves");
+    need(t->leaf_hi, t->n, "traverse leaves");
+    need(t->leaf_parent, t->n, "traverse parents");
+    need(t->node_parent, t->n - 1, "traverse parents");
     for (uint32_t k = 0; k + 1 < t->n; k++)
         bpx_tree::walk(k, t->nodes, t->leaf_lo, t->leaf_hi, t->leaf_parent, t->node_parent,
                        [&](uint32_t i, uint32_t j) {
@@ -282,6 +337,8 @@ cudaError_t bpx__cuda_launch_unpack(cudaStream_t, const unsigned long long *keys
 cudaError_t bpx__cuda_launch_convert(cudaStream_t, const bpx_box *boxes, uint32_t n,
                                      float *const lo[3], float *const hi[3], bpx_cuda_head *head)
 {
+    if (cudaError_t e = empty_grid(n))
+        return e;
     need(boxes, n, "convert boxes");
     need(head, 1, "convert head");
     if (lo[0]) {
@@ -303,6 +360,8 @@ cudaError_t bpx__cuda_launch_update(cudaStream_t, const float *centres, const fl
                                     uint32_t stride, uint32_t n, float *const lo[3],
                                     float *const hi[3], bpx_cuda_head *head)
 {
+    if (cudaError_t e = empty_grid(n))
+        return e;
     need(centres, 3ull * n, "update centres");
     need(minima, 2ull * stride + n, "update minima");
     need(head, 1, "update head");
