@@ -31,9 +31,11 @@
 namespace
 {
 
-template <class T> void need(const T *p, unsigned long long count, const char *what)
+// An access by a kernel on `stream`: in device memory, aligned, and in stream order (runtime.c).
+template <class T>
+void need(cudaStream_t stream, const T *p, unsigned long long count, bool write, const char *what)
 {
-    bpx_fake_cuda_require_device(p, sizeof(T) * (size_t)count, what);
+    bpx_fake_cuda_access(stream, p, sizeof(T) * (size_t)count, write, what);
     if (reinterpret_cast<uintptr_t>(p) % alignof(T) != 0) { // a misaligned address on the GPU
         fprintf(stderr, "fake cuda: %s at %p is not aligned to %zu bytes\n", what,
                 static_cast<const void *>(p), alignof(T));
@@ -47,10 +49,28 @@ cudaError_t empty_grid(uint32_t n)
     return n == 0 ? cudaErrorInvalidConfiguration : cudaSuccess;
 }
 
-void need_planes(const float *const planes[3], uint32_t n, const char *what)
+template <class T>
+void reads(cudaStream_t stream, const T *p, unsigned long long count, const char *what)
+{
+    need(stream, p, count, false, what);
+}
+
+template <class T>
+void writes(cudaStream_t stream, const T *p, unsigned long long count, const char *what)
+{
+    need(stream, p, count, true, what); // a read-modify-write (an atomic) is a write
+}
+
+void reads_planes(cudaStream_t stream, const float *const planes[3], uint32_t n, const char *what)
 {
     for (int a = 0; a < 3; a++)
-        need(planes[a], n, what);
+        reads(stream, planes[a], n, what);
+}
+
+void writes_planes(cudaStream_t stream, const float *const planes[3], uint32_t n, const char *what)
+{
+    for (int a = 0; a < 3; a++)
+        writes(stream, planes[a], n, what);
 }
 
 void bad_box(bpx_cuda_head *head, uint32_t i, uint32_t code)
@@ -85,7 +105,7 @@ template <class T> void scramble(T *buffer, unsigned long long count)
 
 cudaError_t bpx__cuda_launch_probe(int *out)
 {
-    need(out, 1, "probe");
+    writes(nullptr, out, 1, "probe");
     *out = 42;
     return cudaSuccess;
 }
@@ -96,17 +116,17 @@ cudaError_t bpx__cuda_sort_temp_bytes(uint32_t boxes, unsigned long long keys, s
     return cudaSuccess;
 }
 
-cudaError_t bpx__cuda_sort_morton(cudaStream_t, void *temp, size_t bytes, bpx_cuda_tree *t)
+cudaError_t bpx__cuda_sort_morton(cudaStream_t stream, void *temp, size_t bytes, bpx_cuda_tree *t)
 {
     const uint32_t n = t->n;
     if (n == 0)
         return cudaSuccess; // CUB returns at once, the selector unmoved
     if (bytes < temp_need(n, 8))
         return cudaErrorInvalidValue;
-    need(static_cast<unsigned char *>(temp), temp_need(n, 8), "sort_morton temp");
+    writes(stream, static_cast<unsigned char *>(temp), temp_need(n, 8), "sort_morton temp");
     for (int b = 0; b < 2; b++) {
-        need(t->morton[b], n, "sort_morton codes");
-        need(t->ids[b], n, "sort_morton ids");
+        writes(stream, t->morton[b], n, "sort_morton codes");
+        writes(stream, t->ids[b], n, "sort_morton ids");
     }
     const uint32_t mask =
         BPX_CUDA_MORTON_SORT_BITS < 32 ? (1u << BPX_CUDA_MORTON_SORT_BITS) - 1 : ~0u;
@@ -126,7 +146,7 @@ cudaError_t bpx__cuda_sort_morton(cudaStream_t, void *temp, size_t bytes, bpx_cu
     return cudaSuccess;
 }
 
-cudaError_t bpx__cuda_sort_pair_keys(cudaStream_t, void *temp, size_t bytes,
+cudaError_t bpx__cuda_sort_pair_keys(cudaStream_t stream, void *temp, size_t bytes,
                                      unsigned long long *const keys[2], unsigned long long items,
                                      int end_bit, int *current)
 {
@@ -135,9 +155,9 @@ cudaError_t bpx__cuda_sort_pair_keys(cudaStream_t, void *temp, size_t bytes,
         return cudaSuccess; // CUB is not called for fewer than two
     if (bytes < temp_need(items, 8))
         return cudaErrorInvalidValue;
-    need(static_cast<unsigned char *>(temp), temp_need(items, 8), "sort_pair_keys temp");
-    need(keys[0], items, "sort_pair_keys keys");
-    need(keys[1], items, "sort_pair_keys keys");
+    writes(stream, static_cast<unsigned char *>(temp), temp_need(items, 8), "sort_pair_keys temp");
+    writes(stream, keys[0], items, "sort_pair_keys keys");
+    writes(stream, keys[1], items, "sort_pair_keys keys");
     const unsigned long long mask = end_bit < 64 ? (1ull << end_bit) - 1 : ~0ull;
     std::vector<unsigned long long> sorted(keys[0], keys[0] + items);
     std::stable_sort(sorted.begin(), sorted.end(), [&](unsigned long long a, unsigned long long b) {
@@ -151,9 +171,10 @@ cudaError_t bpx__cuda_sort_pair_keys(cudaStream_t, void *temp, size_t bytes,
 
 // The small kernel's result (kernels.cu): each row's hit words and count into the scratch, the
 // rows' counts scanned, each pair at its place, the count into the head, `done` left zero.
-cudaError_t bpx__cuda_launch_small(cudaStream_t, const float *const lo[3], const float *const hi[3],
-                                   const float *centres, const float *minima, uint32_t stride,
-                                   uint32_t n, bpx_cuda_small_scratch *scratch, bpx_cuda_head *head,
+cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3],
+                                   const float *const hi[3], const float *centres,
+                                   const float *minima, uint32_t stride, uint32_t n,
+                                   bpx_cuda_small_scratch *scratch, bpx_cuda_head *head,
                                    bpx_pair *pairs)
 {
     constexpr uint32_t row_words = BPX_CUDA_SMALL_MAX / 32;
@@ -161,14 +182,14 @@ cudaError_t bpx__cuda_launch_small(cudaStream_t, const float *const lo[3], const
         fprintf(stderr, "fake cuda: small comparator launched for n = %u\n", n);
         abort();
     }
-    need(scratch, 1, "small scratch");
-    need(head, 1, "small head");
+    writes(stream, scratch, 1, "small scratch");
+    writes(stream, head, 1, "small head");
     if (centres) {
-        need(centres, 3ull * n, "small centres");
-        need(minima, 2ull * stride + n, "small minima");
+        reads(stream, centres, 3ull * n, "small centres");
+        reads(stream, minima, 2ull * stride + n, "small minima");
     } else {
-        need_planes(lo, n, "small boxes");
-        need_planes(hi, n, "small boxes");
+        reads_planes(stream, lo, n, "small boxes");
+        reads_planes(stream, hi, n, "small boxes");
     }
     if (scratch->done != 0) {
         fprintf(stderr, "fake cuda: small comparator launched with done = %u\n", scratch->done);
@@ -197,7 +218,7 @@ cudaError_t bpx__cuda_launch_small(cudaStream_t, const float *const lo[3], const
         scratch->counts[row] = count;
         total += count;
     }
-    need(pairs, total, "small pairs");
+    writes(stream, pairs, total, "small pairs");
     uint32_t at = 0;
     for (uint32_t i = 0; i < n; i++)
         for (uint32_t k = 0; k < bpx_small::words(i, n); k++) {
@@ -213,13 +234,13 @@ cudaError_t bpx__cuda_launch_small(cudaStream_t, const float *const lo[3], const
     return cudaSuccess;
 }
 
-cudaError_t bpx__cuda_launch_bounds(cudaStream_t, const bpx_cuda_tree *t)
+cudaError_t bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t)
 {
     if (cudaError_t e = empty_grid(t->n))
         return e;
-    need_planes(t->lo, t->n, "bounds boxes");
-    need_planes(t->hi, t->n, "bounds boxes");
-    need(t->scene, 6, "bounds scene");
+    reads_planes(stream, t->lo, t->n, "bounds boxes");
+    reads_planes(stream, t->hi, t->n, "bounds boxes");
+    writes(stream, t->scene, 6, "bounds scene");
     for (uint32_t i = 0; i < t->n; i++) {
         if (!bpx_tree::live(t->lo[0][i], t->hi[0][i]))
             continue;
@@ -236,15 +257,15 @@ cudaError_t bpx__cuda_launch_bounds(cudaStream_t, const bpx_cuda_tree *t)
     return cudaSuccess;
 }
 
-cudaError_t bpx__cuda_launch_morton(cudaStream_t, const bpx_cuda_tree *t)
+cudaError_t bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t)
 {
     if (cudaError_t e = empty_grid(t->n))
         return e;
-    need_planes(t->lo, t->n, "morton boxes");
-    need_planes(t->hi, t->n, "morton boxes");
-    need(t->morton[0], t->n, "morton codes");
-    need(t->ids[0], t->n, "morton ids");
-    need(t->scene, 6, "morton scene");
+    reads_planes(stream, t->lo, t->n, "morton boxes");
+    reads_planes(stream, t->hi, t->n, "morton boxes");
+    writes(stream, t->morton[0], t->n, "morton codes");
+    writes(stream, t->ids[0], t->n, "morton ids");
+    reads(stream, t->scene, 6, "morton scene");
     for (uint32_t i = 0; i < t->n; i++) {
         t->ids[0][i] = i;
         if (!bpx_tree::live(t->lo[0][i], t->hi[0][i])) {
@@ -260,22 +281,22 @@ cudaError_t bpx__cuda_launch_morton(cudaStream_t, const bpx_cuda_tree *t)
     return cudaSuccess;
 }
 
-cudaError_t bpx__cuda_launch_build(cudaStream_t, const bpx_cuda_tree *t)
+cudaError_t bpx__cuda_launch_build(cudaStream_t stream, const bpx_cuda_tree *t)
 {
     const uint32_t n = t->n;
     if (cudaError_t e = empty_grid(n))
         return e;
     const uint32_t *ids = t->ids[t->current], *codes = t->morton[t->current];
-    need_planes(t->lo, n, "build boxes");
-    need_planes(t->hi, n, "build boxes");
-    need(ids, n, "build ids");
-    need(codes, n, "build codes");
-    need(t->leaf_lo, n, "build leaves");
-    need(t->leaf_hi, n, "build leaves");
-    need(t->nodes, n - 1, "build nodes");
-    need(t->leaf_parent, n, "build parents");
-    need(t->node_parent, n - 1, "build parents");
-    need(t->flags, n - 1, "build flags");
+    reads_planes(stream, t->lo, n, "build boxes");
+    reads_planes(stream, t->hi, n, "build boxes");
+    reads(stream, ids, n, "build ids");
+    reads(stream, codes, n, "build codes");
+    writes(stream, t->leaf_lo, n, "build leaves");
+    writes(stream, t->leaf_hi, n, "build leaves");
+    writes(stream, t->nodes, n - 1, "build nodes");
+    writes(stream, t->leaf_parent, n, "build parents");
+    writes(stream, t->node_parent, n - 1, "build parents");
+    writes(stream, t->flags, n - 1, "build flags");
     for (uint32_t k = 0; k + 1 < n; k++)
         if (t->flags[k] != 0) {
             fprintf(stderr, "fake cuda: the refit's arrival flags were not cleared\n");
@@ -295,55 +316,58 @@ cudaError_t bpx__cuda_launch_build(cudaStream_t, const bpx_cuda_tree *t)
     return cudaSuccess;
 }
 
-cudaError_t bpx__cuda_launch_traverse(cudaStream_t, const bpx_cuda_tree *t, int bits,
+cudaError_t bpx__cuda_launch_traverse(cudaStream_t stream, const bpx_cuda_tree *t, int bits,
                                       unsigned long long *keys, unsigned long long capacity,
                                       bpx_cuda_head *head)
 {
     if (cudaError_t e = empty_grid(t->n))
         return e;
-    need(head, 1, "traverse head");
-    need(t->nodes, t->n - 1, "traverse nodes");
-    need(t->leaf_lo, t->n, "traverse leaves");
-    need(t->leaf_hi, t->n, "traverse leaves");
-    need(t->leaf_parent, t->n, "traverse parents");
-    need(t->node_parent, t->n - 1, "traverse parents");
+    writes(stream, head, 1, "traverse head");
+    reads(stream, t->nodes, t->n - 1, "traverse nodes");
+    reads(stream, t->leaf_lo, t->n, "traverse leaves");
+    reads(stream, t->leaf_hi, t->n, "traverse leaves");
+    reads(stream, t->leaf_parent, t->n, "traverse parents");
+    reads(stream, t->node_parent, t->n - 1, "traverse parents");
+    std::vector<unsigned long long> found;
     for (uint32_t k = 0; k + 1 < t->n; k++)
-        bpx_tree::walk(k, t->nodes, t->leaf_lo, t->leaf_hi, t->leaf_parent, t->node_parent,
-                       [&](uint32_t i, uint32_t j) {
-                           unsigned long long at = head->count++;
-                           if (at < capacity) {
-                               need(keys + at, 1, "traverse keys");
-                               keys[at] = bpx_tree::pair_key(i, j, bits);
-                           }
-                       });
+        bpx_tree::walk(
+            k, t->nodes, t->leaf_lo, t->leaf_hi, t->leaf_parent, t->node_parent,
+            [&](uint32_t i, uint32_t j) { found.push_back(bpx_tree::pair_key(i, j, bits)); });
+    // Each key at the place the counter gives it; those at or past capacity are only counted.
+    unsigned long long from = head->count, to = std::min(from + found.size(), capacity);
+    if (to > from) {
+        writes(stream, keys + from, to - from, "traverse keys");
+        std::copy(found.begin(), found.begin() + (to - from), keys + from);
+    }
+    head->count = from + found.size();
     return cudaSuccess;
 }
 
-cudaError_t bpx__cuda_launch_unpack(cudaStream_t, const unsigned long long *keys, int bits,
+cudaError_t bpx__cuda_launch_unpack(cudaStream_t stream, const unsigned long long *keys, int bits,
                                     unsigned long long capacity, const bpx_cuda_head *head,
                                     bpx_pair *pairs)
 {
     if (capacity == 0)
         return cudaSuccess;
-    need(head, 1, "unpack head");
+    reads(stream, head, 1, "unpack head");
     unsigned long long count = std::min(head->count, capacity);
-    need(keys, count, "unpack keys");
-    need(pairs, count, "unpack pairs");
+    reads(stream, keys, count, "unpack keys");
+    writes(stream, pairs, count, "unpack pairs");
     for (unsigned long long k = 0; k < count; k++)
         pairs[k] = bpx_tree::key_pair(keys[k], bits);
     return cudaSuccess;
 }
 
-cudaError_t bpx__cuda_launch_convert(cudaStream_t, const bpx_box *boxes, uint32_t n,
+cudaError_t bpx__cuda_launch_convert(cudaStream_t stream, const bpx_box *boxes, uint32_t n,
                                      float *const lo[3], float *const hi[3], bpx_cuda_head *head)
 {
     if (cudaError_t e = empty_grid(n))
         return e;
-    need(boxes, n, "convert boxes");
-    need(head, 1, "convert head");
+    reads(stream, boxes, n, "convert boxes");
+    writes(stream, head, 1, "convert head");
     if (lo[0]) {
-        need_planes(lo, n, "convert planes");
-        need_planes(hi, n, "convert planes");
+        writes_planes(stream, lo, n, "convert planes");
+        writes_planes(stream, hi, n, "convert planes");
     }
     for (uint32_t i = 0; i < n; i++) {
         const bpx_box &b = boxes[i];
@@ -356,18 +380,18 @@ cudaError_t bpx__cuda_launch_convert(cudaStream_t, const bpx_box *boxes, uint32_
     return cudaSuccess;
 }
 
-cudaError_t bpx__cuda_launch_update(cudaStream_t, const float *centres, const float *minima,
+cudaError_t bpx__cuda_launch_update(cudaStream_t stream, const float *centres, const float *minima,
                                     uint32_t stride, uint32_t n, float *const lo[3],
                                     float *const hi[3], bpx_cuda_head *head)
 {
     if (cudaError_t e = empty_grid(n))
         return e;
-    need(centres, 3ull * n, "update centres");
-    need(minima, 2ull * stride + n, "update minima");
-    need(head, 1, "update head");
+    reads(stream, centres, 3ull * n, "update centres");
+    reads(stream, minima, 2ull * stride + n, "update minima");
+    writes(stream, head, 1, "update head");
     if (lo[0]) {
-        need_planes(lo, n, "update planes");
-        need_planes(hi, n, "update planes");
+        writes_planes(stream, lo, n, "update planes");
+        writes_planes(stream, hi, n, "update planes");
     }
     for (uint32_t i = 0; i < n; i++) {
         float blo[3], bhi[3];

@@ -2,7 +2,15 @@
 // A fake CUDA runtime, for running the cuda backend's host code (buffer sizing, copies, streams,
 // error paths) on machines without a GPU: the fake-device tests link it in place of cudart, and
 // host loops in place of the kernels (kernels.cu here). "Device memory" is host memory, and
-// every call has finished when it returns, so stream order holds trivially.
+// every call's work is done when it returns.
+//
+// Stream order is checked all the same. Each device access that a real GPU would still have in
+// flight after the call returns (an asynchronous copy or memset, a kernel's reads and writes) is
+// kept, with its stream, until the host synchronises with it (the stream, an event recorded after
+// it, the device, cudaFree's implicit synchronisation, a copy that returns only when done). An
+// access on another stream that is not ordered after it (the legacy default stream and a blocking
+// stream are; a non-blocking stream is ordered with nothing else) and that writes what it wrote,
+// or writes what it read, is a race on a GPU, and aborts here.
 //
 // Strict: it is here to catch the host code's bugs, so every misuse (a copy in the wrong
 // direction or past the end of a block, a free of what was not allocated, a dead handle, a NULL
@@ -41,7 +49,8 @@
 #include <time.h>
 
 // The fake's own calls (declared again in fake_cuda.h for the fake kernels).
-void bpx_fake_cuda_require_device(const void *p, size_t bytes, const char *what);
+void bpx_fake_cuda_access(cudaStream_t stream, const void *p, size_t bytes, int write,
+                          const char *what);
 void bpx_fake_cuda_fail_allocations_after(long k);
 long bpx_fake_cuda_live_blocks(void);
 
@@ -74,6 +83,8 @@ struct CUevent_st {
     unsigned flags;
     bool recorded;
     double at_ms; // the host's clock when recorded: the fake device works at once, on the host
+    struct CUstream_st *stream; // where it was last recorded (NULL: the legacy stream)
+    unsigned long seq;          // the accesses before it there have its sequence number below
 };
 struct CUkern_st {
     char unused;
@@ -294,6 +305,94 @@ static void need_out(const char *call, const void *out)
         die(call, "NULL out-pointer");
 }
 
+// ---- stream order ----
+
+// A device access still in flight on a real GPU: until the host synchronises with its stream.
+typedef struct {
+    uintptr_t base;
+    size_t bytes;
+    struct CUstream_st *stream; // NULL: the legacy default stream
+    bool write;
+    unsigned long seq;
+    const char *what;
+} access;
+
+static struct {
+    access *at;
+    size_t count, capacity;
+} in_flight;
+static unsigned long next_seq = 1;
+
+static struct CUstream_st *canonical(cudaStream_t s)
+{
+    return special_stream(s) ? NULL : s;
+}
+
+static bool blocking(const struct CUstream_st *s)
+{
+    return s && !(s->flags & cudaStreamNonBlocking);
+}
+
+// Work on b after work on a runs after it: one stream, or the legacy stream and a blocking one.
+static bool ordered(const struct CUstream_st *a, const struct CUstream_st *b)
+{
+    return a == b || (!a && blocking(b)) || (!b && blocking(a));
+}
+
+static const char *stream_name(const struct CUstream_st *s)
+{
+    return !s ? "the legacy stream" : blocking(s) ? "a blocking stream" : "a non-blocking stream";
+}
+
+// An access on `stream`: checked against those in flight on streams not ordered with it, then
+// kept until the host synchronises with it (unless it is done when its call returns).
+static void touch(const char *call, const char *what, struct CUstream_st *stream, uintptr_t base,
+                  size_t bytes, bool write, bool done_on_return)
+{
+    if (!bytes)
+        return;
+    for (size_t k = 0; k < in_flight.count; k++) {
+        const access *a = &in_flight.at[k];
+        bool meet = a->base >= base ? a->base - base < bytes : base - a->base < a->bytes;
+        if (meet && (write || a->write) && !ordered(a->stream, stream))
+            die(call,
+                "%s [%p, +%zu) on %s (%p) races %s [%p, +%zu) on %s (%p): no synchronisation "
+                "between the two streams",
+                what, pointer(base), bytes, stream_name(stream), (void *)stream, a->what,
+                pointer(a->base), a->bytes, stream_name(a->stream), (void *)a->stream);
+    }
+    if (done_on_return)
+        return;
+    if (in_flight.count == in_flight.capacity) {
+        size_t capacity = in_flight.capacity ? 2 * in_flight.capacity : 256;
+        access *at = realloc(in_flight.at, capacity * sizeof *at);
+        if (!at)
+            die("stream order", "out of host memory for the fake's own bookkeeping");
+        in_flight.at = at;
+        in_flight.capacity = capacity;
+    }
+    in_flight.at[in_flight.count++] =
+        (access){base, bytes, stream, write, next_seq++, what ? what : call};
+}
+
+// The host has waited for `stream`'s work enqueued before sequence number `before` (and so for
+// what that work waited for: the legacy stream's for a blocking stream, and the reverse).
+static void completed(const struct CUstream_st *stream, unsigned long before)
+{
+    for (size_t k = 0; k < in_flight.count;) {
+        const access *a = &in_flight.at[k];
+        if (a->seq < before && ordered(a->stream, stream))
+            in_flight.at[k] = in_flight.at[--in_flight.count];
+        else
+            k++;
+    }
+}
+
+static void completed_all(void)
+{
+    in_flight.count = 0;
+}
+
 static void unlock(void)
 {
     pthread_mutex_unlock(&lock);
@@ -306,12 +405,16 @@ static void relock(void)
 
 // ---- the fake's own calls ----
 
-void bpx_fake_cuda_require_device(const void *p, size_t bytes, const char *what)
+void bpx_fake_cuda_access(cudaStream_t stream, const void *p, size_t bytes, int write,
+                          const char *what)
 {
     if (!bytes)
         return;
+    const char *call = "a fake kernel";
     relock();
-    need_device("bpx_fake_cuda_require_device", what ? what : "range", (uintptr_t)p, bytes);
+    need_stream(call, stream);
+    need_device(call, what ? what : "range", (uintptr_t)p, bytes);
+    touch(call, what, canonical(stream), (uintptr_t)p, bytes, write != 0, false);
     unlock();
 }
 
@@ -382,6 +485,7 @@ static cudaError_t release(const char *call, table *t, void *p)
     if (t == &device_blocks)
         device_bytes -= t->at[k].size;
     drop(t, k);
+    completed_all(); // cudaFree and cudaFreeHost synchronise the device
     unlock();
     free(p);
     return cudaSuccess;
@@ -416,6 +520,27 @@ cudaError_t cudaFreeHost(void *ptr)
     return release("cudaFreeHost", &pinned_blocks, ptr);
 }
 
+// A copy's place in stream order (CUDA's "API synchronization behavior"): into pageable host
+// memory it returns only when done, so the host has waited for its stream; from pageable host
+// memory the legacy stream's cudaMemcpy first synchronises it, and the copy itself may still be
+// landing when the call returns; every other copy is in flight until the host synchronises.
+static void order_copy(const char *call, const void *dst, const void *src, size_t count,
+                       struct CUstream_st *stream)
+{
+    bool from_device = holding(&device_blocks, (uintptr_t)src) != NULL;
+    bool to_device = holding(&device_blocks, (uintptr_t)dst) != NULL;
+    bool to_pageable = !to_device && !holding(&pinned_blocks, (uintptr_t)dst);
+    bool from_pageable = !from_device && !holding(&pinned_blocks, (uintptr_t)src);
+    if (from_device)
+        touch(call, "the copy's source", stream, (uintptr_t)src, count, false, to_pageable);
+    if (to_device)
+        touch(call, "the copy's destination", stream, (uintptr_t)dst, count, true, false);
+    if (to_pageable)
+        completed(stream, next_seq);
+    else if (from_pageable && !stream && strcmp(call, "cudaMemcpy") == 0)
+        completed(NULL, next_seq - 1); // before the copy, which is in flight
+}
+
 static cudaError_t copy(const char *call, void *dst, const void *src, size_t count,
                         enum cudaMemcpyKind kind, const cudaStream_t *stream)
 {
@@ -427,6 +552,7 @@ static cudaError_t copy(const char *call, void *dst, const void *src, size_t cou
         need_sides(call, kind, (uintptr_t)dst, (uintptr_t)src, count);
         if (overlap((uintptr_t)dst, (uintptr_t)src, count))
             die(call, "destination %p and source %p overlap (%zu bytes)", dst, src, count);
+        order_copy(call, dst, src, count, stream ? canonical(*stream) : NULL);
         memcpy(dst, src, count);
     }
     unlock();
@@ -475,8 +601,11 @@ cudaError_t cudaMemcpy2DAsync(void *dst, size_t dpitch, const void *src, size_t 
                     if (overlap(d + r * dpitch, s + q * spitch, width))
                         die(call, "destination row %zu %p and source row %zu %p overlap", r,
                             pointer(d + r * dpitch), q, pointer(s + q * spitch));
-        for (size_t r = 0; r < height; r++)
+        for (size_t r = 0; r < height; r++) {
+            order_copy(call, pointer(d + r * dpitch), (const void *)(s + r * spitch), width,
+                       canonical(stream));
             memcpy(pointer(d + r * dpitch), (const void *)(s + r * spitch), width);
+        }
     }
     unlock();
     return cudaSuccess;
@@ -490,6 +619,8 @@ static cudaError_t set(const char *call, void *devPtr, int value, size_t count,
         need_stream(call, *stream);
     if (count) {
         need_device(call, "destination", (uintptr_t)devPtr, count);
+        touch(call, "the memset's destination", stream ? canonical(*stream) : NULL,
+              (uintptr_t)devPtr, count, true, false); // in flight even from cudaMemset
         memset(devPtr, value, count);
     }
     unlock();
@@ -558,6 +689,9 @@ cudaError_t cudaRuntimeGetVersion(int *runtimeVersion)
 
 cudaError_t cudaDeviceSynchronize(void)
 {
+    relock();
+    completed_all();
+    unlock();
     return cudaSuccess;
 }
 
@@ -605,6 +739,7 @@ cudaError_t cudaStreamSynchronize(cudaStream_t stream)
 {
     relock();
     need_stream("cudaStreamSynchronize", stream);
+    completed(canonical(stream), next_seq);
     unlock();
     return cudaSuccess;
 }
@@ -620,7 +755,8 @@ cudaError_t cudaEventCreateWithFlags(cudaEvent_t *event, unsigned int flags)
     struct CUevent_st *e = malloc(sizeof *e);
     if (!e)
         return fail(cudaErrorMemoryAllocation);
-    *e = (struct CUevent_st){.flags = flags, .recorded = false, .at_ms = 0.0};
+    *e = (struct CUevent_st){
+        .flags = flags, .recorded = false, .at_ms = 0.0, .stream = NULL, .seq = 0};
     relock();
     add(&events, (uintptr_t)e, sizeof *e);
     unlock();
@@ -650,6 +786,8 @@ cudaError_t cudaEventRecord(cudaEvent_t event, cudaStream_t stream)
     relock();
     need_stream(call, stream);
     struct CUevent_st *e = need_event(call, event);
+    e->stream = canonical(stream);
+    e->seq = next_seq;
     struct timespec now;
     clock_gettime(CLOCK_MONOTONIC, &now);
     e->recorded = true;
@@ -661,7 +799,9 @@ cudaError_t cudaEventRecord(cudaEvent_t event, cudaStream_t stream)
 cudaError_t cudaEventSynchronize(cudaEvent_t event)
 {
     relock();
-    need_event("cudaEventSynchronize", event);
+    const struct CUevent_st *e = need_event("cudaEventSynchronize", event);
+    if (e->recorded)
+        completed(e->stream, e->seq);
     unlock();
     return cudaSuccess;
 }
