@@ -310,6 +310,54 @@ static void test_device_resident(void)
     }
 }
 
+// A device-resident cycle keeps room for the last count and half more, whatever slack the
+// buffer has: a count past it (boxes grown between cycles, pairs 20 times as many, still within
+// the buffer) is CAPACITY with the count and a capacity below it, and the next cycle has room.
+static void test_device_room(void)
+{
+    enum { n = 3000 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, 21, boxes);
+    bpx_box *d_boxes = to_device(boxes, n);
+    bpx_world *cuda = cuda_world(false), *oracle = oracle_world(n);
+    CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
+    size_t count = 0, capacity = 0;
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+    CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
+    for (uint32_t i = 0; i < n; i++) // each box 3 times as wide: about 20 times the pairs
+        for (int a = 0; a < 3; a++) {
+            float c = 0.5f * boxes[i].min[a] + 0.5f * boxes[i].max[a];
+            float h = 1.5f * (boxes[i].max[a] - boxes[i].min[a]);
+            boxes[i].min[a] = c - h, boxes[i].max[a] = c + h;
+        }
+    CHECK(copy_to_device(d_boxes, boxes, sizeof(bpx_box) * n));
+    CHECK_STATUS(bpx_world_set_boxes(oracle, boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+    size_t want = 0;
+    const bpx_pair *want_pairs = bpx_world_pairs(oracle, &want);
+    CHECK_MSG(want > 3 * count / 2 + 1024 && want < 65536, "%zu pairs, then %zu", count, want);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+    CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_ERR_CAPACITY);
+    CHECK_STATUS(bpx_cuda_device_pairs(cuda, NULL, NULL, &capacity), BPX_OK);
+    CHECK_MSG(count == want && capacity < count, "%zu pairs, want %zu, room %zu", count, want,
+              capacity);
+    CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
+    CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
+    const bpx_pair *d_pairs = NULL;
+    CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, NULL, &capacity), BPX_OK);
+    bpx_pair *got = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
+    CHECK(cudaMemcpy(got, d_pairs, sizeof(bpx_pair) * count, cudaMemcpyDeviceToHost) ==
+          cudaSuccess);
+    CHECK_MSG(count == want && capacity >= count &&
+                  pairs_first_diff(got, count, want_pairs, want) == want,
+              "after CAPACITY: %zu pairs, want %zu", count, want);
+    free(got);
+    bpx_world_destroy(cuda);
+    bpx_world_destroy(oracle);
+    cudaFree(d_boxes);
+    free(boxes);
+}
+
 // A bad box in device memory is named like a bad host box, and the world keeps its boxes; one
 // that turns bad after the check is reported by the cycle that reads it, on both comparators
 // (the small one's kernel must leave the check alone).
@@ -398,7 +446,8 @@ static void test_device_bad_count(void)
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     size_t good = 0, count = 0, capacity = 0;
     CHECK_STATUS(bpx_cuda_finish(cuda, &good), BPX_OK);
-    CHECK(cudaMemcpy(d_boxes, d_bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) == cudaSuccess &&
+    CHECK(cudaMemcpy(d_boxes, d_bad, sizeof(bpx_box) * n, cudaMemcpyDeviceToDevice) ==
+              cudaSuccess &&
           cudaDeviceSynchronize() == cudaSuccess); // landed before the world's stream reads it
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_ERR_NOT_FINITE);
@@ -812,6 +861,7 @@ int main(int argc, char **argv)
     test_device_errors(600);  // one block
     test_device_errors(3000); // the tree
     test_device_first_cycle_growth();
+    test_device_room();
     test_device_bad_count();
     test_device_queries();
     test_centres();

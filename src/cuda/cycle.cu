@@ -50,6 +50,7 @@ struct bpx_cuda {
     void *tree_memory;
 
     unsigned long long pair_capacity; // pairs the keys and the pair buffer hold
+    unsigned long long room;          // of them, the pairs the last cycle kept room for
     unsigned long long *keys[2];
     unsigned char *out; // bpx_cuda_head, then pair_capacity pairs
     bpx_cuda_head *host_head; // pinned: head, then host_pairs_capacity pairs
@@ -313,11 +314,12 @@ bpx_status enqueue_tree(bpx_cuda *cu, cudaStream_t s)
     return BPX_OK;
 }
 
-// The walk into keys[0] (on the device path, keys above the count stay all ones and sort last).
+// The walk into keys[0], below cu->room (on the device path, keys above the count stay all
+// ones and sort last).
 bpx_status enqueue_walk(bpx_cuda *cu, cudaStream_t s)
 {
     CU(cudaMemsetAsync(device_head(cu), 0, sizeof(unsigned long long), s));
-    CU(bpx__cuda_launch_traverse(s, &cu->tree, cu->bits, cu->keys[0], cu->pair_capacity,
+    CU(bpx__cuda_launch_traverse(s, &cu->tree, cu->bits, cu->keys[0], cu->room,
                                  device_head(cu)));
     return BPX_OK;
 }
@@ -561,6 +563,7 @@ static bpx_status find(bpx_cuda *cu, const float *const lo[3], const float *cons
         cu->tree_path ? cu->last_count + cu->last_count / 4 : small_pairs(n);
     if (bpx_status s = reserve_pairs(cu, expected); s != BPX_OK)
         return s;
+    cu->room = cu->tree_path ? cu->pair_capacity : small_pairs(n); // the host path grows to fit
     // The pairs we expect come back in the same copy as the head (small sets); the tree's are
     // counted first and copied straight to the caller.
     unsigned long long guess = cu->last_count + cu->last_count / 4 + 64;
@@ -608,6 +611,7 @@ static bpx_status find(bpx_cuda *cu, const float *const lo[3], const float *cons
                 return s;
             if (bpx_status s = reserve_sort(cu); s != BPX_OK)
                 return s;
+            cu->room = cu->pair_capacity;
             // The fresh buffer's head: the boxes were checked above, the count is the walk's.
             CU(cudaMemsetAsync(&device_head(cu)->bad, 0xff, 8, cu->stream));
             if (bpx_status s = enqueue_walk(cu, cu->stream); s != BPX_OK)
@@ -751,11 +755,15 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
     if (bpx_status st = bpx__cuda_finish(cu, nullptr); st != BPX_OK && st != BPX_ERR_CAPACITY &&
                                                        st != BPX_ERR_NOT_FINITE)
         return st;
-    // Without a last count, room for two pairs per box (the benchmark scenes have about one).
+    // Room for the last count and half more, without one for two pairs per box (the benchmark
+    // scenes have about one), never more than there can be. The walk keeps that many and the sort
+    // orders that many, not the buffer's geometric slack: a count past the room is CAPACITY.
     unsigned long long seen = cu->last_count ? cu->last_count : 2ull * n;
     unsigned long long need = n <= BPX_CUDA_SMALL_MAX ? small_pairs(n) : seen + seen / 2 + 1024;
+    need = need < small_pairs(n) ? need : small_pairs(n);
     if (bpx_status st = reserve_pairs(cu, need); st != BPX_OK)
         return st;
+    cu->room = need;
     if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
         return st;
     const float *small_centres = nullptr;
@@ -785,13 +793,13 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         if (status == BPX_OK)
             status = enqueue_tree(cu, s);
         if (status == BPX_OK) {
-            cudaError_t e = cudaMemsetAsync(cu->keys[0], 0xff, 8 * cu->pair_capacity, s);
+            cudaError_t e = cudaMemsetAsync(cu->keys[0], 0xff, 8 * cu->room, s);
             status = e == cudaSuccess ? BPX_OK : fail(e, "cudaMemsetAsync (keys)");
         }
         if (status == BPX_OK)
             status = enqueue_walk(cu, s);
         if (status == BPX_OK)
-            status = enqueue_sort(cu, s, cu->pair_capacity);
+            status = enqueue_sort(cu, s, cu->room);
     }
     if (status == BPX_OK) {
         cudaError_t e = cudaMemcpyAsync(cu->host_head, device_head(cu), sizeof(bpx_cuda_head),
@@ -819,7 +827,7 @@ bpx_status bpx__cuda_finish(bpx_cuda *cu, uint64_t *count)
     if (cu->host_head->bad != ~0ull)
         return BPX_ERR_NOT_FINITE;
     cu->last_count = cu->host_head->count;
-    if (cu->last_count > cu->pair_capacity)
+    if (cu->last_count > cu->room)
         return BPX_ERR_CAPACITY;
     return BPX_OK;
 }
@@ -829,7 +837,7 @@ void bpx__cuda_device_result(const bpx_cuda *cu, const bpx_pair **pairs,
 {
     *pairs = cu->out ? device_pairs(cu) : nullptr;
     *count = cu->out ? &device_head(cu)->count : nullptr;
-    *capacity = (size_t)cu->pair_capacity;
+    *capacity = (size_t)cu->room;
 }
 
 bpx_status bpx__cuda_copy_in(void *out, const void *device, size_t bytes)
