@@ -146,7 +146,7 @@ fi
 } >>"$log" 2>&1
 
 # The cuda backend's own test first: it has never run before the first GPU run.
-phase cuda_test 120 "$self" --do suite 110 2 '^test_cuda'
+phase cuda_test 120 "$self" --do suite 110 2 '^test_cuda(_twin)?$'
 phase gpubench 150 sh -c "'$build/bench/gpu/bpx_gpubench' --sizes 500,2000,10000,100000,1000000,10000000 \
     --seconds 0.5 --csv '$out/gpubench.csv' >'$out/gpubench.md' 2>&1"
 phase table2 70 sh -c "'$build/bpx' bench --table2 --backend sap,cuda,opencl --cycles 2000 \
