@@ -361,6 +361,62 @@ static void test_allocation_failure(void)
         allocation_failure(&cases[k]);
 }
 
+// A few boxes far larger than the rest (the denormal scene: 3% span the whole subnormal lattice
+// on one axis; huge_tiny: boxes 2^40 apart in size) must not make every pair of fat boxes
+// overlap: sap and auto (sap from its second resting cycle) on 20,000 boxes, every block under
+// 256 MiB (the fat pairs of margins from the mean extent took 6 GB there), against prune.
+static _Atomic size_t big_blocks;
+
+static void *small_alloc(size_t size, size_t alignment, void *user)
+{
+    (void)user;
+    if (size >= (size_t)256 << 20) {
+        big_blocks++;
+        return NULL;
+    }
+    return aligned_alloc(alignment, (size + alignment - 1) / alignment * alignment);
+}
+
+static void small_free(void *memory, void *user)
+{
+    (void)user;
+    free(memory);
+}
+
+static void test_extreme_size_mix(void)
+{
+    enum { n = 20000 };
+    const scene_kind kinds[] = {SCENE_DENORMAL, SCENE_HUGE_TINY};
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    pair_list want = {0};
+    for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++) {
+        CHECK(scene_generate(kinds[k], n, 5, boxes) == 0);
+        pairs_by_prune(&want, boxes, n);
+        bpx_set_allocator(small_alloc, small_free, NULL);
+        const bpx_backend backends[] = {BPX_BACKEND_SAP, BPX_BACKEND_AUTO};
+        for (size_t b = 0; b < 2; b++) {
+            check_set_context("%s, %s", scene_kind_name(kinds[k]), bpx_backend_name(backends[b]));
+            bpx_world *w = make_world(backends[b], 2, false);
+            for (int cycle = 0; cycle < 3; cycle++) {
+                CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+                CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+                size_t count = 0;
+                const bpx_pair *pairs = bpx_world_pairs(w, &count);
+                CHECK_MSG(count == want.count &&
+                              pairs_first_diff(pairs, count, want.pairs, want.count) == count,
+                          "cycle %d: %zu pairs, want %zu", cycle, count, want.count);
+            }
+            if (backends[b] == BPX_BACKEND_AUTO)
+                CHECK(bpx_world_backend(w) == BPX_BACKEND_SAP); // resting: sap's scene
+            bpx_world_destroy(w);
+        }
+        bpx_set_allocator(NULL, NULL, NULL);
+        CHECK_MSG(big_blocks == 0, "%zu blocks of 256 MiB or more asked for", (size_t)big_blocks);
+    }
+    pair_list_free(&want);
+    free(boxes);
+}
+
 int main(void)
 {
     if (!bpx_backend_query(BPX_BACKEND_SAP).available) {
@@ -381,6 +437,9 @@ int main(void)
     test_large_rebuilds(0.02f); // sparse: one sweep does
     test_lists_on_demand();
     printf("  large rebuilds, 2 workers: %.2f s\n", now_s() - t_large);
+    double t_mix = now_s();
+    test_extreme_size_mix();
+    printf("  extreme size mix:   %.2f s\n", now_s() - t_mix);
     double t = now_s();
     if (!check_quick())
         test_allocation_failure();
