@@ -48,9 +48,9 @@ static bpx_world *oracle_world_events(uint32_t n, bool events)
 {
     bpx_world_def def = bpx_default_world_def();
     def.track_events = events;
-    // prune beyond 3000 boxes: sap runs out of memory on the denormal scene at 120000 boxes
-    // (3% of its boxes span the whole lattice on one axis; 16.8 GB at the peak, then
-    // OUT_OF_MEMORY), prune finds its 984905 pairs.
+    // prune beyond 3000 boxes: one sweep, the cheapest exact oracle for scenes that change
+    // wholesale (sap, the oracle before, ran out of memory on the denormal scene at 120,000
+    // boxes until its fat margins were capped).
     def.backend = n <= 3000 ? BPX_BACKEND_REFERENCE : BPX_BACKEND_PRUNE;
     def.worker_count = 2;
     bpx_world *w = NULL;
