@@ -160,40 +160,15 @@ struct two_phase {
 // hit words (a ballot: bit l for lane l), the rows' counts scanned, each hit written at its place.
 std::vector<bpx_pair> small_twin(const bpx_small::input &in, uint32_t n)
 {
-    std::vector<uint32_t> masks((size_t)n * 32), start(n + 1, 0);
-    for (uint32_t row = 0; row < n; row++) {
-        float alo[3], ahi[3];
-        bpx_small::box(in, row, alo, ahi);
-        uint32_t count = 0;
-        for (uint32_t k = 0; k < bpx_small::words(row, n); k++) {
-            uint32_t word = 0;
-            for (uint32_t lane = 0; lane < 32; lane++) {
-                uint32_t j = bpx_small::other(row, k, lane);
-                float blo[3], bhi[3];
-                if (j < n && (bpx_small::box(in, j, blo, bhi), bpx_small::overlap(alo, ahi, blo, bhi)))
-                    word |= 1u << lane;
-            }
-            CHECK(k < 32);
-            masks[(size_t)row * 32 + k] = word;
-            count += (uint32_t)__builtin_popcount(word);
-        }
-        start[row + 1] = start[row] + count;
-    }
-    std::vector<bpx_pair> pairs(start[n], bpx_pair{~0u, ~0u});
-    for (uint32_t i = 0; i < n; i++) {
-        uint32_t at = start[i];
-        for (uint32_t k = 0; k < bpx_small::words(i, n); k++) {
-            uint32_t word = masks[(size_t)i * 32 + k];
-            for (uint32_t lane = 0; lane < 32; lane++)
-                if ((word >> lane) & 1u) {
-                    uint32_t slot = at + bpx_small::before(word, lane);
-                    CHECK(slot < pairs.size() && pairs[slot].i == ~0u); // each place once
-                    pairs[slot] = bpx_pair{i, bpx_small::other(i, k, lane)};
-                }
-            at += (uint32_t)__builtin_popcount(word);
-        }
-        CHECK(at == start[i + 1]);
-    }
+    std::vector<uint32_t> masks((size_t)n * 32), counts(n);
+    uint32_t total =
+        bpx_small::rows_on_host(in, n, masks.data(), 32, counts.data(), [](uint32_t, int) {});
+    std::vector<bpx_pair> pairs(total, bpx_pair{~0u, ~0u});
+    bpx_small::pairs_on_host(n, masks.data(), 32, [&](uint32_t at, bpx_pair p) {
+        CHECK(at < pairs.size() && pairs[at].i == ~0u); // each place once
+        if (at < pairs.size())
+            pairs[at] = p;
+    });
     return pairs;
 }
 

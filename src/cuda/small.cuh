@@ -10,6 +10,7 @@
 
 #include <cstdint>
 
+#include "bpx/types.h"
 #include "update.cuh"
 
 namespace bpx_small {
@@ -55,11 +56,57 @@ __host__ __device__ inline int box(const input &in, uint32_t j, float lo[3], flo
 }
 
 /// Algorithm 1: closed intervals on every axis (touching boxes overlap, -0.0 equals 0.0).
-__host__ __device__ inline bool overlap(const float alo[3], const float ahi[3],
-                                        const float blo[3], const float bhi[3])
+__host__ __device__ inline bool overlap(const float alo[3], const float ahi[3], const float blo[3],
+                                        const float bhi[3])
 {
     return alo[0] <= bhi[0] && blo[0] <= ahi[0] && alo[1] <= bhi[1] && blo[1] <= ahi[1] &&
            alo[2] <= bhi[2] && blo[2] <= ahi[2];
+}
+
+// ---- the kernel's work on the host, lanes and warps in loops (test_cuda_twin, the fake device) --
+
+/// Each row's hit words (a ballot: bit l for lane l; row i's at masks + i * row_words) and its
+/// count; bad(row, axis) for each box the updater finds not finite. Returns the pairs.
+template <class Bad>
+inline uint32_t rows_on_host(const input &in, uint32_t n, uint32_t *masks, uint32_t row_words,
+                             uint32_t *counts, Bad bad)
+{
+    uint32_t total = 0;
+    for (uint32_t row = 0; row < n; row++) {
+        float alo[3], ahi[3];
+        if (int axis = box(in, row, alo, ahi); axis >= 0)
+            bad(row, axis);
+        uint32_t count = 0;
+        for (uint32_t k = 0; k < words(row, n); k++) {
+            uint32_t word = 0;
+            for (uint32_t lane = 0; lane < 32; lane++) {
+                uint32_t j = other(row, k, lane);
+                float blo[3], bhi[3];
+                if (j < n && (box(in, j, blo, bhi), overlap(alo, ahi, blo, bhi)))
+                    word |= 1u << lane;
+            }
+            masks[(size_t)row * row_words + k] = word;
+            count += (uint32_t)__builtin_popcount(word);
+        }
+        counts[row] = count;
+        total += count;
+    }
+    return total;
+}
+
+/// The rows' counts scanned, and put(place, pair) for each hit: the pairs in (i, j) order.
+template <class Put>
+inline void pairs_on_host(uint32_t n, const uint32_t *masks, uint32_t row_words, Put put)
+{
+    uint32_t at = 0;
+    for (uint32_t i = 0; i < n; i++)
+        for (uint32_t k = 0; k < words(i, n); k++) {
+            uint32_t word = masks[(size_t)i * row_words + k];
+            for (uint32_t lane = 0; lane < 32; lane++)
+                if ((word >> lane) & 1u)
+                    put(at + before(word, lane), bpx_pair{i, other(i, k, lane)});
+            at += (uint32_t)__builtin_popcount(word);
+        }
 }
 
 } // namespace bpx_small

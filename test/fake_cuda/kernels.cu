@@ -28,8 +28,7 @@
 
 #include "fake_cuda.h"
 
-namespace
-{
+namespace {
 
 // An access by a kernel on `stream`: in device memory, aligned, and in stream order (runtime.c).
 template <class T>
@@ -196,39 +195,12 @@ cudaError_t bpx__cuda_launch_small(cudaStream_t stream, const float *const lo[3]
         abort();
     }
     bpx_small::input in = {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}, centres, minima, stride};
-    uint32_t total = 0;
-    for (uint32_t row = 0; row < n; row++) {
-        float alo[3], ahi[3];
-        int bad = bpx_small::box(in, row, alo, ahi);
-        if (bad >= 0)
-            bad_box(head, row, 4u + (uint32_t)bad);
-        uint32_t count = 0;
-        for (uint32_t k = 0; k < bpx_small::words(row, n); k++) {
-            uint32_t word = 0;
-            for (uint32_t lane = 0; lane < 32; lane++) {
-                uint32_t j = bpx_small::other(row, k, lane);
-                float blo[3], bhi[3];
-                if (j < n &&
-                    (bpx_small::box(in, j, blo, bhi), bpx_small::overlap(alo, ahi, blo, bhi)))
-                    word |= 1u << lane;
-            }
-            scratch->masks[row * row_words + k] = word;
-            count += (uint32_t)__builtin_popcount(word);
-        }
-        scratch->counts[row] = count;
-        total += count;
-    }
+    uint32_t total = bpx_small::rows_on_host(
+        in, n, scratch->masks, row_words, scratch->counts,
+        [head](uint32_t row, int axis) { bad_box(head, row, 4u + (uint32_t)axis); });
     writes(stream, pairs, total, "small pairs");
-    uint32_t at = 0;
-    for (uint32_t i = 0; i < n; i++)
-        for (uint32_t k = 0; k < bpx_small::words(i, n); k++) {
-            uint32_t word = scratch->masks[i * row_words + k];
-            for (uint32_t lane = 0; lane < 32; lane++)
-                if ((word >> lane) & 1u)
-                    pairs[at + bpx_small::before(word, lane)] =
-                        bpx_pair{i, bpx_small::other(i, k, lane)};
-            at += (uint32_t)__builtin_popcount(word);
-        }
+    bpx_small::pairs_on_host(n, scratch->masks, row_words,
+                             [pairs](uint32_t at, bpx_pair p) { pairs[at] = p; });
     head->count = total;
     scratch->done = 0;
     return cudaSuccess;
