@@ -367,6 +367,17 @@ static void test_allocation_failure(void)
 // 256 MiB (the fat pairs of margins from the mean extent took 6 GB there), against prune.
 static _Atomic size_t big_blocks;
 
+// The span of the boxes' coordinates on `axis`.
+static float want_span(const bpx_box *boxes, uint32_t n, int axis)
+{
+    float lo = INFINITY, hi = -INFINITY;
+    for (uint32_t i = 0; i < n; i++) {
+        lo = boxes[i].min[axis] < lo ? boxes[i].min[axis] : lo;
+        hi = boxes[i].max[axis] > hi ? boxes[i].max[axis] : hi;
+    }
+    return hi - lo;
+}
+
 static void *small_alloc(size_t size, size_t alignment, void *user)
 {
     (void)user;
@@ -408,10 +419,67 @@ static void test_extreme_size_mix(void)
             }
             if (backends[b] == BPX_BACKEND_AUTO)
                 CHECK(bpx_world_backend(w) == BPX_BACKEND_SAP); // resting: sap's scene
+            else
+                for (int a = 0; a < 3; a++) // the typical box's scale, not the huge ones'
+                    CHECK_MSG(bpx__sap_counters(w).margin[a] <= 1e-3f * want_span(boxes, n, a),
+                              "axis %d: margin %g", a, (double)bpx__sap_counters(w).margin[a]);
             bpx_world_destroy(w);
         }
         bpx_set_allocator(NULL, NULL, NULL);
         CHECK_MSG(big_blocks == 0, "%zu blocks of 256 MiB or more asked for", (size_t)big_blocks);
+    }
+    pair_list_free(&want);
+    free(boxes);
+}
+
+// Mostly points (particles): four in five boxes, then points and unit boxes taking turns by
+// index (a layout a strided sample would see only one kind of). The margins' bound samples only
+// boxes with an extent, so the margins stay the mean extent / 16 (a bound from the points' zero
+// extents would make them 0, and every moving box would leave its fat box every cycle).
+static void test_points_keep_their_margin(void)
+{
+    enum { n = 20000, cycles = 10 };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    pair_list want = {0};
+    for (int layout = 0; layout < 2; layout++) {
+        check_set_context("points, layout %d", layout);
+        scene_rng r;
+        scene_rng_seed(&r, 17);
+        for (uint32_t i = 0; i < n; i++) {
+            bool point = layout ? i % 2 == 0 : scene_rng_below(&r, 5) != 0;
+            for (int a = 0; a < 3; a++) {
+                float c = (float)scene_rng_below(&r, 50000) / 1000.0f; // a 50-wide cube
+                boxes[i].min[a] = point ? c : c - 0.5f;
+                boxes[i].max[a] = point ? c : c + 0.5f;
+            }
+        }
+        bpx_world *w = make_world(BPX_BACKEND_SAP, 1, false);
+        int rebuilt = 0;
+        for (int cycle = 0; cycle < cycles; cycle++) {
+            for (uint32_t i = 0; i < n; i++) { // a fraction of the margin per cycle
+                boxes[i].min[0] += 0.0005f;
+                boxes[i].max[0] += 0.0005f;
+            }
+            pairs_by_prune(&want, boxes, n);
+            CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+            CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+            size_t count = 0;
+            const bpx_pair *pairs = bpx_world_pairs(w, &count);
+            CHECK(count == want.count &&
+                  pairs_first_diff(pairs, count, want.pairs, want.count) == count);
+            rebuilt += bpx_world_stats(w).rebuilt;
+        }
+        CHECK_MSG(rebuilt == 1, "%d of %d cycles rebuilt", rebuilt, cycles);
+        double sum[3] = {0, 0, 0};
+        for (uint32_t i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++)
+                sum[a] += (double)boxes[i].max[a] - (double)boxes[i].min[a];
+        bpx_sap_counters c = bpx__sap_counters(w);
+        for (int a = 0; a < 3; a++) // moved since the rebuild, the boxes kept their sizes
+            CHECK_MSG(fabs(c.margin[a] - sum[a] / n / 16) < 1e-3 * sum[a] / n,
+                      "axis %d: margin %g, mean extent / 16 %g", a, (double)c.margin[a],
+                      sum[a] / n / 16);
+        bpx_world_destroy(w);
     }
     pair_list_free(&want);
     free(boxes);
@@ -439,6 +507,7 @@ int main(void)
     printf("  large rebuilds, 2 workers: %.2f s\n", now_s() - t_large);
     double t_mix = now_s();
     test_extreme_size_mix();
+    test_points_keep_their_margin();
     printf("  extreme size mix:   %.2f s\n", now_s() - t_mix);
     double t = now_s();
     if (!check_quick())

@@ -13,8 +13,8 @@
 //     they are spread evenly (for random scenes at constant density it is n^(2/3) / 2); it
 //     grows with n and with the sizes, so a heavy tail of big boxes moves the choice to grid;
 //   motion ~ mean |change of min x| since last cycle / mean x extent: how fast boxes leave the
-//     fat boxes sap keeps (a margin of 1/16 of the mean extent, capped at 4 times the extents'
-//     upper quartile), which is what sap pays for.
+//     fat boxes sap keeps (a margin of 1/16 of the mean extent, at most a quarter of the
+//     extents' upper quartile), which is what sap pays for.
 // The choice depends on the boxes only, so it (and so the work done) is reproducible; the output
 // is the same whichever backend runs. Each delegate keeps its own state between cycles.
 #include <math.h>

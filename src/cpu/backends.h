@@ -28,9 +28,10 @@ void bpx__grid_free(void **state);
 void bpx__grid_forget(void *state);
 
 /// What sap's cycles did that their pairs do not show, since its state was made (zeros for a
-/// world of another backend): endpoint lists sorted (see sap/lists.c), and warm cycles
-/// that gave up without trying to mend. For the tests.
+/// world of another backend): endpoint lists sorted (see sap/lists.c), warm cycles that gave up
+/// without trying to mend, and the fat margins of the last rebuild. For the tests.
 typedef struct bpx_sap_counters {
     uint32_t lists_made, untried;
+    float margin[3];
 } bpx_sap_counters;
 bpx_sap_counters bpx__sap_counters(const bpx_world *w);

@@ -206,7 +206,10 @@ static bpx_status sap_compare(bpx_world *w)
 bpx_sap_counters bpx__sap_counters(const bpx_world *w)
 {
     const sap_state *st = w->backend == &bpx__sap_backend ? w->backend_state : NULL;
-    return st ? st->counters : (bpx_sap_counters){0, 0};
+    bpx_sap_counters c = st ? st->counters : (bpx_sap_counters){0};
+    for (int axis = 0; axis < 3 && st; axis++)
+        c.margin[axis] = st->margin[axis];
+    return c;
 }
 
 static bool sap_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)

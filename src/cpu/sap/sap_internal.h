@@ -3,8 +3,8 @@
 // fat boxes.
 //
 // State kept between cycles: each box's fat box (its box at the last rebuild or at the last
-// cycle it left the fat one, grown by a margin per axis: the boxes' mean extent there / 16, the
-// mean capped at 4 times the extents' upper quartile),
+// cycle it left the fat one, grown by a margin per axis: the boxes' mean extent there / 16, at
+// most a quarter of the upper quartile of their extents),
 // and per axis the 2n endpoints of the fat boxes (ids 0 .. n-1, removed objects included:
 // inert boxes, min +inf and max -inf, sort to the two ends) in sorted order, each one 64-bit
 // word: (key, is_max, box), key = bpx__float_key of the coordinate with -0.0 read as +0.0.
@@ -48,15 +48,16 @@ enum {
     CACHED_BOXES = 1 << 16,
     UNCACHED_DIVISOR = 4,
     MOVES_BASE = 4096,
-    RETRY_EVERY = 8,      // after two give-ups in a row, try mending once in this many cycles
-    FIRST_CHANGES = 256,  // change lists start with room for this many (+ n / 16)
-    FEW_DIVISOR = 64,     // at most n / FEW_DIVISOR + FEW_BASE boxes left their fat boxes:
-    FEW_BASE = 16,        // move their endpoints one by one; more: mend every list in one pass
-    MARGIN_DIVISOR = 16,  // fat margin on an axis: the boxes' mean extent there / this,
-    MARGIN_QUARTILES = 4, // the mean capped at this times the extents' upper quartile,
-    MARGIN_SAMPLE = 63,   // taken over this many boxes (rebuild.c: set_margins)
-    CHECK_EVERY = 4096,   // endpoints between the early give-up checks of the first list
-    PREFETCH = 32,        // pairs ahead whose second box the exact filter prefetches
+    RETRY_EVERY = 8,     // after two give-ups in a row, try mending once in this many cycles
+    FIRST_CHANGES = 256, // change lists start with room for this many (+ n / 16)
+    FEW_DIVISOR = 64,    // at most n / FEW_DIVISOR + FEW_BASE boxes left their fat boxes:
+    FEW_BASE = 16,       // move their endpoints one by one; more: mend every list in one pass
+    MARGIN_DIVISOR = 16, // fat margin on an axis: the boxes' mean extent there / this,
+    MARGIN_QUARTILE_DIVISOR = 4, // at most their extents' upper quartile / this, over a sample
+    MARGIN_SAMPLE = 127,         // of this many boxes, when at least MARGIN_SAMPLE_MIN of them
+    MARGIN_SAMPLE_MIN = 8,       // have an extent there (rebuild.c: set_margins)
+    CHECK_EVERY = 4096,          // endpoints between the early give-up checks of the first list
+    PREFETCH = 32,               // pairs ahead whose second box the exact filter prefetches
     PARALLEL_MIN = 16384, // boxes (or fat pairs) from which a warm pass splits over the workers
     // The scan mend (scan.c): up to SCAN_MAX_BOXES boxes whose fat extents on the swept
     // axis are at most SCAN_WIDTH_RATIO times their mean; a cycle gives up past SCAN_WORK_PER_BOX
