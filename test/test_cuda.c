@@ -358,6 +358,58 @@ static void test_device_room(void)
     free(boxes);
 }
 
+// Device-resident cycles on the caller's stream, as an engine runs them: the caller's copy of
+// the moved boxes, the cycle and the caller's read of the pairs all on one non-blocking stream of
+// its own, every other cycle on the world's stream instead (after the caller's stream is
+// synchronised, as include/bpx/cuda.h asks). On the fake device (test/fake_cuda/) any access the
+// backend makes out of stream order aborts the test.
+static void test_device_caller_stream(void)
+{
+    static const uint32_t sizes[] = {600, 3000};
+    for (size_t z = 0; z < sizeof sizes / sizeof sizes[0]; z++) {
+        const uint32_t n = sizes[z];
+        bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+        scene_uniform_density(n, 1.0f, 31, boxes);
+        bpx_box *d_boxes = to_device(boxes, n);
+        cudaStream_t mine = NULL;
+        CHECK(cudaStreamCreateWithFlags(&mine, cudaStreamNonBlocking) == cudaSuccess);
+        bpx_world *cuda = cuda_world(false), *oracle = oracle_world(n);
+        CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
+        scene_rng rng;
+        scene_rng_seed(&rng, 5);
+        for (int cycle = 0; cycle < 4; cycle++) {
+            scene_move(boxes, n, 0.2f, &rng);
+            CHECK(cudaMemcpyAsync(d_boxes, boxes, sizeof(bpx_box) * n, cudaMemcpyHostToDevice,
+                                  mine) == cudaSuccess);
+            bool own = cycle % 2 == 1; // the world's stream: the caller's copy must land first
+            if (own)
+                CHECK(cudaStreamSynchronize(mine) == cudaSuccess);
+            CHECK_STATUS(bpx_cuda_collide_device(cuda, own ? NULL : mine), BPX_OK);
+            size_t count = 0;
+            CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
+            const bpx_pair *d_pairs = NULL;
+            CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, NULL, NULL), BPX_OK);
+            bpx_pair *got = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
+            CHECK(cudaMemcpyAsync(got, d_pairs, sizeof(bpx_pair) * count, cudaMemcpyDeviceToHost,
+                                  mine) == cudaSuccess &&
+                  cudaStreamSynchronize(mine) == cudaSuccess);
+            CHECK_STATUS(bpx_world_set_boxes(oracle, boxes, n), BPX_OK);
+            CHECK_STATUS(bpx_world_collide(oracle), BPX_OK);
+            size_t want = 0;
+            const bpx_pair *want_pairs = bpx_world_pairs(oracle, &want);
+            CHECK_MSG(count == want && pairs_first_diff(got, count, want_pairs, want) == want,
+                      "n=%u cycle %d (%s stream): %zu pairs, want %zu", n, cycle,
+                      own ? "the world's" : "the caller's", count, want);
+            free(got);
+        }
+        bpx_world_destroy(cuda);
+        bpx_world_destroy(oracle);
+        CHECK(cudaStreamDestroy(mine) == cudaSuccess);
+        cudaFree(d_boxes);
+        free(boxes);
+    }
+}
+
 // A bad box in device memory is named like a bad host box, and the world keeps its boxes; one
 // that turns bad after the check is reported by the cycle that reads it, on both comparators
 // (the small one's kernel must leave the check alone).
@@ -862,6 +914,7 @@ int main(int argc, char **argv)
     test_device_errors(3000); // the tree
     test_device_first_cycle_growth();
     test_device_room();
+    test_device_caller_stream();
     test_device_bad_count();
     test_device_queries();
     test_centres();

@@ -69,7 +69,8 @@ BPX_API bpx_status bpx_cuda_collide_device(bpx_world *world, void *stream);
 
 /// The last device cycle's pairs and count, in device memory: `pairs` holds `capacity` pairs,
 /// of which the first *count (an unsigned long long on the device) are the cycle's when
-/// *count <= capacity. When *count > capacity the buffer was too small, its content is not the
+/// *count <= capacity. The capacity is that cycle's room (its last count and half more), so it
+/// changes from cycle to cycle: ask again after each bpx_cuda_collide_device. When *count > capacity the buffer was too small, its content is not the
 /// pair set, bpx_cuda_finish says CAPACITY with the count, and the next cycle has room for it.
 /// Any pointer may be NULL. Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE.
 BPX_API bpx_status bpx_cuda_device_pairs(bpx_world *world, const bpx_pair **pairs,

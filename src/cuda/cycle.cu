@@ -7,6 +7,7 @@
 // (test/fake_cuda/) runs it as it is, with host loops for the kernels and sorts.
 #include <cuda_runtime_api.h>
 
+#include <cstddef>
 #include <cstdio>
 #include <cstring>
 #include <pthread.h>
@@ -199,6 +200,17 @@ bpx_status reserve_pairs(bpx_cuda *cu, unsigned long long pairs)
     if (e != cudaSuccess) {
         cudaFree(k0), cudaFree(k1), cudaFree(out);
         return fail(e, "cudaMalloc (pairs)");
+    }
+    // The fresh head says no pairs and no bad box, for a caller that reads it before a cycle;
+    // landed before a cycle on any stream writes it (buffers grow rarely: the wait is cheap).
+    e = cudaMemsetAsync(out, 0, sizeof(unsigned long long), cu->stream);
+    if (e == cudaSuccess)
+        e = cudaMemsetAsync(out + offsetof(bpx_cuda_head, bad), 0xff, 8, cu->stream);
+    if (e == cudaSuccess)
+        e = cudaStreamSynchronize(cu->stream);
+    if (e != cudaSuccess) {
+        cudaFree(k0), cudaFree(k1), cudaFree(out);
+        return fail(e, "cudaMemsetAsync (head)");
     }
     cudaFree(cu->keys[0]), cudaFree(cu->keys[1]), cudaFree(cu->out);
     cu->keys[0] = k0, cu->keys[1] = k1, cu->out = out;
@@ -763,7 +775,10 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
     need = need < small_pairs(n) ? need : small_pairs(n);
     if (bpx_status st = reserve_pairs(cu, need); st != BPX_OK)
         return st;
-    cu->room = need;
+    // Before any count the whole buffer is the room: a first cycle past two pairs per box fits.
+    cu->room = cu->last_count || n <= BPX_CUDA_SMALL_MAX
+                   ? need
+                   : (cu->pair_capacity < small_pairs(n) ? cu->pair_capacity : small_pairs(n));
     if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
         return st;
     const float *small_centres = nullptr;
