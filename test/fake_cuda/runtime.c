@@ -730,6 +730,12 @@ cudaError_t cudaStreamDestroy(cudaStream_t stream)
     if (k < 0)
         die(call, "stream %p is not a live stream (never created, or destroyed)", (void *)stream);
     drop(&streams, k);
+    // Its work may still be in flight (destroying does not wait): it keeps its place in stream
+    // order under a handle no later stream can have, as the freed address could.
+    static struct CUstream_st destroyed = {cudaStreamNonBlocking};
+    for (size_t a = 0; a < in_flight.count; a++)
+        if (in_flight.at[a].stream == stream)
+            in_flight.at[a].stream = &destroyed;
     unlock();
     free(stream);
     return cudaSuccess;
