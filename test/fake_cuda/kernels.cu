@@ -42,6 +42,18 @@ void need(cudaStream_t stream, const T *p, unsigned long long count, bool write,
     }
 }
 
+// The centre of box i of the tree's SoA boxes, as the bounds and Morton kernels take it; false
+// for an inert box (no centre).
+bool centre_of(const bpx_cuda_tree *t, uint32_t i, float c[3])
+{
+    if (!bpx_tree::live(t->lo[0][i], t->hi[0][i]))
+        return false;
+    const float blo[3] = {t->lo[0][i], t->lo[1][i], t->lo[2][i]};
+    const float bhi[3] = {t->hi[0][i], t->hi[1][i], t->hi[2][i]};
+    bpx_tree::centre(blo, bhi, c);
+    return true;
+}
+
 // A launch whose grid would be empty: the GPU refuses it (the host must not make it).
 cudaError_t empty_grid(uint32_t n)
 {
@@ -214,12 +226,9 @@ cudaError_t bpx__cuda_launch_bounds(cudaStream_t stream, const bpx_cuda_tree *t)
     reads_planes(stream, t->hi, t->n, "bounds boxes");
     writes(stream, t->scene, 6, "bounds scene");
     for (uint32_t i = 0; i < t->n; i++) {
-        if (!bpx_tree::live(t->lo[0][i], t->hi[0][i]))
-            continue;
-        const float blo[3] = {t->lo[0][i], t->lo[1][i], t->lo[2][i]};
-        const float bhi[3] = {t->hi[0][i], t->hi[1][i], t->hi[2][i]};
         float c[3];
-        bpx_tree::centre(blo, bhi, c);
+        if (!centre_of(t, i, c))
+            continue;
         for (int a = 0; a < 3; a++) {
             uint32_t k = bpx_tree::order_key(c[a]);
             t->scene[a] = std::min(t->scene[a], k);
@@ -240,15 +249,8 @@ cudaError_t bpx__cuda_launch_morton(cudaStream_t stream, const bpx_cuda_tree *t)
     reads(stream, t->scene, 6, "morton scene");
     for (uint32_t i = 0; i < t->n; i++) {
         t->ids[0][i] = i;
-        if (!bpx_tree::live(t->lo[0][i], t->hi[0][i])) {
-            t->morton[0][i] = ~0u;
-            continue;
-        }
-        const float blo[3] = {t->lo[0][i], t->lo[1][i], t->lo[2][i]};
-        const float bhi[3] = {t->hi[0][i], t->hi[1][i], t->hi[2][i]};
         float c[3];
-        bpx_tree::centre(blo, bhi, c);
-        t->morton[0][i] = bpx_tree::morton(c, t->scene);
+        t->morton[0][i] = centre_of(t, i, c) ? bpx_tree::morton(c, t->scene) : ~0u;
     }
     return cudaSuccess;
 }
