@@ -284,8 +284,8 @@ static void test_device_resident(void)
                 continue;
             }
             CHECK_STATUS(st, BPX_OK);
-            const bpx_pair *d_pairs = NULL;
-            const unsigned long long *d_count = NULL;
+            void *d_pairs = NULL;
+            void *d_count = NULL;
             size_t capacity = 0;
             CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, &d_count, &capacity), BPX_OK);
             CHECK(capacity >= count);
@@ -343,7 +343,7 @@ static void test_device_room(void)
               capacity);
     CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
     CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
-    const bpx_pair *d_pairs = NULL;
+    void *d_pairs = NULL;
     CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, NULL, &capacity), BPX_OK);
     bpx_pair *got = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
     CHECK(cudaMemcpy(got, d_pairs, sizeof(bpx_pair) * count, cudaMemcpyDeviceToHost) ==
@@ -387,7 +387,7 @@ static void test_device_caller_stream(void)
             CHECK_STATUS(bpx_cuda_collide_device(cuda, own ? NULL : mine), BPX_OK);
             size_t count = 0;
             CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
-            const bpx_pair *d_pairs = NULL;
+            void *d_pairs = NULL;
             CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, NULL, NULL), BPX_OK);
             bpx_pair *got = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
             CHECK(cudaMemcpyAsync(got, d_pairs, sizeof(bpx_pair) * count, cudaMemcpyDeviceToHost,
@@ -641,7 +641,7 @@ static void test_centres(void)
                         CHECK_STATUS(bpx_cuda_collide_device(cuda, NULL), BPX_OK);
                         CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
                     }
-                    const bpx_pair *d_pairs = NULL;
+                    void *d_pairs = NULL;
                     CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, NULL, NULL), BPX_OK);
                     bpx_pair *got = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
                     CHECK(cudaMemcpy(got, d_pairs, sizeof(bpx_pair) * count,
@@ -845,7 +845,7 @@ static void test_allocation_failures(void)
                     size_t count = 0;
                     CHECK_STATUS(bpx_cuda_collide_device(w, NULL), BPX_OK);
                     CHECK_STATUS(bpx_cuda_finish(w, &count), BPX_OK);
-                    const bpx_pair *dp = NULL;
+                    void *dp = NULL;
                     CHECK_STATUS(bpx_cuda_device_pairs(w, &dp, NULL, NULL), BPX_OK);
                     size_t want = 0;
                     const bpx_pair *wp = bpx_world_pairs(oracle, &want);

@@ -229,7 +229,7 @@ int main(int argc, char **argv)
             t[1].exact &= same;
             t[0].exact &= on_device == gn;
             if (on_device == gn) { // every cycle, untimed: the resident pairs themselves
-                const bpx_pair *dp = NULL;
+                void *dp = NULL;
                 bpx_cuda_device_pairs(resident, &dp, NULL, NULL);
                 bpx_pair *back = malloc(sizeof(bpx_pair) * (gn ? gn : 1));
                 t[0].exact &= back &&

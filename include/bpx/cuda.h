@@ -4,7 +4,8 @@
 // chosen like any other (bpx_world_def.backend = BPX_BACKEND_CUDA) and runs on CUDA device 0;
 // bpx_world_collide* work as on every backend (boxes in from the host, pairs out to the host).
 // Every function here exists in every build; without CUDA they return BACKEND_UNAVAILABLE.
-// CUDA types cross this header as void pointers (a cudaStream_t), so it needs no CUDA headers.
+// CUDA types cross this header as void pointers (a cudaStream_t, device memory), so it needs no
+// CUDA headers. The device calls are named, typed and ordered as include/bpx/opencl.h's.
 //
 // Ownership and synchronisation:
 // - The world owns a non-blocking stream (bpx_cuda_world_stream) and its device buffers; they
@@ -37,7 +38,7 @@ extern "C" {
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, BACKEND_UNAVAILABLE (not a cuda world), BAD_STATE
 /// (boxes added and removed one by one), NOT_FINITE, MIN_GREATER_THAN_MAX, DEVICE,
 /// DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.
-BPX_API bpx_status bpx_cuda_set_boxes_device(bpx_world *world, const bpx_box *boxes, uint32_t n);
+BPX_API bpx_status bpx_cuda_set_boxes_device(bpx_world *world, const void *boxes, uint32_t n);
 
 /// The paper's two-phase mode with the centres already in device memory: `centres` points to n
 /// centres (x, y, z floats, 12 bytes each, the layout bpx_world_update_centres takes) in memory
@@ -55,7 +56,7 @@ BPX_API bpx_status bpx_cuda_set_boxes_device(bpx_world *world, const bpx_box *bo
 /// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE (not a cuda world), BAD_STATE (no extents loaded,
 /// or objects removed by id), INVALID_ARGUMENT (n other than the loaded count), NOT_FINITE,
 /// DEVICE, DEVICE_MEMORY. On error the world is unchanged.
-BPX_API bpx_status bpx_cuda_set_centres_device(bpx_world *world, const float *centres, uint32_t n);
+BPX_API bpx_status bpx_cuda_set_centres_device(bpx_world *world, const void *centres, uint32_t n);
 /// One cycle that never leaves the device: enqueued on `stream` (a cudaStream_t; NULL for the
 /// world's own) and returned from at once. The pairs, sorted by (i, j), and their count stay in
 /// device memory (bpx_cuda_device_pairs). The boxes are the device boxes, or those the device's
@@ -63,18 +64,21 @@ BPX_API bpx_status bpx_cuda_set_centres_device(bpx_world *world, const float *ce
 /// sent first. No host round trip happens inside the cycle: the count
 /// follows the pairs into pinned host memory, and the next call reads it to size the buffer.
 /// Errors (of the enqueueing; the cycle's own outcome is bpx_cuda_finish's): NULL_ARGUMENT,
-/// BACKEND_UNAVAILABLE, DEVICE, DEVICE_MEMORY, OUT_OF_MEMORY (pinned host memory). Filters (bpx_world_set_filters) and events are
-/// not applied to device-resident pairs: BAD_STATE when either is in use.
+/// BACKEND_UNAVAILABLE, DEVICE, DEVICE_MEMORY, OUT_OF_MEMORY (pinned host memory). Filters
+/// (bpx_world_set_filters) and events are not applied to device-resident pairs: BAD_STATE when
+/// either is in use.
 BPX_API bpx_status bpx_cuda_collide_device(bpx_world *world, void *stream);
 
-/// The last device cycle's pairs and count, in device memory: `pairs` holds `capacity` pairs,
-/// of which the first *count (an unsigned long long on the device) are the cycle's when
-/// *count <= capacity. The capacity is that cycle's room (its last count and half more), so it
-/// changes from cycle to cycle: ask again after each bpx_cuda_collide_device. When *count > capacity the buffer was too small, its content is not the
-/// pair set, bpx_cuda_finish says CAPACITY with the count, and the next cycle has room for it.
+/// The last device cycle's pairs and count, in device memory: *pairs (bpx_pair, two uint32 each)
+/// holds *capacity pairs, of which the first count (the unsigned long long at *count) are the
+/// cycle's when count <= capacity. The capacity is that cycle's room (its last count and half
+/// more), so it changes from cycle to cycle: ask again after each bpx_cuda_collide_device. When
+/// count > capacity the buffer was too small, its content is not the pair set, bpx_cuda_finish
+/// says CAPACITY with the count, and the next cycle has room for it. The world's host pairs
+/// (bpx_world_pairs) are no longer the last cycle's after bpx_cuda_collide_device.
 /// Any pointer may be NULL. Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE.
-BPX_API bpx_status bpx_cuda_device_pairs(bpx_world *world, const bpx_pair **pairs,
-                                         const unsigned long long **count, size_t *capacity);
+BPX_API bpx_status bpx_cuda_device_pairs(bpx_world *world, void **pairs, void **count,
+                                         size_t *capacity);
 
 /// Waits for the last bpx_cuda_collide_device and tells how it went: OK with *count (may be
 /// NULL) pairs; CAPACITY with *count the pairs found (the buffer was too small; run the cycle

@@ -5,7 +5,8 @@
 // other (bpx_world_def.backend = BPX_BACKEND_OPENCL) and configured with the opencl_* fields of
 // bpx_world_def. Every function here exists in every build; without OpenCL support they return
 // BPX_ERR_BACKEND_UNAVAILABLE. OpenCL handles cross this header as void pointers, so including it
-// needs no OpenCL headers.
+// needs no OpenCL headers. The device calls are named, typed and ordered as include/bpx/cuda.h's:
+// set_boxes_device, set_centres_device, collide_device, device_pairs, finish.
 #pragma once
 
 #include "bpx.h"
@@ -46,13 +47,13 @@ BPX_API bpx_status bpx_opencl_world_handles(bpx_world *world, void **context, vo
 /// is reported like bpx_world_set_boxes does (NOT_FINITE or MIN_GREATER_THAN_MAX, naming the
 /// first bad box; the axis is that box's first bad one). The world retains the buffer and reads
 /// it at each bpx_world_collide* until the next set_boxes / load_extents / update_centres /
-/// set_boxes_buffer; the caller may change its contents between cycles (on the world's queue, or
+/// set_boxes_device; the caller may change its contents between cycles (on the world's queue, or
 /// finished before the collide call) but must not make the boxes invalid. Until then queries
 /// (include/bpx/query.h) are refused with BAD_STATE: the host has no copy of these boxes.
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, BACKEND_UNAVAILABLE (not an opencl world),
 /// INVALID_ARGUMENT (buffer smaller than n boxes or from another context), NOT_FINITE,
 /// MIN_GREATER_THAN_MAX, DEVICE, DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.
-BPX_API bpx_status bpx_opencl_set_boxes_buffer(bpx_world *world, void *buffer, uint32_t n);
+BPX_API bpx_status bpx_opencl_set_boxes_device(bpx_world *world, const void *buffer, uint32_t n);
 
 /// The paper's two-phase mode with the centres already on the device: `buffer` is a cl_mem in
 /// the world's context holding n centres (x, y, z floats, 12 bytes each, the layout
@@ -64,24 +65,28 @@ BPX_API bpx_status bpx_opencl_set_boxes_buffer(bpx_world *world, void *buffer, u
 /// and its axis), and only that centre crosses the link.
 /// Ownership and queues: the world retains the buffer (the caller may release its own
 /// reference) and reads it in place at each bpx_world_collide* until the next set_boxes /
-/// load_extents / update_centres / set_boxes_buffer / set_centres_buffer. The caller may change
+/// load_extents / update_centres / set_boxes_device / set_centres_device. The caller may change
 /// the centres between cycles: with commands on the world's queue (bpx_opencl_world_handles;
 /// in order, so the next collide sees them), or on another queue finished before the collide
 /// call. Centres changed later are not checked again: they must keep every box finite. Until
-/// then queries (include/bpx/query.h) are refused with BAD_STATE, as with set_boxes_buffer.
+/// then queries (include/bpx/query.h) are refused with BAD_STATE, as with set_boxes_device.
 /// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE (not an opencl world, or a device without
 /// single-precision subnormals, whose updater would round differently from the host's),
 /// BAD_STATE (no extents loaded, or objects removed by id), INVALID_ARGUMENT (n other than the
 /// loaded count, a buffer smaller than n centres or from another context), NOT_FINITE, DEVICE,
 /// DEVICE_MEMORY, OUT_OF_MEMORY. On error the world is unchanged.
+BPX_API bpx_status bpx_opencl_set_centres_device(bpx_world *world, const void *buffer, uint32_t n);
+
+/// The names these calls had before they were named as cuda.h's (same calls).
+BPX_API bpx_status bpx_opencl_set_boxes_buffer(bpx_world *world, void *buffer, uint32_t n);
 BPX_API bpx_status bpx_opencl_set_centres_buffer(bpx_world *world, void *buffer, uint32_t n);
 
 // ---------------------------------------------------------------------------------------------
 // Cycles that never leave the device
 //
 // bpx_opencl_collide_device runs the cycle and leaves its pairs, sorted by (i, j), and their
-// count in device memory for the caller's next kernel; with set_boxes_buffer or
-// set_centres_buffer nothing crosses the link but the 8-byte count.
+// count in device memory for the caller's next kernel; with set_boxes_device or
+// set_centres_device nothing crosses the link but the 8-byte count.
 //
 // Ownership, queues and synchronisation:
 // - The world owns the pair buffer and the count buffer (cl_mem in the world's context). They
@@ -98,7 +103,7 @@ BPX_API bpx_status bpx_opencl_set_centres_buffer(bpx_world *world, void *buffer,
 //   before anything is enqueued, and the count follows the pairs to pinned host memory. The
 //   next bpx_opencl_collide_device waits for that copy (the previous cycle only, not the
 //   caller's commands behind it); so do bpx_opencl_finish, bpx_world_collide*,
-//   bpx_world_update_centres and bpx_opencl_set_*_buffer. Nothing else waits.
+//   bpx_world_update_centres and bpx_opencl_set_*_device. Nothing else waits.
 // - Every path runs device-resident: brute force (the small-set kernel and the tiled one), the
 //   tree, and the sweep when forced. The tree and the sweep sort the whole room (their pairs
 //   past the count are padding); when their buffers pass the memory limit, brute force takes
@@ -115,15 +120,15 @@ BPX_API bpx_status bpx_opencl_set_centres_buffer(bpx_world *world, void *buffer,
 /// The world's host pairs (bpx_world_pairs) are no longer the last cycle's.
 BPX_API bpx_status bpx_opencl_collide_device(bpx_world *world);
 
-/// The last device-resident cycle's buffers: *pairs_buffer (a cl_mem) holds *capacity pairs
-/// (bpx_pair, two uint32 each), of which the first count are the cycle's when count <=
-/// capacity, count being the cl_ulong at the start of *count_buffer (a cl_mem). When count >
+/// The last device-resident cycle's buffers: *pairs (a cl_mem) holds *capacity pairs (bpx_pair,
+/// two uint32 each), of which the first count are the cycle's when count <= capacity, count
+/// being the cl_ulong at the start of *count (a cl_mem). When count >
 /// capacity the room was short: the buffer is not the pair set, bpx_opencl_finish says
 /// CAPACITY, and the next cycle has room. Does not wait. Any pointer may be NULL.
 /// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE, BAD_STATE (no bpx_opencl_collide_device since
 /// the world was made or since its last bpx_world_collide*).
-BPX_API bpx_status bpx_opencl_device_pairs(bpx_world *world, void **pairs_buffer,
-                                           void **count_buffer, size_t *capacity);
+BPX_API bpx_status bpx_opencl_device_pairs(bpx_world *world, void **pairs, void **count,
+                                           size_t *capacity);
 
 /// Waits for the last bpx_opencl_collide_device and tells how it went, as often as asked until
 /// the next cycle: OK with *count (may be NULL) pairs; CAPACITY with *count the pairs found

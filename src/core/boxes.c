@@ -71,7 +71,7 @@ bool bpx__boxes_resize(bpx_world *w, uint32_t n)
     w->n = n;
     bpx__box_arrays_pad(&w->boxes, n);
     w->stats.box_count = n;
-    w->planned_n = UINT32_MAX;
+    w->emitter.planned_n = UINT32_MAX;
     w->boxes_version++;
     return true;
 }

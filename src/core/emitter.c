@@ -2,7 +2,7 @@
 #include <string.h>
 
 #include "alloc.h"
-#include "world.h"
+#include "backend.h"
 
 enum {
     BLOCK_TARGET_TESTS = 8192, // a few us of work: claims stay rare, 2+ threads share n = 500
@@ -12,34 +12,34 @@ enum {
 
 enum { BLOCK_FIRST_PAIRS = 64 }; // every block starts with room for this many hits
 
-bpx_status bpx__emitter_reserve_blocks(bpx_world *w, int wanted)
+bpx_status bpx__emitter_reserve_blocks(bpx_emitter *e, int wanted)
 {
-    if (wanted > w->block_capacity) {
+    if (wanted > e->block_capacity) {
         // Half again as many: backends whose block count follows the data (grid) settle.
         int capacity = wanted + wanted / 2;
-        size_t old_size = sizeof(bpx_block) * (size_t)w->block_capacity;
+        size_t old_size = sizeof(bpx_block) * (size_t)e->block_capacity;
         size_t new_size = sizeof(bpx_block) * (size_t)capacity;
-        if (!bpx__grow((void **)&w->blocks, old_size, new_size))
+        if (!bpx__grow((void **)&e->blocks, old_size, new_size))
             return BPX_ERR_OUT_OF_MEMORY;
-        memset((char *)w->blocks + old_size, 0, new_size - old_size);
-        w->block_capacity = capacity;
+        memset((char *)e->blocks + old_size, 0, new_size - old_size);
+        e->block_capacity = capacity;
     }
     // Room up front, so that a block's first hits in a later cycle do not allocate there.
     for (int b = 0; b < wanted; b++)
-        if (!bpx__list_reserve(&w->blocks[b].hits, BLOCK_FIRST_PAIRS) ||
-            !bpx__list_reserve(&w->blocks[b].stage, BLOCK_FIRST_PAIRS))
+        if (!bpx__list_reserve(&e->blocks[b].hits, BLOCK_FIRST_PAIRS) ||
+            !bpx__list_reserve(&e->blocks[b].stage, BLOCK_FIRST_PAIRS))
             return BPX_ERR_OUT_OF_MEMORY;
     return BPX_OK;
 }
 
-bpx_status bpx__emitter_one_block(bpx_world *w, bpx_block **out)
+bpx_status bpx__emitter_one_block(bpx_emitter *e, uint32_t n, bpx_block **out)
 {
-    if (w->planned_n != w->n) {
-        bpx_status status = bpx__emitter_plan(w, true);
+    if (e->planned_n != n) {
+        bpx_status status = bpx__emitter_plan(e, n, true);
         if (status != BPX_OK)
             return status;
     }
-    bpx_block *block = &w->blocks[0];
+    bpx_block *block = &e->blocks[0];
     block->hits.count = 0;
     block->stage.count = 0;
     block->tests = 0;
@@ -48,27 +48,25 @@ bpx_status bpx__emitter_one_block(bpx_world *w, bpx_block **out)
     return BPX_OK;
 }
 
-bpx_status bpx__emitter_plan_rows(bpx_world *w, uint32_t rows)
+bpx_status bpx__emitter_plan_rows(bpx_emitter *e, uint32_t n, uint32_t rows)
 {
-    uint32_t n = w->n;
     int wanted = (int)((n + rows - 1) / rows);
     if (wanted < 1)
         wanted = 1;
-    bpx_status status = bpx__emitter_reserve_blocks(w, wanted);
+    bpx_status status = bpx__emitter_reserve_blocks(e, wanted);
     if (status != BPX_OK)
         return status;
     for (int b = 0; b < wanted; b++) {
-        w->blocks[b].row_begin = (uint32_t)b * rows;
-        w->blocks[b].row_end = (uint32_t)b * rows + rows < n ? (uint32_t)b * rows + rows : n;
+        e->blocks[b].row_begin = (uint32_t)b * rows;
+        e->blocks[b].row_end = (uint32_t)b * rows + rows < n ? (uint32_t)b * rows + rows : n;
     }
-    w->block_count = wanted;
-    w->planned_n = n;
+    e->block_count = wanted;
+    e->planned_n = n;
     return BPX_OK;
 }
 
-bpx_status bpx__emitter_plan(bpx_world *w, bool single)
+bpx_status bpx__emitter_plan(bpx_emitter *e, uint32_t n, bool single)
 {
-    uint32_t n = w->n;
     uint64_t total = 0;
     for (uint32_t i = 0; i < n; i++)
         total += (uint64_t)(n - 1 - i) + ROW_OVERHEAD_TESTS;
@@ -77,24 +75,24 @@ bpx_status bpx__emitter_plan(bpx_world *w, bool single)
         target = BLOCK_TARGET_TESTS;
     int wanted = single ? 1 : (int)(total / target) + 1;
 
-    bpx_status status = bpx__emitter_reserve_blocks(w, wanted);
+    bpx_status status = bpx__emitter_reserve_blocks(e, wanted);
     if (status != BPX_OK)
         return status;
 
     // Cut rows where the running cost crosses each multiple of the per-block share.
     int b = 0;
     uint64_t share = total / (uint64_t)wanted + 1, cost = 0;
-    w->blocks[0].row_begin = 0;
+    e->blocks[0].row_begin = 0;
     for (uint32_t i = 0; i < n; i++) {
         cost += (uint64_t)(n - 1 - i) + ROW_OVERHEAD_TESTS;
         if (cost >= share * (uint64_t)(b + 1) && b + 1 < wanted && i + 1 < n) {
-            w->blocks[b].row_end = i + 1;
-            w->blocks[++b].row_begin = i + 1;
+            e->blocks[b].row_end = i + 1;
+            e->blocks[++b].row_begin = i + 1;
         }
     }
-    w->blocks[b].row_end = n;
-    w->block_count = b + 1;
-    w->planned_n = n;
+    e->blocks[b].row_end = n;
+    e->block_count = b + 1;
+    e->planned_n = n;
     return BPX_OK;
 }
 
@@ -126,28 +124,28 @@ bool bpx__list_append(bpx_pair_list *dst, const bpx_pair_list *src)
     return true;
 }
 
-static void list_free(bpx_pair_list *list)
+void bpx__list_free(bpx_pair_list *list)
 {
     bpx__free(list->pairs, list->capacity * sizeof(bpx_pair));
     *list = (bpx_pair_list){0};
 }
 
-bpx_status bpx__emitter_total(const bpx_world *w, size_t *total)
+bpx_status bpx__emitter_total(const bpx_emitter *e, size_t *total)
 {
     size_t sum = 0;
-    for (int b = 0; b < w->block_count; b++) {
-        if (w->blocks[b].status != BPX_OK)
-            return w->blocks[b].status;
-        sum += w->blocks[b].hits.count;
+    for (int b = 0; b < e->block_count; b++) {
+        if (e->blocks[b].status != BPX_OK)
+            return e->blocks[b].status;
+        sum += e->blocks[b].hits.count;
     }
     *total = sum;
     return BPX_OK;
 }
 
-void bpx__emitter_merge(const bpx_world *w, bpx_pair *out)
+void bpx__emitter_merge(const bpx_emitter *e, bpx_pair *out)
 {
-    for (int b = 0; b < w->block_count; b++) {
-        const bpx_block *block = &w->blocks[b];
+    for (int b = 0; b < e->block_count; b++) {
+        const bpx_block *block = &e->blocks[b];
         // out is NULL when no pair was found (an empty list owns no memory), and even + 0 on
         // a null pointer is undefined: only a block with hits moves it.
         if (block->hits.count) {
@@ -170,11 +168,11 @@ static void counting_sort(const bpx_pair *src, bpx_pair *dst, size_t count, uint
         dst[counts[by_i ? src[k].i : src[k].j]++] = src[k];
 }
 
-bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_list *b,
+bpx_status bpx__emitter_sort_blocks(bpx_emitter *e, uint32_t n, bpx_pair_list *a, bpx_pair_list *b,
                                     uint32_t *counts)
 {
     size_t total = 0;
-    bpx_status status = bpx__emitter_total(w, &total);
+    bpx_status status = bpx__emitter_total(e, &total);
     if (status != BPX_OK)
         return status;
     if (total > UINT32_MAX)
@@ -184,44 +182,42 @@ bpx_status bpx__emitter_sort_blocks(bpx_world *w, bpx_pair_list *a, bpx_pair_lis
     // cycles even when the pair count drifts up.
     if (!bpx__list_reserve(a, total + total / 2) || !bpx__list_reserve(b, total + total / 2))
         return BPX_ERR_OUT_OF_MEMORY;
-    bpx__emitter_merge(w, a->pairs);
+    bpx__emitter_merge(e, a->pairs);
     // By j, then (stably) by i: (i, j) order.
-    counting_sort(a->pairs, b->pairs, total, w->n, counts, false);
-    counting_sort(b->pairs, a->pairs, total, w->n, counts, true);
+    counting_sort(a->pairs, b->pairs, total, n, counts, false);
+    counting_sort(b->pairs, a->pairs, total, n, counts, true);
     a->count = total;
 
     // Block 0 takes the ordered list (a swap, not a copy); its old list becomes scratch.
     uint64_t tests = 0;
-    for (int k = 0; k < w->block_count; k++) {
-        tests += w->blocks[k].tests;
-        w->blocks[k].hits.count = 0;
-        w->blocks[k].tests = 0;
+    for (int k = 0; k < e->block_count; k++) {
+        tests += e->blocks[k].tests;
+        e->blocks[k].hits.count = 0;
+        e->blocks[k].tests = 0;
     }
-    bpx_pair_list block0 = w->blocks[0].hits;
-    w->blocks[0].hits = *a;
-    w->blocks[0].tests = tests;
+    bpx_pair_list block0 = e->blocks[0].hits;
+    e->blocks[0].hits = *a;
+    e->blocks[0].tests = tests;
     *a = block0;
     return BPX_OK;
 }
 
-void bpx__emitter_release(bpx_world *w)
+void bpx__emitter_release(bpx_emitter *e)
 {
-    for (int b = 0; b < w->block_capacity; b++) {
-        list_free(&w->blocks[b].hits);
-        list_free(&w->blocks[b].stage);
-        w->blocks[b].status = BPX_OK;
+    for (int b = 0; b < e->block_capacity; b++) {
+        bpx__list_free(&e->blocks[b].hits);
+        bpx__list_free(&e->blocks[b].stage);
+        e->blocks[b].status = BPX_OK;
     }
-    list_free(&w->pairs);
 }
 
-void bpx__emitter_free(bpx_world *w)
+void bpx__emitter_free(bpx_emitter *e)
 {
-    for (int b = 0; b < w->block_capacity; b++) {
-        list_free(&w->blocks[b].hits);
-        list_free(&w->blocks[b].stage);
+    for (int b = 0; b < e->block_capacity; b++) {
+        bpx__list_free(&e->blocks[b].hits);
+        bpx__list_free(&e->blocks[b].stage);
     }
-    bpx__free(w->blocks, sizeof(bpx_block) * (size_t)w->block_capacity);
-    list_free(&w->pairs);
-    w->blocks = NULL;
-    w->block_capacity = w->block_count = 0;
+    bpx__free(e->blocks, sizeof(bpx_block) * (size_t)e->block_capacity);
+    e->blocks = NULL;
+    e->block_capacity = e->block_count = 0;
 }

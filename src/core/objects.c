@@ -260,8 +260,8 @@ void bpx__filter_blocks(bpx_world *w)
     if (!w->category)
         return;
     const uint32_t *category = w->category, *mask = w->mask;
-    for (int b = 0; b < w->block_count; b++) {
-        bpx_pair_list *hits = &w->blocks[b].hits;
+    for (int b = 0; b < w->emitter.block_count; b++) {
+        bpx_pair_list *hits = &w->emitter.blocks[b].hits;
         size_t kept = 0;
         for (size_t k = 0; k < hits->count; k++) {
             bpx_pair p = hits->pairs[k];

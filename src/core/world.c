@@ -129,7 +129,8 @@ bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
     bpx_world *w = bpx__alloc(sizeof *w);
     if (!w)
         return BPX_ERR_OUT_OF_MEMORY;
-    *w = (bpx_world){.def = *def, .backend = backends[resolved], .planned_n = UINT32_MAX};
+    *w = (bpx_world){.def = *def, .backend = backends[resolved]};
+    w->emitter.planned_n = UINT32_MAX;
     w->def.worker_count = def->worker_count ? def->worker_count : 1;
     w->def.spin_us = def->spin_us ? def->spin_us : DEFAULT_SPIN_US;
     w->simd = def->simd == BPX_SIMD_AUTO ? bpx_simd_best() : def->simd;
@@ -158,9 +159,10 @@ void bpx_world_destroy(bpx_world *w)
     if (!w)
         return;
     bpx__pool_destroy(w->executor.pool);
-    if (w->backend && w->backend->destroy)
-        w->backend->destroy(w);
-    bpx__emitter_free(w);
+    if (w->backend_state && w->backend->destroy)
+        w->backend->destroy(w->backend_state);
+    bpx__emitter_free(&w->emitter);
+    bpx__list_free(&w->pairs);
     bpx__objects_free(w);
     bpx__query_free(w);
     free_boxes(w);
@@ -182,7 +184,13 @@ bpx_backend bpx_world_backend(const bpx_world *w)
 {
     if (!w)
         return BPX_BACKEND_AUTO;
-    return w->backend->id == BPX_BACKEND_AUTO ? bpx__auto_choice(w) : w->backend->id;
+    return w->backend->id == BPX_BACKEND_AUTO ? bpx__auto_choice(w->backend_state, w->n)
+                                              : w->backend->id;
+}
+
+const void *bpx__world_backend_state(const bpx_world *w, const bpx_backend_impl *backend)
+{
+    return w && w->backend == backend ? w->backend_state : NULL;
 }
 
 bpx_simd bpx_world_simd(const bpx_world *w)
@@ -288,6 +296,20 @@ static void centres_task(int begin, int end, int worker, void *context)
     }
 }
 
+// Tells the backend that the boxes were replaced (by centres, or else by whole boxes or extents).
+static void tell_backend(bpx_world *w, const float *centres)
+{
+    if (!w->backend->boxes_set)
+        return;
+    bpx_boxes_change change = {
+        .centres = centres,
+        .extents = bpx__world_extents(w),
+        .boxes_version = w->boxes_version,
+        .inert_ids = w->dead != NULL,
+    };
+    w->backend->boxes_set(&w->backend_state, &w->def, &change);
+}
+
 // Runs an updater pass over all n boxes; true when every box passed its check.
 static int run_update(bpx_world *w, bpx_task_fn *task, update_job *job)
 {
@@ -331,8 +353,7 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
     bpx__boxes_swap_in_spare(w, n);
     // The boxes no longer come from the loaded extents: centres would rebuild stale boxes.
     w->extents_loaded = false;
-    if (w->backend->boxes_set)
-        w->backend->boxes_set(w, NULL);
+    tell_backend(w, NULL);
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }
@@ -393,8 +414,7 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
     w->extent_count = n;
     w->extents_loaded = true;
     bpx__boxes_swap_in_spare(w, n);
-    if (w->backend->boxes_set)
-        w->backend->boxes_set(w, NULL);
+    tell_backend(w, NULL);
     return BPX_OK;
 }
 
@@ -423,8 +443,7 @@ bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
     }
     bpx__boxes_swap_in_spare(w, n);
     bpx__objects_reinert(w); // removed objects stay out of the broad phase
-    if (w->backend->boxes_set)
-        w->backend->boxes_set(w, centres);
+    tell_backend(w, centres);
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
 }
@@ -438,10 +457,17 @@ static bool merge_own(bpx_world *w, size_t total)
     w->pairs.count = 0;
     if (!bpx__list_reserve(&w->pairs, total))
         return false;
-    bpx__emitter_merge(w, w->pairs.pairs);
+    bpx__emitter_merge(&w->emitter, w->pairs.pairs);
     w->pairs.count = total;
     w->merged = true;
     return true;
+}
+
+// Gives back the blocks' hits and the merged list after a cycle that ran out of memory or pairs.
+static void release_pairs(bpx_world *w)
+{
+    bpx__emitter_release(&w->emitter);
+    bpx__list_free(&w->pairs);
 }
 
 // Runs the comparator into the blocks. On success *total is the number of pairs.
@@ -452,17 +478,25 @@ static bpx_status compare(bpx_world *w, size_t *total)
     // successful one reports against the last successful one, whose pairs objects.c keeps).
     w->events_valid = false;
     w->stats.pair_count = 0;
-    w->stats.rebuilt = false; // only backends that keep state between cycles set it
     uint64_t start = bpx__now_ns();
-    bpx_status status = w->backend->compare(w);
+    bpx_cycle cycle = bpx__world_cycle(w);
+    bpx_status status = w->backend->compare(&w->backend_state, &cycle);
+    const bpx_backend_report *r = &cycle.report;
+    w->stats.rebuilt = r->rebuilt;
+    w->stats.transfer_in_ns = r->transfer_in_ns;
+    w->stats.transfer_out_ns = r->transfer_out_ns;
+    w->stats.device_ns = r->device_ns;
+    w->stats.bytes_in = r->bytes_in;
+    w->stats.bytes_out = r->bytes_out;
+    w->stats.device_share = r->device_share;
     if (status == BPX_OK) {
         bpx__filter_blocks(w);
-        status = bpx__emitter_total(w, total);
+        status = bpx__emitter_total(&w->emitter, total);
     }
     w->stats.compare_ns = bpx__now_ns() - start;
     w->result_valid = status == BPX_OK; // nothing partial is ever reported
     if (status == BPX_ERR_OUT_OF_MEMORY || status == BPX_ERR_TOO_MANY_PAIRS)
-        bpx__emitter_release(w); // a cycle too big for memory leaves none of it held
+        release_pairs(w); // a cycle too big for memory leaves none of it held
     // A backend that named what failed (a device box, its index and axis; the failing call)
     // keeps its error; the callers cleared it before the cycle.
     if (status != BPX_OK && w->error.status != status) {
@@ -472,8 +506,8 @@ static bpx_status compare(bpx_world *w, size_t *total)
     if (status != BPX_OK)
         return status;
     uint64_t tests = 0;
-    for (int b = 0; b < w->block_count; b++)
-        tests += w->blocks[b].tests;
+    for (int b = 0; b < w->emitter.block_count; b++)
+        tests += w->emitter.blocks[b].tests;
     w->stats.pair_tests = tests;
     w->stats.pair_count = *total;
     w->stats.cycle_count++;
@@ -492,7 +526,7 @@ bpx_status bpx_world_collide(bpx_world *w)
     uint64_t start = bpx__now_ns();
     if (!merge_own(w, total)) {
         w->result_valid = false;
-        bpx__emitter_release(w);
+        release_pairs(w);
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %zu pairs", total);
     }
@@ -533,7 +567,7 @@ bpx_status bpx_world_collide_into(bpx_world *w, bpx_pair *out, size_t capacity, 
         return bpx__error(&w->error, BPX_ERR_CAPACITY, UINT32_MAX, -1,
                           "%zu pairs found, capacity %zu", total, capacity);
     uint64_t start = bpx__now_ns();
-    bpx__emitter_merge(w, out);
+    bpx__emitter_merge(&w->emitter, out);
     w->stats.emit_ns = bpx__now_ns() - start;
     return BPX_OK;
 }
@@ -547,7 +581,7 @@ const bpx_pair *bpx_world_pairs(bpx_world *w, size_t *count)
     if (!w)
         return NULL;
     size_t total = 0;
-    if (!w->result_valid || bpx__emitter_total(w, &total) != BPX_OK)
+    if (!w->result_valid || bpx__emitter_total(&w->emitter, &total) != BPX_OK)
         return NULL;
     if (!w->merged && !merge_own(w, total)) {
         bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
@@ -565,13 +599,13 @@ bpx_status bpx_world_copy_pairs(const bpx_world *w, bpx_pair *out, size_t capaci
     if (!w || !count || (!out && capacity > 0))
         return BPX_ERR_NULL_ARGUMENT;
     size_t total = 0;
-    if (!w->result_valid || bpx__emitter_total(w, &total) != BPX_OK)
+    if (!w->result_valid || bpx__emitter_total(&w->emitter, &total) != BPX_OK)
         total = 0;
     *count = total;
     if (total > capacity)
         return BPX_ERR_CAPACITY;
     if (total > 0)
-        bpx__emitter_merge(w, out);
+        bpx__emitter_merge(&w->emitter, out);
     return BPX_OK;
 }
 

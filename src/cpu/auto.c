@@ -1,4 +1,6 @@
 // The auto backend: each cycle, the CPU backend that should be fastest for what it observes.
+// Paper modules: none of its own; it composes brute, prune, sap and grid through the backend
+// contract (core/backend.h), keeping each one's state slot and never looking inside.
 //
 // The rule (measured with `bpx bench`; docs/performance.md has the runs):
 //   n <= 128                       brute: no sort to pay for, a few SIMD steps per row
@@ -25,7 +27,6 @@
 
 #include "backends.h"
 #include "core/alloc.h"
-#include "core/world.h"
 
 enum {
     // Brute and prune cross between 100 and 150 boxes on Table 2's scenario (mean us per cycle:
@@ -71,10 +72,10 @@ static bpx_backend choice_by_n(uint32_t n)
     return n <= AUTO_BRUTE_MAX ? BPX_BACKEND_BRUTE : BPX_BACKEND_PRUNE;
 }
 
-bpx_backend bpx__auto_choice(const bpx_world *w)
+bpx_backend bpx__auto_choice(const void *state, uint32_t n)
 {
-    const auto_state *st = w->backend_state;
-    return st && st->last != BPX_BACKEND_AUTO ? st->last : choice_by_n(w->n);
+    const auto_state *st = state;
+    return st && st->last != BPX_BACKEND_AUTO ? st->last : choice_by_n(n);
 }
 
 // Every how many boxes the statistics look at one (the same for the same n), and how many they
@@ -148,12 +149,12 @@ static uint32_t add_boxes_sse2(auto_sums *a, const float *lo, const float *hi, c
 #endif
 
 // Measures the two statistics (and keeps this cycle's min x for the next) and picks.
-static bpx_backend choose(bpx_world *w, auto_state *st)
+static bpx_backend choose(const bpx_cycle *c, auto_state *st)
 {
-    uint32_t n = w->n;
+    uint32_t n = c->n;
     if (n <= AUTO_BRUTE_MAX)
         return BPX_BACKEND_BRUTE;
-    const float *lo = w->boxes.lo[0], *hi = w->boxes.hi[0];
+    const float *lo = c->boxes.lo[0], *hi = c->boxes.hi[0];
     bool have_last = st->last_min_x && st->last_n == n;
     uint32_t stride = sample_stride(n), sampled = sample_count(n);
     auto_sums a = {0};
@@ -194,17 +195,17 @@ static bpx_backend choose(bpx_world *w, auto_state *st)
     return candidates <= BPX_SWEEP_MAX_CANDIDATES ? BPX_BACKEND_PRUNE : BPX_BACKEND_GRID;
 }
 
-static bpx_status auto_compare(bpx_world *w)
+static bpx_status auto_compare(void **state, bpx_cycle *c)
 {
-    auto_state *st = w->backend_state;
+    auto_state *st = *state;
     if (!st) {
         if (!(st = bpx__alloc(sizeof *st)))
             return BPX_ERR_OUT_OF_MEMORY;
         *st = (auto_state){.last = BPX_BACKEND_AUTO};
-        w->backend_state = st;
+        *state = st;
     }
-    uint32_t wanted = sample_count(w->n);
-    if (wanted > st->capacity && w->n > AUTO_BRUTE_MAX) {
+    uint32_t wanted = sample_count(c->n);
+    if (wanted > st->capacity && c->n > AUTO_BRUTE_MAX) {
         // Room for the motion statistic. On failure auto goes on without it (no sap).
         uint32_t capacity = wanted + wanted / 2;
         float *grown = bpx__alloc(sizeof(float) * capacity);
@@ -215,32 +216,24 @@ static bpx_status auto_compare(bpx_world *w)
             st->last_n = 0;
         }
     }
-    bpx_backend id = choose(w, st);
-    const bpx_backend_impl *impl = impl_of(id);
-    w->backend_state = st->states[id];
-    bpx_status status = impl->compare(w);
-    st->states[id] = w->backend_state;
-    w->backend_state = st;
+    bpx_backend id = choose(c, st);
+    bpx_status status = impl_of(id)->compare(&st->states[id], c);
     st->last = id;
     return status;
 }
 
-static void auto_destroy(bpx_world *w)
+static void auto_destroy(void *state)
 {
-    auto_state *st = w->backend_state;
-    if (!st)
-        return;
+    auto_state *st = state;
     const bpx_backend delegates[] = {BPX_BACKEND_BRUTE, BPX_BACKEND_PRUNE, BPX_BACKEND_SAP,
                                      BPX_BACKEND_GRID};
     for (size_t k = 0; k < sizeof delegates / sizeof delegates[0]; k++) {
         const bpx_backend_impl *impl = impl_of(delegates[k]);
-        w->backend_state = st->states[delegates[k]];
-        if (w->backend_state && impl->destroy)
-            impl->destroy(w);
+        if (st->states[delegates[k]] && impl->destroy)
+            impl->destroy(st->states[delegates[k]]);
     }
     bpx__free(st->last_min_x, sizeof(float) * st->capacity);
     bpx__free(st, sizeof *st);
-    w->backend_state = NULL;
 }
 
 static bool auto_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)

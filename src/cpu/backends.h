@@ -4,11 +4,21 @@
 // cpu_features.h.
 #pragma once
 
-#include "core/world.h"
+#include "core/backend.h"
 
-/// Sweeps the world's first `blocks` blocks (their row ranges of `sorted`) on its workers with the
-/// prune kernel of its SIMD width; hits land in each block (prune.c; sap's rebuild uses it too).
-void bpx__prune_sweep_blocks(bpx_world *w, const bpx_sorted *sorted, int blocks);
+/// Boxes sorted by min x, in SoA form, with the original index of each; padded after n with
+/// boxes whose min x is +inf, so a sweep stops there without a bounds check.
+typedef struct bpx_sorted {
+    const float *lo[3];
+    const float *hi[3];
+    const uint32_t *id;
+    uint32_t n;
+} bpx_sorted;
+
+/// Sweeps the sink's first `blocks` blocks (their row ranges of `sorted`) on the cycle's workers
+/// with the prune kernel of its SIMD width; hits land in each block (prune.c; sap's rebuild uses
+/// it too).
+void bpx__prune_sweep_blocks(const bpx_cycle *c, const bpx_sorted *sorted, int blocks);
 
 /// A sweep along one axis tests about this many candidates per box at most before the grid's
 /// cells are cheaper: the grid on 2 threads is ahead from n = 20k boxes at constant density,
@@ -16,12 +26,12 @@ void bpx__prune_sweep_blocks(bpx_world *w, const bpx_sorted *sorted, int blocks)
 /// 10000,20000,50000 --scene uniform --threads 2`). auto and sap's rebuild use it.
 #define BPX_SWEEP_MAX_CANDIDATES 350.0
 
-/// The grid's pairs of `boxes` (boxes.n must be the world's n; any boxes of that count, e.g. sap's
+/// The grid's pairs of `boxes` (boxes.n must be the cycle's n; any boxes of that count, e.g. sap's
 /// fat ones, padded to a multiple of BPX_PAD_LANES with inert boxes) into block 0, in (i, j)
-/// order, on the world's workers (grid/grid.c). *state is the grid's own, made on first use and
+/// order, on the cycle's workers (grid/grid.c). *state is the grid's own, made on first use and
 /// kept between calls, freed after a call that fails (OUT_OF_MEMORY, TOO_MANY_PAIRS);
 /// bpx__grid_free releases it.
-bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes);
+bpx_status bpx__grid_find(const bpx_cycle *c, void **state, bpx_soa boxes);
 void bpx__grid_free(void **state);
 /// Makes the grid's next call pick its cells from those boxes alone, not from its last call's
 /// bounds (state may be NULL).

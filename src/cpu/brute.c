@@ -1,9 +1,10 @@
-// The brute backend: the paper's comparator on CPU SIMD lanes and threads.
+// The brute backend: the paper's comparator on CPU SIMD lanes and threads (paper modules: the
+// comparator, W lanes = its 2m - 1 units; the emitter, as per-row ordered blocks joined in order).
 // Rows are split into blocks of about equal work (emitter.c); each block is one task; the
 // kernel for the world's SIMD width (kernels_<isa>.c) is picked at run time (cpu_features.c).
 #include <stdio.h>
 
-#include "core/world.h"
+#include "core/backend.h"
 #include "cpu_features.h"
 
 static bool brute_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)
@@ -27,7 +28,7 @@ static bool brute_query(const bpx_world_def *def, const char **reason, char *det
 }
 
 typedef struct brute_job {
-    bpx_world *world;
+    bpx_emitter *sink;
     bpx_soa soa;
     bpx_brute_rows_fn *rows;
 } brute_job;
@@ -37,7 +38,7 @@ static void brute_task(int begin, int end, int worker, void *context)
     (void)worker;
     brute_job *job = context;
     for (int b = begin; b < end; b++) {
-        bpx_block *block = &job->world->blocks[b];
+        bpx_block *block = &job->sink->blocks[b];
         block->hits.count = 0;
         block->tests = 0;
         block->status = BPX_OK;
@@ -45,15 +46,16 @@ static void brute_task(int begin, int end, int worker, void *context)
     }
 }
 
-static bpx_status brute_compare(bpx_world *w)
+static bpx_status brute_compare(void **state, bpx_cycle *c)
 {
-    if (w->planned_n != w->n) {
-        bpx_status status = bpx__emitter_plan(w, false);
+    (void)state;
+    if (c->sink->planned_n != c->n) {
+        bpx_status status = bpx__emitter_plan(c->sink, c->n, false);
         if (status != BPX_OK)
             return status;
     }
-    brute_job job = {w, bpx__world_soa(w), bpx__brute_rows_for(w->simd)};
-    bpx__parallel_for(&w->executor, brute_task, w->block_count, &job);
+    brute_job job = {c->sink, c->boxes, bpx__brute_rows_for(c->simd)};
+    bpx__parallel_for(c->executor, brute_task, c->sink->block_count, &job);
     return BPX_OK;
 }
 

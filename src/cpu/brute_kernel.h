@@ -8,34 +8,38 @@
 // lane of a group of steps passed, which in a sparse scene skips most of the work. Branches are
 // taken per group, not per step: whether one step's x test passes is a coin toss in a typical
 // scene (a mispredict costs more than the compares it saves), whether a group is empty is not.
-// Arrays are padded with boxes that never overlap (world.h), so groups read whole vectors.
-#include "core/world.h"
+// Arrays are padded with boxes that never overlap (core/backend.h), so groups read whole vectors.
+#include "cpu/backends.h"
 
 #ifndef BPX_BRUTE_ROWS
 #error "define BPX_BRUTE_ROWS before including brute_kernel.h"
 #endif
 
-typedef struct brute_row {
+typedef struct bpx_brute_row {
     bpx_wf lx, hx, ly, hy, lz, hz; // box i in every lane
     uint32_t i;
-} brute_row;
+} bpx_brute_row;
 
-static inline brute_row load_row(const bpx_soa *s, uint32_t i)
+static inline bpx_brute_row load_row(const bpx_soa *s, uint32_t i)
 {
-    return (brute_row){bpx_wf_set1(s->lo[0][i]), bpx_wf_set1(s->hi[0][i]),
-                       bpx_wf_set1(s->lo[1][i]), bpx_wf_set1(s->hi[1][i]),
-                       bpx_wf_set1(s->lo[2][i]), bpx_wf_set1(s->hi[2][i]), i};
+    return (bpx_brute_row){bpx_wf_set1(s->lo[0][i]),
+                           bpx_wf_set1(s->hi[0][i]),
+                           bpx_wf_set1(s->lo[1][i]),
+                           bpx_wf_set1(s->hi[1][i]),
+                           bpx_wf_set1(s->lo[2][i]),
+                           bpx_wf_set1(s->hi[2][i]),
+                           i};
 }
 
 // The x test of one step: lanes where box j's x interval meets box i's.
-static inline bpx_wm x_test(const bpx_soa *s, const brute_row *r, uint32_t j)
+static inline bpx_wm x_test(const bpx_soa *s, const bpx_brute_row *r, uint32_t j)
 {
     bpx_wm m = bpx_wm_le(bpx_wf_load(s->lo[0] + j), r->hx);
     return bpx_wm_le_and(m, r->lx, bpx_wf_load(s->hi[0] + j));
 }
 
 // The y and z tests of one step, on the lanes m left standing.
-static inline bpx_wm yz_test(const bpx_soa *s, const brute_row *r, uint32_t j, bpx_wm m)
+static inline bpx_wm yz_test(const bpx_soa *s, const bpx_brute_row *r, uint32_t j, bpx_wm m)
 {
     m = bpx_wm_le_and(m, bpx_wf_load(s->lo[1] + j), r->hy);
     m = bpx_wm_le_and(m, r->ly, bpx_wf_load(s->hi[1] + j));
@@ -79,7 +83,7 @@ static inline uint32_t lanes_after(uint32_t i, uint32_t j)
 static bool row_pair(const bpx_soa *s, uint32_t i, uint32_t end, bpx_block *out)
 {
     enum { GROUP = 2 * BPX_W };
-    const brute_row r0 = load_row(s, i), r1 = load_row(s, i + 1);
+    const bpx_brute_row r0 = load_row(s, i), r1 = load_row(s, i + 1);
     uint32_t j = (i + 1) / BPX_W * BPX_W;
     uint32_t keep0 = lanes_after(i, j), keep1 = lanes_after(i + 1, j);
     out->tests += 2 * ((end - j + GROUP - 1) / GROUP * GROUP);
@@ -108,7 +112,7 @@ static bool row_pair(const bpx_soa *s, uint32_t i, uint32_t end, bpx_block *out)
 static bool row_single(const bpx_soa *s, uint32_t i, uint32_t end, bpx_block *out)
 {
     enum { GROUP = 4 * BPX_W };
-    const brute_row r = load_row(s, i);
+    const bpx_brute_row r = load_row(s, i);
     uint32_t j = (i + 1) / BPX_W * BPX_W;
     uint32_t keep = lanes_after(i, j);
     out->tests += (end - j + GROUP - 1) / GROUP * GROUP;
@@ -134,7 +138,7 @@ static bool row_single(const bpx_soa *s, uint32_t i, uint32_t end, bpx_block *ou
 
 void BPX_BRUTE_ROWS(const bpx_soa *s, uint32_t row_begin, uint32_t row_end, bpx_block *out)
 {
-    // Steps run to the end of the padding's whole groups (a multiple of 4 W; see world.h).
+    // Steps run to the end of the padding's whole groups (a multiple of 4 W; see core/backend.h).
     _Static_assert(BPX_PAD_LANES % (4 * BPX_W) == 0, "padding must hold whole groups");
     const uint32_t end = (s->n + 4 * BPX_W - 1) / (4 * BPX_W) * (4 * BPX_W);
     uint32_t i = row_begin;

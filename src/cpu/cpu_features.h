@@ -15,8 +15,8 @@ bool bpx__cpu_supports(bpx_simd simd);
 /// Whether this build has the kernels of the instruction set (AUTO: no).
 bool bpx__simd_compiled(bpx_simd simd);
 
-// The kernels read the world's box layouts and write its blocks (core/world.h). They are named
-// by their tags here, so choosing a kernel needs nothing of the world.
+// The kernels read the cycle's box layouts and write the sink's blocks (core/backend.h). They are
+// named by their tags here, so choosing a kernel needs nothing of the world.
 struct bpx_soa;
 struct bpx_sorted;
 struct bpx_block;

@@ -1,4 +1,6 @@
 // The prune backend: single-axis sort and sweep ("box pruning", Terdiman), SIMD and threads.
+// Paper modules: the comparator, past the paper (a sort instead of every pair); the emitter's
+// ordering of out-of-order hits (bpx__emitter_sort_blocks).
 //
 // Each cycle: (1) order the boxes by min x — the order of the last cycle, mended by insertion
 // sort, when the scene is coherent; a radix sort when it is not (first cycle, new n, or too many
@@ -10,8 +12,8 @@
 
 #include "backends.h"
 #include "core/alloc.h"
+#include "core/backend.h"
 #include "core/clock.h"
-#include "core/world.h"
 #include "cpu_features.h"
 #include "sort.h"
 
@@ -51,26 +53,23 @@ static void free_arrays(prune_state *st)
     st->capacity = 0;
 }
 
-static void prune_destroy(bpx_world *w)
+static void prune_destroy(void *state)
 {
-    prune_state *st = w->backend_state;
-    if (!st)
-        return;
+    prune_state *st = state;
     free_arrays(st);
     bpx__free(st->sorted.pairs, st->sorted.capacity * sizeof(bpx_pair));
     bpx__free(st->spare.pairs, st->spare.capacity * sizeof(bpx_pair));
     bpx__free(st, sizeof *st);
-    w->backend_state = NULL;
 }
 
-static bool reserve_state(bpx_world *w, uint32_t n)
+static bool reserve_state(void **state, uint32_t n)
 {
-    prune_state *st = w->backend_state;
+    prune_state *st = *state;
     if (!st) {
         if (!(st = bpx__alloc(sizeof *st)))
             return false;
         *st = (prune_state){.ordered_n = UINT32_MAX};
-        w->backend_state = st;
+        *state = st;
     }
     if (n <= st->capacity && st->order)
         return true;
@@ -93,10 +92,10 @@ static bool reserve_state(bpx_world *w, uint32_t n)
 }
 
 // Orders st->order by min x: mend last cycle's order when possible, else radix sort.
-static void sort_by_min_x(bpx_world *w, prune_state *st)
+static void sort_by_min_x(const bpx_cycle *cycle, prune_state *st)
 {
-    uint32_t n = w->n;
-    const float *lx = w->boxes.lo[0];
+    uint32_t n = cycle->n;
+    const float *lx = cycle->boxes.lo[0];
     bool coherent = st->ordered_n == n;
     if (!coherent)
         for (uint32_t k = 0; k < n; k++)
@@ -111,11 +110,11 @@ static void sort_by_min_x(bpx_world *w, prune_state *st)
     st->ordered_n = n;
 }
 
-static void gather(const bpx_world *w, prune_state *st)
+static void gather(const bpx_cycle *cycle, prune_state *st)
 {
-    uint32_t n = w->n;
+    uint32_t n = cycle->n;
     for (int a = 0; a < 3; a++) {
-        const float *lo = w->boxes.lo[a], *hi = w->boxes.hi[a];
+        const float *lo = cycle->boxes.lo[a], *hi = cycle->boxes.hi[a];
         float *slo = st->lo[a], *shi = st->hi[a];
         for (uint32_t k = 0; k < n; k++) {
             slo[k] = lo[st->order[k]];
@@ -131,7 +130,7 @@ static void gather(const bpx_world *w, prune_state *st)
 }
 
 typedef struct prune_job {
-    bpx_world *world;
+    const bpx_cycle *cycle;
     bpx_sorted sorted;
     bpx_prune_rows_fn *rows;
 } prune_job;
@@ -141,7 +140,7 @@ static void prune_task(int begin, int end, int worker, void *context)
     (void)worker;
     prune_job *job = context;
     for (int b = begin; b < end; b++) {
-        bpx_block *block = &job->world->blocks[b];
+        bpx_block *block = &job->cycle->sink->blocks[b];
         block->hits.count = 0;
         block->tests = 0;
         block->status = BPX_OK;
@@ -149,32 +148,31 @@ static void prune_task(int begin, int end, int worker, void *context)
     }
 }
 
-void bpx__prune_sweep_blocks(bpx_world *w, const bpx_sorted *sorted, int blocks)
+void bpx__prune_sweep_blocks(const bpx_cycle *cycle, const bpx_sorted *sorted, int blocks)
 {
-    prune_job job = {w, *sorted, bpx__prune_rows_for(w->simd)};
-    bpx__parallel_for(&w->executor, prune_task, blocks, &job);
+    prune_job job = {cycle, *sorted, bpx__prune_rows_for(cycle->simd)};
+    bpx__parallel_for(cycle->executor, prune_task, blocks, &job);
 }
 
-static bpx_status prune_compare(bpx_world *w)
+static bpx_status prune_compare(void **state, bpx_cycle *cycle)
 {
-    uint32_t n = w->n;
-    if (!reserve_state(w, n))
+    uint32_t n = cycle->n;
+    if (!reserve_state(state, n))
         return BPX_ERR_OUT_OF_MEMORY;
-    prune_state *st = w->backend_state;
-    if (w->planned_n != n) {
-        bpx_status status = bpx__emitter_plan_rows(w, ROWS_PER_BLOCK);
+    prune_state *st = *state;
+    if (cycle->sink->planned_n != n) {
+        bpx_status status = bpx__emitter_plan_rows(cycle->sink, n, ROWS_PER_BLOCK);
         if (status != BPX_OK)
             return status;
     }
-    sort_by_min_x(w, st);
-    gather(w, st);
+    sort_by_min_x(cycle, st);
+    gather(cycle, st);
 
     bpx_sorted sorted = {{st->lo[0], st->lo[1], st->lo[2]}, {st->hi[0], st->hi[1], st->hi[2]},
                          st->ids, n};
-    bpx__prune_sweep_blocks(w, &sorted, w->block_count);
+    bpx__prune_sweep_blocks(cycle, &sorted, cycle->sink->block_count);
 
-    bpx_status status = bpx__emitter_sort_blocks(w, &st->sorted, &st->spare, st->counts);
-    return status;
+    return bpx__emitter_sort_blocks(cycle->sink, n, &st->sorted, &st->spare, st->counts);
 }
 
 static bool prune_query(const bpx_world_def *def, const char **reason, char *detail,

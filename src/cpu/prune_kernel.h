@@ -6,7 +6,7 @@
 // (their max x >= their min x >= its min x). W candidates are tested per step, y and z with the
 // same compares as the brute force; the run ends at the first box out of reach, and a sentinel
 // (min x = +inf) after the last box ends it there.
-#include "core/world.h"
+#include "cpu/backends.h"
 
 #ifndef BPX_PRUNE_ROWS
 #error "define BPX_PRUNE_ROWS before including prune_kernel.h"

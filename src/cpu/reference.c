@@ -1,8 +1,9 @@
-// The reference backend: Algorithm 1 verbatim (double loop over i < j, one thread).
+// The reference backend: Algorithm 1 verbatim (double loop over i < j, one thread). Paper
+// modules: the comparator, one pair per step; its hits are already the emitter's order.
 // It is the oracle of every test, so it stays the plainest code that could be right.
 #include <stdio.h>
 
-#include "core/world.h"
+#include "core/backend.h"
 
 static bpx_box box_at(const bpx_soa *s, uint32_t i)
 {
@@ -19,13 +20,14 @@ static bool reference_query(const bpx_world_def *def, const char **reason, char 
     return true;
 }
 
-static bpx_status reference_compare(bpx_world *w)
+static bpx_status reference_compare(void **state, bpx_cycle *c)
 {
+    (void)state;
     bpx_block *out;
-    bpx_status status = bpx__emitter_one_block(w, &out);
+    bpx_status status = bpx__emitter_one_block(c->sink, c->n, &out);
     if (status != BPX_OK)
         return status;
-    bpx_soa s = bpx__world_soa(w);
+    bpx_soa s = c->boxes;
     for (uint32_t i = 0; i < s.n; i++) {
         bpx_box a = box_at(&s, i);
         for (uint32_t j = i + 1; j < s.n; j++) {

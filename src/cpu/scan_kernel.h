@@ -1,6 +1,6 @@
 // sap's scan mend (sap/scan.c): the boxes of a sorted run tested against a box's old and new fat
 // boxes at once, written once over the wide-float layer like prune_kernel.h.
-#include "core/world.h"
+#include "cpu/backends.h"
 
 #ifndef BPX_SCAN_DIFFERS
 #error "define BPX_SCAN_DIFFERS before including scan_kernel.h"

@@ -45,7 +45,8 @@ if(BPX_CUDA)
     string(APPEND BPX_PC_LIBS_PRIVATE
            " -L${CUDAToolkit_LIBRARY_DIR} -lcudart_static -ldl -lrt -lstdc++")
 else()
-    list(APPEND BPX_SOURCES src/cuda/stub.c)
+    # The calls of include/bpx/cuda.h are core/device.c's: on a world of another backend they
+    # say BACKEND_UNAVAILABLE.
     add_feature_info(cuda BPX_CUDA "the cuda backend")
 endif()
 

@@ -1,11 +1,12 @@
-// The "model" backend: each collide runs one updating phase of the clock-by-clock model of the
-// paper's FPGA (m = 4, 108 MHz, 512-box RAMs; beyond 512 boxes the host streams tiles, so any
-// n works). The world's boxes are the host's data in general-box layout (six SoA arrays = six
-// SSRAM banks). The host sorts the collision RAM into (i, j) order, as the contract asks.
+// The "model" backend (paper modules: all four, as the chip has them): each collide runs one
+// updating phase of the clock-by-clock model of the paper's FPGA (m = 4, 108 MHz, 512-box RAMs;
+// beyond 512 boxes the host streams tiles, so any n works). The world's boxes are the host's data
+// in general-box layout (six SoA arrays = six SSRAM banks). The host sorts the collision RAM into
+// (i, j) order, as the contract asks.
 #include <stdio.h>
 
 #include "core/alloc.h"
-#include "core/world.h"
+#include "core/backend.h"
 #include "hw/model.h"
 
 static bool model_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)
@@ -23,28 +24,25 @@ static void swap_lists(bpx_pair_list *a, bpx_pair_list *b)
     *b = t;
 }
 
-// Kept between cycles in world->backend_state: after the first cycles nothing is allocated.
+// Kept between cycles as the backend's state: after the first cycles nothing is allocated.
 typedef struct model_state {
     bpx_hw_machine machine;
     size_t *counts; // the host's sort, n + 1 entries
     uint32_t counts_capacity;
 } model_state;
 
-static void model_destroy(bpx_world *w)
+static void model_destroy(void *state)
 {
-    model_state *st = w->backend_state;
-    if (!st)
-        return;
+    model_state *st = state;
     bpx__hw_machine_free(&st->machine);
     bpx__free(st->counts, sizeof(size_t) * st->counts_capacity);
     bpx__free(st, sizeof *st);
-    w->backend_state = NULL;
 }
 
-static model_state *get_state(bpx_world *w)
+static model_state *get_state(void **state)
 {
-    if (w->backend_state)
-        return w->backend_state;
+    if (*state)
+        return *state;
     model_state *st = bpx__alloc(sizeof *st);
     if (!st)
         return NULL;
@@ -56,21 +54,21 @@ static model_state *get_state(bpx_world *w)
     }
     st->counts = NULL;
     st->counts_capacity = 0;
-    w->backend_state = st;
+    *state = st;
     return st;
 }
 
-static bpx_status model_compare(bpx_world *w)
+static bpx_status model_compare(void **state, bpx_cycle *c)
 {
     bpx_block *out;
-    bpx_status status = bpx__emitter_one_block(w, &out);
+    bpx_status status = bpx__emitter_one_block(c->sink, c->n, &out);
     if (status != BPX_OK)
         return status;
-    model_state *st = get_state(w);
+    model_state *st = get_state(state);
     if (!st)
         return BPX_ERR_OUT_OF_MEMORY;
 
-    bpx_soa s = bpx__world_soa(w);
+    bpx_soa s = c->boxes;
     const float *const banks[BPX_HW_BANKS] = {s.lo[0], s.lo[1], s.lo[2], s.hi[0], s.hi[1], s.hi[2]};
     bpx_model_report report;
     // The collision RAM is the block's stage list; hits receives the sorted pairs.

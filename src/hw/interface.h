@@ -4,7 +4,7 @@
 #pragma once
 
 #include "bpx/model.h"
-#include "core/world.h"
+#include "core/backend.h"
 
 enum {
     BPX_HW_BANKS = 6,       // independent SSRAM banks on the ADM-XRC-II

@@ -4,7 +4,7 @@
 #pragma once
 
 #include "bpx/model.h"
-#include "core/world.h"
+#include "core/backend.h"
 #include "hw/comparator.h"
 #include "hw/emitter.h"
 #include "hw/interface.h"

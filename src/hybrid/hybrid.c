@@ -1,4 +1,5 @@
-// The hybrid backend: the CPU and a device share one cycle (the paper's future work).
+// The hybrid backend: the CPU and a device share one cycle (the paper's future work). Paper
+// modules: the emitter, joining the two sides' ordered streams; the comparators are two worlds'.
 //
 // Space is cut along x. The CPU gets the boxes that reach below the cut, the device (cuda where
 // a GPU is usable, else opencl) those that reach above it, and both run at once: the device
@@ -21,10 +22,10 @@
 #include <string.h>
 
 #include "core/alloc.h"
+#include "core/backend.h"
 #include "core/clock.h"
 #include "core/log.h"
 #include "core/validate.h"
-#include "core/world.h"
 #include "parallel/pool.h"
 
 enum {
@@ -105,11 +106,9 @@ static void *device_thread(void *arg)
     return NULL;
 }
 
-static void hybrid_destroy(bpx_world *w)
+static void hybrid_destroy(void *state)
 {
-    hybrid *h = w->backend_state;
-    if (!h)
-        return;
+    hybrid *h = state;
     if (h->started) {
         pthread_mutex_lock(&h->lock);
         h->quit = true;
@@ -127,10 +126,9 @@ static void hybrid_destroy(bpx_world *w)
         bpx__free(sides[k]->lo_x, sizeof(float) * sides[k]->capacity);
     }
     bpx__free(h, sizeof *h);
-    w->backend_state = NULL;
 }
 
-static bpx_status make_state(bpx_world *w, hybrid **out)
+static bpx_status make_state(const bpx_world_def *def, hybrid **out)
 {
     hybrid *h = bpx__alloc(sizeof *h);
     if (!h)
@@ -138,9 +136,8 @@ static bpx_status make_state(bpx_world *w, hybrid **out)
     memset(h, 0, sizeof *h);
     pthread_mutex_init(&h->lock, NULL);
     pthread_cond_init(&h->wake, NULL);
-    h->share = w->def.hybrid_device_share > 0 ? w->def.hybrid_device_share : 0.5f;
-    w->backend_state = h;
-    bpx_world_def cpu = w->def;
+    h->share = def->hybrid_device_share > 0 ? def->hybrid_device_share : 0.5f;
+    bpx_world_def cpu = *def;
     cpu.backend = BPX_BACKEND_AUTO;
     cpu.track_events = false;
     bpx_status s = bpx_world_create(&cpu, &h->cpu.world);
@@ -148,7 +145,7 @@ static bpx_status make_state(bpx_world *w, hybrid **out)
         s = BPX_ERR_OUT_OF_MEMORY;
     h->started = s == BPX_OK;
     if (s != BPX_OK) {
-        hybrid_destroy(w);
+        hybrid_destroy(h);
         return s;
     }
     *out = h;
@@ -198,20 +195,20 @@ typedef struct chunked {
     bool write;               // the counting pass, or the writing pass
 } chunked;
 
-static int chunks_for(const bpx_world *w, size_t items)
+static int chunks_for(const bpx_cycle *c, size_t items)
 {
     size_t chunks = items / CHUNK_MIN;
     if (chunks > CHUNKS_MAX)
         chunks = CHUNKS_MAX;
-    return w->def.worker_count > 1 && chunks > 1 ? (int)chunks : 1;
+    return c->def->worker_count > 1 && chunks > 1 ? (int)chunks : 1;
 }
 
-static void run_chunks(const bpx_world *w, bpx_task_fn *task, int chunks, chunked *job)
+static void run_chunks(const bpx_cycle *c, bpx_task_fn *task, int chunks, chunked *job)
 {
     if (chunks == 1)
         task(0, 1, 0, job);
     else
-        bpx__parallel_for(&w->executor, task, chunks, job);
+        bpx__parallel_for(c->executor, task, chunks, job);
 }
 
 // Turns per-chunk counts in at[0 .. chunks) into where each chunk starts; at[chunks]: the total.
@@ -361,9 +358,9 @@ static float place_cut(hybrid *h, bpx_soa soa, float share)
 
 // The device's world, made when the device first gets boxes: a world that stays small never
 // opens the device.
-static bpx_status make_device_world(bpx_world *w, hybrid *h)
+static bpx_status make_device_world(const bpx_world_def *def, hybrid *h)
 {
-    bpx_world_def device = w->def;
+    bpx_world_def device = *def;
     device.backend = device_backend();
     device.track_events = false;
     device.worker_count = 1; // the device does the work; its host side is light
@@ -373,38 +370,39 @@ static bpx_status make_device_world(bpx_world *w, hybrid *h)
     return bpx_world_create(&device, &h->device.world);
 }
 
-static bpx_status hybrid_compare(bpx_world *w)
+static bpx_status hybrid_compare(void **state, bpx_cycle *c)
 {
-    hybrid *h = w->backend_state;
+    hybrid *h = *state;
     bpx_status s = BPX_OK;
-    if (!h && (s = make_state(w, &h)) != BPX_OK)
-        return bpx__error(&w->error, s, UINT32_MAX, -1, "hybrid: could not make its cpu world: %s",
+    if (!h && (s = make_state(c->def, &h)) != BPX_OK)
+        return bpx__error(c->error, s, UINT32_MAX, -1, "hybrid: could not make its cpu world: %s",
                           bpx_status_string(s));
+    *state = h;
     bpx_block *block;
-    if ((s = bpx__emitter_one_block(w, &block)) != BPX_OK)
+    if ((s = bpx__emitter_one_block(c->sink, c->n, &block)) != BPX_OK)
         return s;
 
     // Split: each box to the side(s) it reaches, in id order on each side.
-    bpx_soa soa = bpx__world_soa(w);
-    bool fixed = w->def.hybrid_device_share > 0;
-    float share = fixed ? w->def.hybrid_device_share : soa.n < BALANCED_MIN_N ? 0.0f : h->share;
+    bpx_soa soa = c->boxes;
+    bool fixed = c->def->hybrid_device_share > 0;
+    float share = fixed ? c->def->hybrid_device_share : soa.n < BALANCED_MIN_N ? 0.0f : h->share;
     chunked job = {.h = h, .soa = soa, .cut = place_cut(h, soa, share)};
     if (!reserve(&h->cpu, soa.n) || !reserve(&h->device, soa.n))
         return BPX_ERR_OUT_OF_MEMORY;
-    int box_chunks = chunks_for(w, soa.n);
+    int box_chunks = chunks_for(c, soa.n);
     job.per_chunk[0] = (soa.n + box_chunks - 1) / box_chunks;
-    run_chunks(w, split_task, box_chunks, &job);
+    run_chunks(c, split_task, box_chunks, &job);
     starts(job.cpu_at, box_chunks);
     starts(job.device_at, box_chunks);
     job.write = true;
-    run_chunks(w, split_task, box_chunks, &job);
+    run_chunks(c, split_task, box_chunks, &job);
     h->cpu.n = (uint32_t)job.cpu_at[box_chunks];
     h->device.n = (uint32_t)job.device_at[box_chunks];
 
     // Both sides at once; the device's only when it has boxes (no launch for nothing).
     bool device_runs = h->device.n > 0;
-    if (device_runs && !h->device.world && (s = make_device_world(w, h)) != BPX_OK)
-        return bpx__error(&w->error, s, UINT32_MAX, -1, "hybrid: could not open the device: %s",
+    if (device_runs && !h->device.world && (s = make_device_world(c->def, h)) != BPX_OK)
+        return bpx__error(c->error, s, UINT32_MAX, -1, "hybrid: could not open the device: %s",
                           bpx_status_string(s));
     if (device_runs) {
         pthread_mutex_lock(&h->lock);
@@ -441,34 +439,34 @@ static bpx_status hybrid_compare(bpx_world *w)
     if (!bpx__list_reserve(lists[0], found) || !bpx__list_reserve(lists[1], found))
         return BPX_ERR_OUT_OF_MEMORY;
     for (int k = 0; k < 2; k++) {
-        job.chunks[k] = chunks_for(w, job.found_count[k]);
+        job.chunks[k] = chunks_for(c, job.found_count[k]);
         job.per_chunk[1 + k] = (job.found_count[k] + job.chunks[k] - 1) / job.chunks[k];
     }
     int keep_chunks = job.chunks[0] + job.chunks[1];
-    run_chunks(w, keep_task, keep_chunks, &job);
-    for (int c = 0; c < keep_chunks; c++)
-        job.kept_count[c < job.chunks[0] ? 0 : 1] += job.kept_at[c];
+    run_chunks(c, keep_task, keep_chunks, &job);
+    for (int k = 0; k < keep_chunks; k++)
+        job.kept_count[k < job.chunks[0] ? 0 : 1] += job.kept_at[k];
     starts(job.kept_at, keep_chunks);
     job.kept = lists[0]->pairs;
     job.write = true;
-    run_chunks(w, keep_task, keep_chunks, &job);
+    run_chunks(c, keep_task, keep_chunks, &job);
     size_t total = job.kept_count[0] + job.kept_count[1];
-    int merge_chunks = chunks_for(w, total);
+    int merge_chunks = chunks_for(c, total);
     job.per_chunk[2] = (total + merge_chunks - 1) / merge_chunks;
     job.merged = lists[1]->pairs;
-    run_chunks(w, merge_task, merge_chunks, &job);
+    run_chunks(c, merge_task, merge_chunks, &job);
     block->hits.count = total;
     block->tests = bpx_world_stats(h->cpu.world).pair_tests +
                    (device_runs ? bpx_world_stats(h->device.world).pair_tests : 0);
 
     // What the device did, and the next cycle's share from both sides' measured speed.
     bpx_cycle_stats ds = bpx_world_stats(h->device.world);
-    w->stats.transfer_in_ns = device_runs ? ds.transfer_in_ns : 0;
-    w->stats.transfer_out_ns = device_runs ? ds.transfer_out_ns : 0;
-    w->stats.device_ns = device_runs ? ds.device_ns : 0;
-    w->stats.bytes_in = device_runs ? ds.bytes_in : 0;
-    w->stats.bytes_out = device_runs ? ds.bytes_out : 0;
-    w->stats.device_share = soa.n ? (float)h->device.n / (float)soa.n : 0.0f;
+    c->report.transfer_in_ns = device_runs ? ds.transfer_in_ns : 0;
+    c->report.transfer_out_ns = device_runs ? ds.transfer_out_ns : 0;
+    c->report.device_ns = device_runs ? ds.device_ns : 0;
+    c->report.bytes_in = device_runs ? ds.bytes_in : 0;
+    c->report.bytes_out = device_runs ? ds.bytes_out : 0;
+    c->report.device_share = soa.n ? (float)h->device.n / (float)soa.n : 0.0f;
     if (!fixed && h->cpu.n > 0 && device_runs && h->cpu.ns > 0 && h->device.ns > 0) {
         double cpu_rate = h->cpu.n / (double)h->cpu.ns;
         double device_rate = h->device.n / (double)h->device.ns;

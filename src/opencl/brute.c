@@ -11,7 +11,7 @@
 
 // The first pair buffer: def.opencl_pair_capacity pairs (default 65536), or less when the
 // memory limit is tight (down to 1024 pairs; pairs beyond are read out in windows).
-static bpx_status reserve_pair_window(cl_state *st)
+static bpx_status reserve_pair_window(bpx_cl_state *st)
 {
     size_t want = st->first_pair_capacity;
     for (;;) {
@@ -32,9 +32,9 @@ typedef struct rows_cols {
 // The arguments bpx_brute_count and bpx_brute_emit start with: the rows, the columns, each
 // row's count and stash, each group's sum and long-row flag.
 enum { ROW_ARGS = 11 };
-static void row_args(cl_state *st, const rows_cols *rc, kernel_arg *args)
+static void row_args(bpx_cl_state *st, const rows_cols *rc, bpx_cl_arg *args)
 {
-    const kernel_arg shared[ROW_ARGS] = {ARG(rc->lo),
+    const bpx_cl_arg shared[ROW_ARGS] = {ARG(rc->lo),
                                          ARG(rc->hi),
                                          ARG(rc->ia),
                                          ARG(rc->lo_b),
@@ -49,7 +49,7 @@ static void row_args(cl_state *st, const rows_cols *rc, kernel_arg *args)
 }
 
 // Each row's hits counted, the groups' sums scanned, the total into reg[slot].
-static bpx_status count_rows(cl_state *st, const rows_cols *rc, cl_mem reg, cl_uint slot)
+static bpx_status count_rows(bpx_cl_state *st, const rows_cols *rc, cl_mem reg, cl_uint slot)
 {
     unsigned tile = st->tile;
     size_t groups = rc->padded_rows / tile;
@@ -59,10 +59,10 @@ static bpx_status count_rows(cl_state *st, const rows_cols *rc, cl_mem reg, cl_u
     TRY(bpx__cl_dbuf_reserve(st, &st->group_sum, groups * sizeof(cl_ulong)));
     TRY(bpx__cl_dbuf_reserve(st, &st->group_long, groups * sizeof(cl_uint)));
     cl_uint groups_arg = (cl_uint)groups;
-    kernel_arg count_args[ROW_ARGS];
+    bpx_cl_arg count_args[ROW_ARGS];
     row_args(st, rc, count_args);
     TRY(bpx__cl_launch(st, K_BRUTE_COUNT, rc->padded_rows, tile, ROW_ARGS, count_args));
-    const kernel_arg sums_args[] = {ARG(st->group_sum.mem), ARG(groups_arg), ARG(reg), ARG(slot)};
+    const bpx_cl_arg sums_args[] = {ARG(st->group_sum.mem), ARG(groups_arg), ARG(reg), ARG(slot)};
     TRY(bpx__cl_launch(st, K_SCAN_SUMS, st->dev->scan_wg, st->dev->scan_wg, 4, sums_args));
     // Tests made, as the kernel walks them: each group from its first tile to the end.
     for (size_t g = 0; g < groups; g++) {
@@ -75,9 +75,10 @@ static bpx_status count_rows(cl_state *st, const rows_cols *rc, cl_mem reg, cl_u
 }
 
 // The pairs whose place lies in [window, window + capacity) into st->pairs (after count_rows).
-static bpx_status emit_rows(cl_state *st, const rows_cols *rc, cl_ulong window, cl_ulong capacity)
+static bpx_status emit_rows(bpx_cl_state *st, const rows_cols *rc, cl_ulong window,
+                            cl_ulong capacity)
 {
-    kernel_arg emit_args[ROW_ARGS + 3];
+    bpx_cl_arg emit_args[ROW_ARGS + 3];
     row_args(st, rc, emit_args);
     emit_args[ROW_ARGS] = ARG(st->pairs.mem);
     emit_args[ROW_ARGS + 1] = ARG(window);
@@ -86,7 +87,7 @@ static bpx_status emit_rows(cl_state *st, const rows_cols *rc, cl_ulong window, 
 }
 
 // Every pair of rc appended to out in (i, j) order.
-static bpx_status brute_block(cl_state *st, const rows_cols *rc, bpx_pair_list *out)
+static bpx_status brute_block(bpx_cl_state *st, const rows_cols *rc, bpx_pair_list *out)
 {
     cl_uint slot = 0;
     TRY(count_rows(st, rc, st->registers.mem, slot));
@@ -123,24 +124,25 @@ static bpx_status brute_block(cl_state *st, const rows_cols *rc, bpx_pair_list *
 }
 
 // The whole set against itself (keys in st->lo / st->hi, padded).
-static rows_cols whole_set(const cl_state *st, uint32_t padded)
+static rows_cols whole_set(const bpx_cl_state *st, uint32_t padded)
 {
     return (rows_cols){st->lo.mem, st->hi.mem, st->lo.mem, st->hi.mem, padded, 0, padded, 0};
 }
 
 // bpx_brute_small over n boxes into st->pairs up to capacity; the total into reg[slot].
-static bpx_status launch_small(cl_state *st, cl_uint n, cl_ulong capacity, cl_mem reg, cl_uint slot)
+static bpx_status launch_small(bpx_cl_state *st, cl_uint n, cl_ulong capacity, cl_mem reg,
+                               cl_uint slot)
 {
-    const kernel_arg args[] = {ARG(st->lo.mem), ARG(st->hi.mem), ARG(n),   ARG(st->pairs.mem),
+    const bpx_cl_arg args[] = {ARG(st->lo.mem), ARG(st->hi.mem), ARG(n),   ARG(st->pairs.mem),
                                ARG(capacity),   ARG(reg),        ARG(slot)};
     return bpx__cl_launch(st, K_BRUTE_SMALL, st->dev->small_wg, st->dev->small_wg, 7, args);
 }
 
 // Everything on the device at once.
-bpx_status bpx__cl_brute_all(cl_state *st, bpx_world *w, bpx_block *block)
+bpx_status bpx__cl_brute_all(bpx_cl_state *st, const bpx_cycle *cycle, bpx_block *block)
 {
-    uint32_t padded = (uint32_t)round_up(w->n, st->tile);
-    TRY(bpx__cl_upload_keys(st, w, 0, w->n, padded, 0, &st->lo, &st->hi));
+    uint32_t padded = (uint32_t)round_up(cycle->n, st->tile);
+    TRY(bpx__cl_upload_keys(st, cycle, 0, cycle->n, padded, 0, &st->lo, &st->hi));
     st->counters.brute_cycles++;
     rows_cols rc = whole_set(st, padded);
     return brute_block(st, &rc, &block->hits);
@@ -149,11 +151,11 @@ bpx_status bpx__cl_brute_all(cl_state *st, bpx_world *w, bpx_block *block)
 // Small sets: one bpx__cl_launch (bpx_brute_small), then the count and the pairs read back
 // together, as many pairs as last cycle's count and a quarter more (a second read when that was
 // short).
-bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block)
+bpx_status bpx__cl_brute_small(bpx_cl_state *st, const bpx_cycle *cycle, bpx_block *block)
 {
-    uint32_t n = w->n;
+    uint32_t n = cycle->n;
     uint32_t padded = (uint32_t)round_up(n, st->tile);
-    TRY(bpx__cl_upload_keys(st, w, 0, n, padded, 0, &st->lo, &st->hi));
+    TRY(bpx__cl_upload_keys(st, cycle, 0, n, padded, 0, &st->lo, &st->hi));
     if (st->pairs.size == 0)
         TRY(reserve_pair_window(st));
     cl_ulong capacity = st->pairs.size / sizeof(bpx_pair);
@@ -175,7 +177,7 @@ bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block)
             // (its own buffers first, then a window in the room left).
             st->small_off = true;
             bpx__cl_dbuf_release(st, &st->pairs);
-            return bpx__cl_brute_all(st, w, block);
+            return bpx__cl_brute_all(st, cycle, block);
         }
         if (grown != BPX_OK)
             return grown;
@@ -196,10 +198,10 @@ bpx_status bpx__cl_brute_small(cl_state *st, bpx_world *w, bpx_block *block)
 // block stays on the device while every later column block passes through. A row block's pairs
 // arrive column block by column block, and are put back in row order on the host (stable
 // counting sort by row), so the stream stays ordered by (i, j).
-bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
+bpx_status bpx__cl_brute_streamed(bpx_cl_state *st, const bpx_cycle *cycle, bpx_block *block,
                                   uint32_t block_boxes)
 {
-    uint32_t n = w->n;
+    uint32_t n = cycle->n;
     uint32_t blocks = (n + block_boxes - 1) / block_boxes;
     size_t region = 6 * (size_t)block_boxes * sizeof(float);
     TRY(bpx__cl_pinned_reserve(st, &st->up, 2 * region));
@@ -228,7 +230,7 @@ bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
         uint32_t ia = bi * block_boxes;
         uint32_t rows = n - ia < block_boxes ? n - ia : block_boxes;
         uint32_t padded_rows = (uint32_t)round_up(rows, st->tile);
-        TRY(bpx__cl_upload_keys(st, w, ia, rows, padded_rows, 0, &st->lo, &st->hi));
+        TRY(bpx__cl_upload_keys(st, cycle, ia, rows, padded_rows, 0, &st->lo, &st->hi));
         st->counters.streamed_blocks++;
         stage->count = 0;
         for (uint32_t bj = bi; bj < blocks; bj++) {
@@ -237,7 +239,7 @@ bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
             uint32_t padded_cols = (uint32_t)round_up(cols, st->tile);
             cl_mem lo_b = st->lo.mem, hi_b = st->hi.mem;
             if (bj != bi) {
-                TRY(bpx__cl_upload_keys(st, w, jb, cols, padded_cols, region, &st->lo_b,
+                TRY(bpx__cl_upload_keys(st, cycle, jb, cols, padded_cols, region, &st->lo_b,
                                         &st->hi_b));
                 st->counters.streamed_blocks++;
                 lo_b = st->lo_b.mem;
@@ -266,14 +268,14 @@ bpx_status bpx__cl_brute_streamed(cl_state *st, bpx_world *w, bpx_block *block,
 
 // A device-resident cycle (resident.c): the whole set, its pairs into st->pairs (room for at
 // least `need`; *capacity gets the room) and its count into `count`, nothing read back.
-bpx_status bpx__cl_brute_resident(cl_state *st, bpx_world *w, uint64_t need, cl_mem count,
-                                  cl_ulong *capacity)
+bpx_status bpx__cl_brute_resident(bpx_cl_state *st, const bpx_cycle *cycle, uint64_t need,
+                                  cl_mem count, cl_ulong *capacity)
 {
-    uint32_t n = w->n;
+    uint32_t n = cycle->n;
     uint32_t padded = (uint32_t)round_up(n, st->tile);
     TRY(bpx__cl_dbuf_reserve(st, &st->pairs, need * sizeof(bpx_pair)));
     *capacity = st->pairs.size / sizeof(bpx_pair);
-    TRY(bpx__cl_upload_keys(st, w, 0, n, padded, 0, &st->lo, &st->hi));
+    TRY(bpx__cl_upload_keys(st, cycle, 0, n, padded, 0, &st->lo, &st->hi));
     st->counters.brute_cycles++;
     if (n <= st->dev->small_n && !st->small_off) {
         st->tests += (uint64_t)n * (n - 1) / 2;

@@ -20,7 +20,7 @@ static const char *const kernel_names[K_COUNT] = {
 // Errors, events, buffers
 
 // Logs the failing call and maps the OpenCL error to a status.
-bpx_status bpx__cl_cl_fail(cl_state *st, cl_int err, const char *what)
+bpx_status bpx__cl_cl_fail(bpx_cl_state *st, cl_int err, const char *what)
 {
     bpx__log(0, "opencl: %s failed: %s", what, bpx__cl_error_name(err));
     if (st && st->queue)
@@ -31,7 +31,7 @@ bpx_status bpx__cl_cl_fail(cl_state *st, cl_int err, const char *what)
 }
 
 // Adds each finished event's device time to its class and releases it.
-void bpx__cl_events_flush(cl_state *st)
+void bpx__cl_events_flush(bpx_cl_state *st)
 {
     if (st->event_count == 0)
         return;
@@ -50,7 +50,7 @@ void bpx__cl_events_flush(cl_state *st)
 }
 
 // A slot for the next command's event (flushing the list when full).
-static cl_event *event_slot(cl_state *st, int class)
+static cl_event *event_slot(bpx_cl_state *st, int class)
 {
     if (st->event_count == EVENTS_MAX)
         bpx__cl_events_flush(st);
@@ -59,24 +59,24 @@ static cl_event *event_slot(cl_state *st, int class)
 }
 
 // Counts the event written into the last slot (call after the command succeeded).
-static void event_commit(cl_state *st)
+static void event_commit(bpx_cl_state *st)
 {
     st->event_count++;
 }
 
-void bpx__cl_dbuf_release(cl_state *st, dbuf *b)
+void bpx__cl_dbuf_release(bpx_cl_state *st, bpx_cl_buffer *b)
 {
     if (b->mem) {
         clReleaseMemObject(b->mem);
         st->used -= b->size;
     }
-    *b = (dbuf){0};
+    *b = (bpx_cl_buffer){0};
 }
 
 // Makes b hold at least size bytes (contents not kept), rounded up to 4 KiB. Exact, not
 // geometric: buffers follow n, which changes rarely, and spare room would only take memory a
 // streamed cycle needs.
-bpx_status bpx__cl_dbuf_reserve(cl_state *st, dbuf *b, size_t size)
+bpx_status bpx__cl_dbuf_reserve(bpx_cl_state *st, bpx_cl_buffer *b, size_t size)
 {
     size = round_up(size ? size : 1, 4096);
     if (b->size >= size)
@@ -94,12 +94,12 @@ bpx_status bpx__cl_dbuf_reserve(cl_state *st, dbuf *b, size_t size)
     if (!mem)
         return bpx__cl_cl_fail(st, err, "clCreateBuffer");
     bpx__cl_dbuf_release(st, b);
-    *b = (dbuf){mem, grown};
+    *b = (bpx_cl_buffer){mem, grown};
     st->used += grown;
     return BPX_OK;
 }
 
-static void pinned_release(cl_state *st, pinned *p)
+static void pinned_release(bpx_cl_state *st, bpx_cl_pinned *p)
 {
     if (p->mem) {
         if (p->host)
@@ -107,12 +107,12 @@ static void pinned_release(cl_state *st, pinned *p)
         clFinish(st->queue);
         clReleaseMemObject(p->mem);
     }
-    *p = (pinned){0};
+    *p = (bpx_cl_pinned){0};
 }
 
 // Host memory the device reads and writes directly where the platform offers it
 // (CL_MEM_ALLOC_HOST_PTR, mapped for the world's life). Contents not kept.
-bpx_status bpx__cl_pinned_reserve(cl_state *st, pinned *p, size_t size)
+bpx_status bpx__cl_pinned_reserve(bpx_cl_state *st, bpx_cl_pinned *p, size_t size)
 {
     if (size == 0)
         size = 64;
@@ -131,7 +131,7 @@ bpx_status bpx__cl_pinned_reserve(cl_state *st, pinned *p, size_t size)
         clReleaseMemObject(mem);
         return bpx__cl_cl_fail(st, err, "clEnqueueMapBuffer");
     }
-    *p = (pinned){mem, host, grown};
+    *p = (bpx_cl_pinned){mem, host, grown};
     return BPX_OK;
 }
 
@@ -139,8 +139,8 @@ bpx_status bpx__cl_pinned_reserve(cl_state *st, pinned *p, size_t size)
 // (0: the tile width, with global rounded up; such kernels check their index). The size is
 // always given: an implementation that compiles per work-group size (PoCL) then compiles each
 // kernel once, not once per n. Nothing to do for global 0.
-bpx_status bpx__cl_launch(cl_state *st, int k, size_t global, size_t local, int arg_count,
-                          const kernel_arg *args)
+bpx_status bpx__cl_launch(bpx_cl_state *st, int k, size_t global, size_t local, int arg_count,
+                          const bpx_cl_arg *args)
 {
     if (global == 0)
         return BPX_OK;
@@ -159,7 +159,7 @@ bpx_status bpx__cl_launch(cl_state *st, int k, size_t global, size_t local, int 
     return BPX_OK;
 }
 
-bpx_status bpx__cl_write_buffer(cl_state *st, cl_mem mem, size_t offset, size_t size,
+bpx_status bpx__cl_write_buffer(bpx_cl_state *st, cl_mem mem, size_t offset, size_t size,
                                 const void *host, bool blocking)
 {
     if (size == 0)
@@ -174,7 +174,7 @@ bpx_status bpx__cl_write_buffer(cl_state *st, cl_mem mem, size_t offset, size_t 
 }
 
 // Sets `size` bytes of mem to `byte` on the device (nothing crosses the link).
-bpx_status bpx__cl_fill(cl_state *st, cl_mem mem, unsigned char byte, size_t size)
+bpx_status bpx__cl_fill(bpx_cl_state *st, cl_mem mem, unsigned char byte, size_t size)
 {
     if (size == 0)
         return BPX_OK;
@@ -187,7 +187,7 @@ bpx_status bpx__cl_fill(cl_state *st, cl_mem mem, unsigned char byte, size_t siz
 }
 
 // Copies `size` bytes from src at src_offset to the start of dst, on the device.
-bpx_status bpx__cl_copy(cl_state *st, cl_mem src, size_t src_offset, cl_mem dst, size_t size)
+bpx_status bpx__cl_copy(bpx_cl_state *st, cl_mem src, size_t src_offset, cl_mem dst, size_t size)
 {
     CL_CHECK(st,
              clEnqueueCopyBuffer(st->queue, src, dst, src_offset, 0, size, 0, NULL,
@@ -199,7 +199,7 @@ bpx_status bpx__cl_copy(cl_state *st, cl_mem src, size_t src_offset, cl_mem dst,
 
 // Reads device memory into host memory, waiting for it, or (bpx__cl_read_later) only enqueued: the
 // host memory is filled once the queue has run that far (clFinish).
-static bpx_status read_some(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host,
+static bpx_status read_some(bpx_cl_state *st, cl_mem mem, size_t offset, size_t size, void *host,
                             cl_bool blocking)
 {
     if (size == 0)
@@ -213,17 +213,17 @@ static bpx_status read_some(cl_state *st, cl_mem mem, size_t offset, size_t size
     return BPX_OK;
 }
 
-bpx_status bpx__cl_read_buffer(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host)
+bpx_status bpx__cl_read_buffer(bpx_cl_state *st, cl_mem mem, size_t offset, size_t size, void *host)
 {
     return read_some(st, mem, offset, size, host, CL_TRUE);
 }
 
-bpx_status bpx__cl_read_later(cl_state *st, cl_mem mem, size_t offset, size_t size, void *host)
+bpx_status bpx__cl_read_later(bpx_cl_state *st, cl_mem mem, size_t offset, size_t size, void *host)
 {
     return read_some(st, mem, offset, size, host, CL_FALSE);
 }
 
-bpx_status bpx__cl_read_register(cl_state *st, cl_uint slot, uint64_t *value)
+bpx_status bpx__cl_read_register(bpx_cl_state *st, cl_uint slot, uint64_t *value)
 {
     TRY(bpx__cl_read_buffer(st, st->registers.mem, slot * sizeof(cl_ulong), sizeof(cl_ulong),
                             (char *)st->reg.host + slot * sizeof(cl_ulong)));
@@ -234,7 +234,7 @@ bpx_status bpx__cl_read_register(cl_state *st, cl_uint slot, uint64_t *value)
 }
 
 // Reads count pairs from the device buffer into out (appended), through pinned memory.
-bpx_status bpx__cl_read_pairs(cl_state *st, cl_mem pairs, size_t count, bpx_pair_list *out)
+bpx_status bpx__cl_read_pairs(bpx_cl_state *st, cl_mem pairs, size_t count, bpx_pair_list *out)
 {
     if (count == 0)
         return BPX_OK;
@@ -250,7 +250,7 @@ bpx_status bpx__cl_read_pairs(cl_state *st, cl_mem pairs, size_t count, bpx_pair
 // ---------------------------------------------------------------------------------------------
 // State
 
-void bpx__cl_state_free(cl_state *st)
+void bpx__cl_state_free(bpx_cl_state *st)
 {
     if (!st)
         return;
@@ -258,18 +258,18 @@ void bpx__cl_state_free(cl_state *st)
         clFinish(st->queue);
         bpx__cl_events_flush(st);
     }
-    pinned *pins[] = {&st->up, &st->up_centres, &st->down, &st->reg, &st->resident_host};
+    bpx_cl_pinned *pins[] = {&st->up, &st->up_centres, &st->down, &st->reg, &st->resident_host};
     for (size_t k = 0; k < sizeof pins / sizeof pins[0]; k++)
         pinned_release(st, pins[k]);
-    dbuf *bufs[] = {&st->registers,   &st->check,       &st->input,        &st->minima,
-                    &st->lo,          &st->hi,          &st->lo_b,         &st->hi_b,
-                    &st->row_count,   &st->stash,       &st->group_sum,    &st->group_long,
-                    &st->pairs,       &st->keys[0],     &st->keys[1],      &st->values[0],
-                    &st->values[1],   &st->sorted_lo,   &st->sorted_hi,    &st->counts,
-                    &st->offsets,     &st->sums,        &st->hist,         &st->hist_offsets,
-                    &st->pi[0],       &st->pi[1],       &st->pj[0],        &st->pj[1],
-                    &st->leaf_parent, &st->node_parent, &st->nodes,        &st->flags,
-                    &st->tree_small,  &st->walk_tests,  &st->pair_keys[0], &st->pair_keys[1]};
+    bpx_cl_buffer *bufs[] = {
+        &st->registers,   &st->check,      &st->input,      &st->minima,       &st->lo,
+        &st->hi,          &st->lo_b,       &st->hi_b,       &st->row_count,    &st->stash,
+        &st->group_sum,   &st->group_long, &st->pairs,      &st->keys[0],      &st->keys[1],
+        &st->values[0],   &st->values[1],  &st->sorted_lo,  &st->sorted_hi,    &st->counts,
+        &st->offsets,     &st->sums,       &st->hist,       &st->hist_offsets, &st->pi[0],
+        &st->pi[1],       &st->pj[0],      &st->pj[1],      &st->leaf_parent,  &st->node_parent,
+        &st->nodes,       &st->flags,      &st->tree_small, &st->walk_tests,   &st->pair_keys[0],
+        &st->pair_keys[1]};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; k++)
         bpx__cl_dbuf_release(st, bufs[k]);
     bpx__cl_dbuf_release(st, &st->resident_count);
@@ -284,23 +284,23 @@ void bpx__cl_state_free(cl_state *st)
     bpx__free(st, sizeof *st);
 }
 
-static bpx_status state_create(bpx_world *w, cl_state **out)
+static bpx_status state_create(const bpx_world_def *def, bpx_cl_state **out)
 {
     const bpx_cl_device *dev;
     const char *reason;
-    if (!bpx__cl_device_get(&w->def, &dev, &reason, NULL, 0)) {
+    if (!bpx__cl_device_get(def, &dev, &reason, NULL, 0)) {
         bpx__log(0, "opencl: %s", reason);
         return BPX_ERR_DEVICE;
     }
-    cl_state *st = bpx__alloc(sizeof *st);
+    bpx_cl_state *st = bpx__alloc(sizeof *st);
     if (!st)
         return BPX_ERR_OUT_OF_MEMORY;
-    *st = (cl_state){.dev = dev, .tile = dev->tile, .source = SOURCE_HOST};
+    *st = (bpx_cl_state){.dev = dev, .tile = dev->tile, .source = SOURCE_HOST};
     st->first_pair_capacity =
-        w->def.opencl_pair_capacity ? w->def.opencl_pair_capacity : DEFAULT_PAIR_CAPACITY;
+        def->opencl_pair_capacity ? def->opencl_pair_capacity : DEFAULT_PAIR_CAPACITY;
     uint64_t half = dev->global_memory / 2;
-    st->limit = w->def.opencl_memory_limit && w->def.opencl_memory_limit < dev->global_memory
-                    ? w->def.opencl_memory_limit
+    st->limit = def->opencl_memory_limit && def->opencl_memory_limit < dev->global_memory
+                    ? def->opencl_memory_limit
                     : half;
     cl_int err;
     st->queue = clCreateCommandQueue(dev->context, dev->device, CL_QUEUE_PROFILING_ENABLE, &err);
@@ -329,13 +329,13 @@ static bpx_status state_create(bpx_world *w, cl_state **out)
     return BPX_OK;
 }
 
-bpx_status bpx__cl_state_get(bpx_world *w, cl_state **out)
+bpx_status bpx__cl_state_get(void **state, const bpx_world_def *def, bpx_cl_state **out)
 {
-    if (!w->backend_state) {
-        cl_state *st;
-        TRY(state_create(w, &st));
-        w->backend_state = st;
+    if (!*state) {
+        bpx_cl_state *st;
+        TRY(state_create(def, &st));
+        *state = st;
     }
-    *out = w->backend_state;
+    *out = *state;
     return BPX_OK;
 }

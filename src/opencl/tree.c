@@ -18,7 +18,7 @@ static uint64_t pair_bytes(uint64_t keys)
 
 // Makes room for `keys` pair keys and their pairs; DEVICE_MEMORY (nothing changed) when that
 // passes the limit, so that the caller can fall back to brute force's windows.
-static bpx_status reserve_pairs(cl_state *st, uint64_t keys)
+static bpx_status reserve_pairs(bpx_cl_state *st, uint64_t keys)
 {
     uint64_t held = st->pair_keys[0].size + st->pair_keys[1].size + st->pairs.size;
     if (keys > UINT32_MAX || keys * sizeof(cl_ulong) > st->dev->max_alloc ||
@@ -32,7 +32,7 @@ static bpx_status reserve_pairs(cl_state *st, uint64_t keys)
 // The pair keys that all three pair buffers have room for. reserve_pairs grows them one by one,
 // so a failed creation can leave the first grown and the others not: the walks and the sort
 // must then see the smallest, or the sort's passes write past the second key buffer.
-static uint64_t pair_room(const cl_state *st)
+static uint64_t pair_room(const bpx_cl_state *st)
 {
     uint64_t room = st->pair_keys[0].size / sizeof(cl_ulong);
     uint64_t other = st->pair_keys[1].size / sizeof(cl_ulong);
@@ -43,16 +43,16 @@ static uint64_t pair_room(const cl_state *st)
 
 // tree_small holds the scene's bounds (six words) and the walks' pair counter (two: the count and
 // a wrap flag); bpx_tree_reset clears them.
-static bpx_status reset(cl_state *st)
+static bpx_status reset(bpx_cl_state *st)
 {
-    const kernel_arg args[] = {ARG(st->tree_small.mem)};
+    const bpx_cl_arg args[] = {ARG(st->tree_small.mem)};
     return bpx__cl_launch(st, K_TREE_RESET, 1, 1, 1, args);
 }
 
 // The walks, appending pair keys into pair_keys[0] up to `capacity`.
-static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids, cl_ulong capacity)
+static bpx_status walk(bpx_cl_state *st, cl_uint n, cl_uint bits, cl_mem ids, cl_ulong capacity)
 {
-    const kernel_arg args[] = {ARG(st->sorted_lo.mem),
+    const bpx_cl_arg args[] = {ARG(st->sorted_lo.mem),
                                ARG(st->sorted_hi.mem),
                                ARG(n),
                                ARG(ids),
@@ -70,7 +70,7 @@ static bpx_status walk(cl_state *st, cl_uint n, cl_uint bits, cl_mem ids, cl_ulo
 // Everything up to the walks (n >= 2, keys uploaded): the bounds and the pair counter reset,
 // the Morton codes sorted with their boxes (*ids: the box at each position), the keys gathered
 // in that order, the nodes built and refitted. *bits: the bits of a pair key's j.
-static bpx_status build(cl_state *st, uint32_t n, cl_mem *ids, cl_uint *bits)
+static bpx_status build(bpx_cl_state *st, uint32_t n, cl_mem *ids, cl_uint *bits)
 {
     uint32_t padded = (uint32_t)round_up(n, st->tile);
     size_t nodes = (size_t)n - 1;
@@ -92,9 +92,9 @@ static bpx_status build(cl_state *st, uint32_t n, cl_mem *ids, cl_uint *bits)
     size_t wg = st->dev->scan_wg;
     size_t per_group = wg * 16; // BPX_TREE_ITEMS (tree.cl) boxes per item
     size_t groups = (n + per_group - 1) / per_group;
-    const kernel_arg bounds_args[] = {ARG(st->lo.mem), ARG(st->hi.mem), ARG(n_arg), ARG(small)};
+    const bpx_cl_arg bounds_args[] = {ARG(st->lo.mem), ARG(st->hi.mem), ARG(n_arg), ARG(small)};
     TRY(bpx__cl_launch(st, K_TREE_BOUNDS, groups * wg, wg, 4, bounds_args));
-    const kernel_arg code_args[] = {ARG(st->lo.mem), ARG(st->hi.mem),      ARG(n_arg),
+    const bpx_cl_arg code_args[] = {ARG(st->lo.mem), ARG(st->hi.mem),      ARG(n_arg),
                                     ARG(small),      ARG(st->keys[0].mem), ARG(st->values[0].mem)};
     TRY(bpx__cl_launch(st, K_TREE_CODES, n, 0, 6, code_args));
     int sorted;
@@ -105,14 +105,14 @@ static bpx_status build(cl_state *st, uint32_t n, cl_mem *ids, cl_uint *bits)
     TRY(bpx__cl_dbuf_reserve(st, &st->sorted_lo, (size_t)padded * 16));
     TRY(bpx__cl_dbuf_reserve(st, &st->sorted_hi, (size_t)padded * 16));
     cl_uint padded_arg = padded;
-    const kernel_arg gather_args[] = {
+    const bpx_cl_arg gather_args[] = {
         ARG(st->lo.mem),        ARG(st->hi.mem),       ARG(*ids), ARG(n_arg), ARG(padded_arg),
         ARG(st->sorted_lo.mem), ARG(st->sorted_hi.mem)};
     TRY(bpx__cl_launch(st, K_SWEEP_GATHER, padded, 0, 7, gather_args));
-    const kernel_arg build_args[] = {ARG(codes), ARG(n_arg), ARG(st->leaf_parent.mem),
+    const bpx_cl_arg build_args[] = {ARG(codes), ARG(n_arg), ARG(st->leaf_parent.mem),
                                      ARG(st->node_parent.mem), ARG(st->flags.mem)};
     TRY(bpx__cl_launch(st, K_TREE_BUILD, nodes, 0, 5, build_args));
-    const kernel_arg refit_args[] = {
+    const bpx_cl_arg refit_args[] = {
         ARG(st->sorted_lo.mem),   ARG(st->sorted_hi.mem),   ARG(n_arg),
         ARG(st->leaf_parent.mem), ARG(st->node_parent.mem), ARG(st->nodes.mem),
         ARG(st->flags.mem)};
@@ -122,21 +122,21 @@ static bpx_status build(cl_state *st, uint32_t n, cl_mem *ids, cl_uint *bits)
 }
 
 // The first `count` pair keys sorted ((i, j) order: 2 * bits bits) and unpacked into st->pairs.
-static bpx_status order(cl_state *st, uint32_t count, cl_uint bits)
+static bpx_status order(bpx_cl_state *st, uint32_t count, cl_uint bits)
 {
     int by_key;
     TRY(bpx__cl_radix_sort64(st, st->pair_keys, count, 2 * bits, &by_key));
     cl_uint count_arg = count;
-    const kernel_arg unpack_args[] = {ARG(st->pair_keys[by_key].mem), ARG(count_arg), ARG(bits),
+    const bpx_cl_arg unpack_args[] = {ARG(st->pair_keys[by_key].mem), ARG(count_arg), ARG(bits),
                                       ARG(st->pairs.mem)};
     return bpx__cl_launch(st, K_TREE_UNPACK, count, 0, 4, unpack_args);
 }
 
-bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
+bpx_status bpx__cl_tree_all(bpx_cl_state *st, const bpx_cycle *cycle, bpx_block *block)
 {
-    uint32_t n = w->n;
+    uint32_t n = cycle->n;
     uint32_t padded = (uint32_t)round_up(n, st->tile);
-    TRY(bpx__cl_upload_keys(st, w, 0, n, padded, 0, &st->lo, &st->hi));
+    TRY(bpx__cl_upload_keys(st, cycle, 0, n, padded, 0, &st->lo, &st->hi));
     if (n < 2) {
         st->counters.tree_cycles++;
         return BPX_OK;
@@ -183,19 +183,19 @@ bpx_status bpx__cl_tree_all(cl_state *st, bpx_world *w, bpx_block *block)
 // which sort after every pair, and the walks write theirs over the start of it. The count goes
 // to `count` (bpx_tree_count: all ones when the counter wrapped); the pairs past it hold
 // padding.
-bpx_status bpx__cl_tree_resident(cl_state *st, bpx_world *w, uint64_t need, cl_mem count,
-                                 cl_ulong *capacity)
+bpx_status bpx__cl_tree_resident(bpx_cl_state *st, const bpx_cycle *cycle, uint64_t need,
+                                 cl_mem count, cl_ulong *capacity)
 {
-    uint32_t n = w->n;
+    uint32_t n = cycle->n;
     TRY(reserve_pairs(st, need));
     *capacity = need;
-    TRY(bpx__cl_upload_keys(st, w, 0, n, (uint32_t)round_up(n, st->tile), 0, &st->lo, &st->hi));
+    TRY(bpx__cl_upload_keys(st, cycle, 0, n, (uint32_t)round_up(n, st->tile), 0, &st->lo, &st->hi));
     cl_mem ids;
     cl_uint bits;
     TRY(build(st, n, &ids, &bits));
     TRY(bpx__cl_fill(st, st->pair_keys[0].mem, 0xFF, need * sizeof(cl_ulong)));
     TRY(walk(st, n, bits, ids, need));
-    const kernel_arg count_args[] = {ARG(st->tree_small.mem), ARG(count)};
+    const bpx_cl_arg count_args[] = {ARG(st->tree_small.mem), ARG(count)};
     TRY(bpx__cl_launch(st, K_TREE_COUNT, 1, 1, 2, count_args));
     TRY(order(st, (uint32_t)need, bits));
     st->counters.tree_cycles++;

@@ -9,8 +9,8 @@
 // 7. Hits to (i, j) order
 
 typedef struct emit_job {
-    bpx_world *world;
-    grid_state *st;
+    const bpx_cycle *cycle;
+    bpx_grid_state *st;
     int groups, buckets, items, j_passes, shift;
     bpx_pair *to;    // the bucketed pairs
     bpx_pair *other; // scratch of the same length
@@ -18,7 +18,7 @@ typedef struct emit_job {
 
 static void emit_range(const emit_job *job, int g, int *b0, int *b1)
 {
-    int blocks = job->world->block_count;
+    int blocks = job->cycle->sink->block_count;
     *b0 = (int)((int64_t)blocks * g / job->groups);
     *b1 = (int)((int64_t)blocks * (g + 1) / job->groups);
 }
@@ -33,7 +33,7 @@ static void emit_count_task(int begin, int end, int worker, void *context)
         int b0, b1;
         emit_range(job, g, &b0, &b1);
         for (int b = b0; b < b1; b++) {
-            const bpx_pair_list *hits = &job->world->blocks[b].hits;
+            const bpx_pair_list *hits = &job->cycle->sink->blocks[b].hits;
             for (size_t k = 0; k < hits->count; k++)
                 hist[hits->pairs[k].i >> job->shift]++;
         }
@@ -49,7 +49,7 @@ static void emit_scatter_task(int begin, int end, int worker, void *context)
         int b0, b1;
         emit_range(job, g, &b0, &b1);
         for (int b = b0; b < b1; b++) {
-            const bpx_pair_list *hits = &job->world->blocks[b].hits;
+            const bpx_pair_list *hits = &job->cycle->sink->blocks[b].hits;
             for (size_t k = 0; k < hits->count; k++)
                 job->to[offset[hits->pairs[k].i >> job->shift]++] = hits->pairs[k];
         }
@@ -125,15 +125,15 @@ static void emit_sort_task(int begin, int end, int worker, void *context)
     }
 }
 
-bpx_status bpx__grid_emit_sorted(bpx_world *w, grid_state *st, uint32_t n)
+bpx_status bpx__grid_emit_sorted(const bpx_cycle *cycle, bpx_grid_state *st, uint32_t n)
 {
     size_t total = 0;
-    bpx_status status = bpx__emitter_total(w, &total);
+    bpx_status status = bpx__emitter_total(cycle->sink, &total);
     if (status != BPX_OK)
         return status;
     uint64_t tests = 0;
-    for (int k = 0; k < w->block_count; k++)
-        tests += w->blocks[k].tests;
+    for (int k = 0; k < cycle->sink->block_count; k++)
+        tests += cycle->sink->blocks[k].tests;
     if (total > UINT32_MAX)
         return BPX_ERR_TOO_MANY_PAIRS; // bucket offsets are 32-bit
     // Buckets of 2^shift ids holding about EMIT_BUCKET_PAIRS pairs (dense pair sets: fewer ids).
@@ -141,7 +141,7 @@ bpx_status bpx__grid_emit_sorted(bpx_world *w, grid_state *st, uint32_t n)
     while (shift > 0 && (double)total * (double)(1u << shift) > (double)EMIT_BUCKET_PAIRS * n)
         shift--;
     int buckets = n ? (int)(((n - 1) >> shift) + 1) : 1;
-    int groups = w->block_count < EMIT_GROUPS ? w->block_count : EMIT_GROUPS;
+    int groups = cycle->sink->block_count < EMIT_GROUPS ? cycle->sink->block_count : EMIT_GROUPS;
     int j_passes = 1; // 11-bit digits of the largest j
     for (uint32_t top = n ? n - 1 : 0;
          EMIT_SHIFT * j_passes < 32 && top >> (EMIT_SHIFT * j_passes);)
@@ -154,10 +154,10 @@ bpx_status bpx__grid_emit_sorted(bpx_world *w, grid_state *st, uint32_t n)
                        sizeof(uint32_t)))
         return BPX_ERR_OUT_OF_MEMORY;
     emit_job job = {
-        w,        st,    groups,      buckets,    buckets < EMIT_ITEMS ? buckets : EMIT_ITEMS,
+        cycle,    st,    groups,      buckets,    buckets < EMIT_ITEMS ? buckets : EMIT_ITEMS,
         j_passes, shift, st->a.pairs, st->b.pairs};
     if (total) {
-        bpx__parallel_for(&w->executor, emit_count_task, groups, &job);
+        bpx__parallel_for(cycle->executor, emit_count_task, groups, &job);
         uint32_t at = 0;
         for (int b = 0; b < buckets; b++) {
             st->bucket_start[b] = at;
@@ -169,19 +169,19 @@ bpx_status bpx__grid_emit_sorted(bpx_world *w, grid_state *st, uint32_t n)
             }
         }
         st->bucket_start[buckets] = at;
-        bpx__parallel_for(&w->executor, emit_scatter_task, groups, &job);
-        bpx__parallel_for(&w->executor, emit_sort_task, job.items, &job);
+        bpx__parallel_for(cycle->executor, emit_scatter_task, groups, &job);
+        bpx__parallel_for(cycle->executor, emit_sort_task, job.items, &job);
     }
     // Block 0 takes the ordered list (a swap, not a copy); its old list becomes scratch.
     bpx_pair_list *result = &st->b;
     result->count = total;
-    for (int k = 0; k < w->block_count; k++) {
-        w->blocks[k].hits.count = 0;
-        w->blocks[k].tests = 0;
+    for (int k = 0; k < cycle->sink->block_count; k++) {
+        cycle->sink->blocks[k].hits.count = 0;
+        cycle->sink->blocks[k].tests = 0;
     }
-    bpx_pair_list block0 = w->blocks[0].hits;
-    w->blocks[0].hits = *result;
-    w->blocks[0].tests = tests;
+    bpx_pair_list block0 = cycle->sink->blocks[0].hits;
+    cycle->sink->blocks[0].hits = *result;
+    cycle->sink->blocks[0].tests = tests;
     *result = block0;
     result->count = 0;
     return BPX_OK;

@@ -1,5 +1,6 @@
 // The grid backend: a hierarchical grid of columns in (y, z), each a run sorted along x, for
-// millions of boxes; the few biggest boxes apart. Linear in n at constant density.
+// millions of boxes; the few biggest boxes apart. Linear in n at constant density. Paper
+// modules: the comparator, past the paper; the emitter's ordering (emit.c).
 //
 // Why: at constant density the candidates of one sweep over the whole scene grow like n^(5/3)
 // (a box meets the whole slab of boxes whose x intervals meet its own). Columns no wider than a
@@ -40,7 +41,7 @@
 // ---------------------------------------------------------------------------------------------
 // Memory
 
-static void free_soa(grid_soa *r)
+static void free_soa(bpx_grid_soa *r)
 {
     size_t cap = r->capacity;
     for (int a = 0; a < 3; a++) {
@@ -51,10 +52,10 @@ static void free_soa(grid_soa *r)
     for (size_t k = 0; k < sizeof u32s / sizeof u32s[0]; k++)
         bpx__free(u32s[k], cap * sizeof(uint32_t));
     bpx__free(r->flags, cap);
-    *r = (grid_soa){0};
+    *r = (bpx_grid_soa){0};
 }
 
-static bool reserve_soa(grid_soa *r, size_t need)
+static bool reserve_soa(bpx_grid_soa *r, size_t need)
 {
     if (need <= r->capacity && r->id)
         return true;
@@ -77,7 +78,7 @@ static bool reserve_soa(grid_soa *r, size_t need)
 
 void bpx__grid_free(void **state)
 {
-    grid_state *st = *state;
+    bpx_grid_state *st = *state;
     if (!st)
         return;
     free_soa(&st->positions);
@@ -86,8 +87,8 @@ void bpx__grid_free(void **state)
     bpx__free(st->key, st->key_capacity * sizeof(uint32_t));
     bpx__free(st->hist, st->hist_capacity * sizeof(uint32_t));
     bpx__free(st->column_start, st->column_capacity * sizeof(uint32_t));
-    bpx__free(st->entries, st->entry_capacity * sizeof(grid_entry));
-    bpx__free(st->stash, st->stash_capacity * sizeof(grid_entry));
+    bpx__free(st->entries, st->entry_capacity * sizeof(bpx_grid_entry));
+    bpx__free(st->stash, st->stash_capacity * sizeof(bpx_grid_entry));
     bpx__free(st->stash_at, st->stash_at_capacity * sizeof(uint32_t));
     bpx__free(st->big_ids, st->big_capacity * sizeof(uint32_t));
     bpx__free(st->a.pairs, st->a.capacity * sizeof(bpx_pair));
@@ -102,12 +103,12 @@ void bpx__grid_free(void **state)
 void bpx__grid_forget(void *state)
 {
     if (state)
-        ((grid_state *)state)->have_stats = false;
+        ((bpx_grid_state *)state)->have_stats = false;
 }
 
-static void grid_destroy(bpx_world *w)
+static void grid_destroy(void *state)
 {
-    bpx__grid_free(&w->backend_state);
+    bpx__grid_free(&state);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -169,7 +170,7 @@ static grid_kernels kernels_for(bpx_simd simd)
 // The cycle
 
 // Work items: column ranges of about equal positions (empty columns count a little).
-static void plan_items(grid_state *st, uint32_t columns, uint32_t positions)
+static void plan_items(bpx_grid_state *st, uint32_t columns, uint32_t positions)
 {
     uint64_t cost_total = (uint64_t)positions + columns / 8;
     uint64_t target = cost_total / ITEMS_MAX + 1;
@@ -190,24 +191,24 @@ static void plan_items(grid_state *st, uint32_t columns, uint32_t positions)
     st->item_count = items;
 }
 
-static bpx_status find(bpx_world *w, void **state, bpx_soa boxes)
+static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
 {
-    grid_state *st = *state;
+    bpx_grid_state *st = *state;
     if (!st) {
         if (!(st = bpx__alloc(sizeof *st)))
             return BPX_ERR_OUT_OF_MEMORY;
-        *st = (grid_state){0};
+        *st = (bpx_grid_state){0};
         *state = st;
     }
     uint32_t n = boxes.n;
-    grid_kernels kernels = kernels_for(w->simd);
-    grid_job job = {w, st, boxes, kernels.column, kernels.big, kernels.keys};
+    grid_kernels kernels = kernels_for(cycle->simd);
+    bpx_grid_job job = {cycle, st, boxes, kernels.column, kernels.big, kernels.keys};
 
     // 1. Parameters, levels, chunks.
     bpx__grid_choose_params(&job.soa, st, &st->params);
     bpx__grid_set_levels(st);
     uint32_t columns = st->params.columns;
-    int workers = w->executor.worker_count > 1 ? w->executor.worker_count : 1;
+    int workers = cycle->executor->worker_count > 1 ? cycle->executor->worker_count : 1;
     int chunks = 2 * workers;
     chunks = chunks < CHUNKS_MAX ? chunks : CHUNKS_MAX;
     if ((uint32_t)chunks > n / 4096 + 1)
@@ -224,14 +225,14 @@ static bpx_status find(bpx_world *w, void **state, bpx_soa boxes)
         return BPX_ERR_OUT_OF_MEMORY;
 
     // 2. Keys.
-    bpx__parallel_for(&w->executor, bpx__grid_key_task, chunks, &job);
+    bpx__parallel_for(cycle->executor, bpx__grid_key_task, chunks, &job);
 
     // 3. Levels: big from the top while few boxes; the rest in columns.
     uint32_t level_count[LEVELS] = {0};
     float lo_min[3] = {INFINITY, INFINITY, INFINITY}, lo_max[3] = {-INFINITY, -INFINITY, -INFINITY};
     float largest = 0.0f;
     for (int c = 0; c < chunks; c++) {
-        const grid_chunk *ch = &st->chunks[c];
+        const bpx_grid_chunk *ch = &st->chunks[c];
         for (int l = 0; l < LEVELS; l++)
             level_count[l] += ch->level_count[l];
         for (int a = 0; a < 3; a++) {
@@ -279,7 +280,8 @@ static bpx_status find(bpx_world *w, void **state, bpx_soa boxes)
     // Coarser runs in shared positions (indexed like the entries; level 0's part untouched),
     // level 0's in each worker's scratch, one column at a time.
     bool coarse = positions > st->column_start[level1];
-    if (!reserve_array((void **)&st->entries, &st->entry_capacity, positions, sizeof(grid_entry)) ||
+    if (!reserve_array((void **)&st->entries, &st->entry_capacity, positions,
+                       sizeof(bpx_grid_entry)) ||
         (coarse && !reserve_soa(&st->positions, (size_t)positions + PAD)))
         return BPX_ERR_OUT_OF_MEMORY;
     for (int k = 0; k < workers && k < WORKERS_MAX; k++)
@@ -287,7 +289,7 @@ static bpx_status find(bpx_world *w, void **state, bpx_soa boxes)
             return BPX_ERR_OUT_OF_MEMORY;
     st->wcolumns = wcolumns;
     if (!reserve_array((void **)&st->stash, &st->stash_capacity, (size_t)workers * wcolumns,
-                       sizeof(grid_entry)) ||
+                       sizeof(bpx_grid_entry)) ||
         !reserve_array((void **)&st->stash_at, &st->stash_at_capacity, (size_t)workers * wcolumns,
                        sizeof(uint32_t)))
         return BPX_ERR_OUT_OF_MEMORY;
@@ -303,15 +305,15 @@ static bpx_status find(bpx_world *w, void **state, bpx_soa boxes)
         st->key[k] = BPX_GRID_INERT;
 
     // 4. Scatter; 5. sort the columns.
-    bpx__parallel_for(&w->executor, bpx__grid_scatter_task, chunks, &job);
+    bpx__parallel_for(cycle->executor, bpx__grid_scatter_task, chunks, &job);
     plan_items(st, wcolumns, positions);
     if (coarse) {
         pad_soa(&st->positions, positions);
-        bpx__parallel_for(&w->executor, bpx__grid_sort_task, st->item_count, &job);
+        bpx__parallel_for(cycle->executor, bpx__grid_sort_task, st->item_count, &job);
     }
 
     // 6. Tests (level 0's columns sorted on the way).
-    const grid_soa *r = &st->positions;
+    const bpx_grid_soa *r = &st->positions;
     for (int a = 0; a < 3; a++) {
         g->lo[a] = r->lo[a];
         g->hi[a] = r->hi[a];
@@ -327,11 +329,11 @@ static bpx_status find(bpx_world *w, void **state, bpx_soa boxes)
     st->big_parts = (uint32_t)((((size_t)n + PAD - 1) / PAD * PAD + BIG_SPAN - 1) / BIG_SPAN);
     st->big_items = big ? (int)st->big_parts : 0;
     int blocks = st->item_count + st->big_items;
-    bpx_status status = bpx__emitter_reserve_blocks(w, blocks);
+    bpx_status status = bpx__emitter_reserve_blocks(cycle->sink, blocks);
     if (status != BPX_OK)
         return status;
-    w->block_count = blocks;
-    w->planned_n = UINT32_MAX; // the layout is this backend's own
+    cycle->sink->block_count = blocks;
+    cycle->sink->planned_n = UINT32_MAX; // the layout is this backend's own
     // Room for about last cycle's hits per block, so coherent cycles do not grow lists.
     if ((size_t)blocks > st->block_hits_capacity) {
         size_t old = st->block_hits_capacity, cap = (size_t)blocks + (size_t)blocks / 2;
@@ -342,20 +344,20 @@ static bpx_status find(bpx_world *w, void **state, bpx_soa boxes)
     }
     for (int b = 0; b < blocks; b++) {
         size_t want = st->block_hits[b];
-        if (!bpx__list_reserve(&w->blocks[b].hits, want + want / 4 + 64))
+        if (!bpx__list_reserve(&cycle->sink->blocks[b].hits, want + want / 4 + 64))
             return BPX_ERR_OUT_OF_MEMORY;
     }
-    bpx__parallel_for(&w->executor, bpx__grid_test_task, blocks, &job);
+    bpx__parallel_for(cycle->executor, bpx__grid_test_task, blocks, &job);
     for (int b = 0; b < blocks; b++)
-        st->block_hits[b] = w->blocks[b].hits.count;
+        st->block_hits[b] = cycle->sink->blocks[b].hits.count;
 
     // 7. Hits to (i, j) order.
-    return bpx__grid_emit_sorted(w, st, n);
+    return bpx__grid_emit_sorted(cycle, st, n);
 }
 
-bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes)
+bpx_status bpx__grid_find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
 {
-    bpx_status status = find(w, state, boxes);
+    bpx_status status = find(cycle, state, boxes);
     // The state is memory only (every cycle starts from the boxes): a cycle too big for memory,
     // or for 32-bit pair offsets, gives it all back, and the next one grows it again.
     if (status == BPX_ERR_OUT_OF_MEMORY || status == BPX_ERR_TOO_MANY_PAIRS)
@@ -363,9 +365,9 @@ bpx_status bpx__grid_find(bpx_world *w, void **state, bpx_soa boxes)
     return status;
 }
 
-static bpx_status grid_compare(bpx_world *w)
+static bpx_status grid_compare(void **state, bpx_cycle *cycle)
 {
-    return bpx__grid_find(w, &w->backend_state, bpx__world_soa(w));
+    return bpx__grid_find(cycle, state, cycle->boxes);
 }
 
 static bool grid_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)

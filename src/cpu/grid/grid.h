@@ -2,7 +2,7 @@
 // (grid_kernel.h, compiled once per instruction set as grid_<isa>.c).
 #pragma once
 
-#include "core/world.h"
+#include "cpu/backends.h"
 
 enum {
     BPX_GRID_LEVELS = 12,   // level l has cells 4^l times the side of level 0's

@@ -7,7 +7,7 @@
 #include <string.h>
 
 #include "core/alloc.h"
-#include "core/world.h"
+#include "core/backend.h"
 #include "cpu/backends.h"
 #include "cpu/sort.h"
 #include "grid.h"
@@ -33,43 +33,43 @@ enum {
 };
 
 // A box on its way to its column.
-typedef struct grid_entry {
+typedef struct bpx_grid_entry {
     float lo[3], hi[3];
     uint32_t id;
     uint32_t fx; // fine x cell of min x | flags << 24
-} grid_entry;
+} bpx_grid_entry;
 
-typedef struct grid_params {
+typedef struct bpx_grid_params {
     float origin[3], inv[3];
     uint32_t top[3]; // largest cell coordinate per axis (on x, of the fine cells)
     int fine_bits;   // x is cut 2^fine_bits times finer than the cells, for the column sort
     uint32_t columns;
-} grid_params;
+} bpx_grid_params;
 
 // Sorted runs in SoA form, with the sort's scratch; `capacity` positions (padding included).
-typedef struct grid_soa {
+typedef struct bpx_grid_soa {
     float *lo[3], *hi[3];
     uint32_t *id, *cx, *keys, *ids, *scratch_keys, *scratch_ids;
     uint8_t *flags;
     size_t capacity;
-} grid_soa;
+} bpx_grid_soa;
 
-typedef struct grid_chunk {
+typedef struct bpx_grid_chunk {
     uint32_t begin, end;
     uint32_t level_count[LEVELS];
     float lo_min[3], lo_max[3];
     float max_extent;
-} grid_chunk;
+} bpx_grid_chunk;
 
-typedef struct grid_state {
+typedef struct bpx_grid_state {
     // Last cycle's exact figures, for this cycle's parameters.
     bool have_stats;
     float bounds_lo[3], bounds_hi[3];
     float max_extent;
 
-    grid_params params;
+    bpx_grid_params params;
     bpx_grid_layout layout;
-    grid_chunk chunks[CHUNKS_MAX];
+    bpx_grid_chunk chunks[CHUNKS_MAX];
     int chunk_count;
 
     uint32_t *key; // per box id (padded to a whole group for the big kernel)
@@ -78,18 +78,18 @@ typedef struct grid_state {
     size_t hist_capacity;
     uint32_t *column_start;
     size_t column_capacity;
-    grid_entry *entries;
+    bpx_grid_entry *entries;
     size_t entry_capacity;
     // Scatter's write-combining, per worker: a column's entry waiting for the other half of its
     // cache line, and the position it goes to.
-    grid_entry *stash;
+    bpx_grid_entry *stash;
     size_t stash_capacity;
     uint32_t wcolumns; // columns of the windowed levels
     uint32_t *stash_at;
     size_t stash_at_capacity;
     // Positions of the coarser levels' runs (level 0's are sorted in the workers' scratch).
-    grid_soa positions;
-    grid_soa scratch[WORKERS_MAX];
+    bpx_grid_soa positions;
+    bpx_grid_soa scratch[WORKERS_MAX];
     int scratch_count;
     uint32_t *big_ids;
     size_t big_capacity;
@@ -105,16 +105,16 @@ typedef struct grid_state {
     size_t bucket_capacity;
     size_t *block_hits; // last cycle's hits per block
     size_t block_hits_capacity;
-} grid_state;
+} bpx_grid_state;
 
-typedef struct grid_job {
-    bpx_world *world;
-    grid_state *st;
+typedef struct bpx_grid_job {
+    const bpx_cycle *cycle;
+    bpx_grid_state *st;
     bpx_soa soa;
     bpx_grid_column_fn *column;
     bpx_grid_big_fn *big;
     bpx_grid_keys_fn *keys;
-} grid_job;
+} bpx_grid_job;
 
 // Makes *array hold at least `need` elements of `size` bytes (contents not kept; grows by half
 // again, so it settles after a few cycles). Never zero-sized, so NULL means no memory.
@@ -131,7 +131,7 @@ static inline bool reserve_array(void **array, size_t *capacity, size_t need, si
 }
 
 // Sentinels after a run: never in reach (min x +inf), never overlapping.
-static inline void pad_soa(grid_soa *r, size_t at)
+static inline void pad_soa(bpx_grid_soa *r, size_t at)
 {
     for (size_t k = at; k < at + PAD; k++) {
         for (int a = 0; a < 3; a++) {
@@ -154,8 +154,8 @@ static inline uint32_t cell_of(float v, float origin, float inv, uint32_t top)
 // Across the files of this folder
 
 // keys.c: 1. parameters, 2. keys.
-void bpx__grid_choose_params(const bpx_soa *s, grid_state *st, grid_params *p);
-void bpx__grid_set_levels(grid_state *st);
+void bpx__grid_choose_params(const bpx_soa *s, bpx_grid_state *st, bpx_grid_params *p);
+void bpx__grid_set_levels(bpx_grid_state *st);
 void bpx__grid_key_task(int begin, int end, int worker, void *context);
 // scatter.c: 4. scatter.
 void bpx__grid_scatter_task(int begin, int end, int worker, void *context);
@@ -163,4 +163,4 @@ void bpx__grid_scatter_task(int begin, int end, int worker, void *context);
 void bpx__grid_sort_task(int begin, int end, int worker, void *context);
 void bpx__grid_test_task(int begin, int end, int worker, void *context);
 // emit.c: 7. hits to (i, j) order.
-bpx_status bpx__grid_emit_sorted(bpx_world *w, grid_state *st, uint32_t n);
+bpx_status bpx__grid_emit_sorted(const bpx_cycle *cycle, bpx_grid_state *st, uint32_t n);

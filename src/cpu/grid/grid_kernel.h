@@ -19,15 +19,15 @@
 #error "define BPX_GRID_COLUMN, BPX_GRID_BIG and BPX_GRID_KEYS before including grid_kernel.h"
 #endif
 
-typedef struct grid_probe {
+typedef struct bpx_grid_probe {
     bpx_wf lx, hx, ly, hy, lz, hz;
     uint32_t id;
-} grid_probe;
+} bpx_grid_probe;
 
 // A against positions k, k+1, ... < end while their min x is <= A's max x (the run is sorted,
 // so the lanes in reach are a prefix). A hit counts where the other box has every flag of
 // `need` (the column rule). False when memory ran out.
-static inline bool grid_scan(const bpx_grid_run *g, const grid_probe *a, uint32_t k,
+static inline bool grid_scan(const bpx_grid_run *g, const bpx_grid_probe *a, uint32_t k,
                              uint32_t end, uint32_t need, bpx_block *out)
 {
     const uint32_t all = (uint32_t)((1ull << BPX_W) - 1);
@@ -82,10 +82,10 @@ static inline uint32_t grid_lower_bound(const uint32_t *cx, uint32_t at, uint32_
 
 // A coarser column a finer column's boxes may cover: its run, and a pointer into it that only
 // moves forward (the finer boxes come in min x order).
-typedef struct grid_window {
+typedef struct bpx_grid_window {
     uint32_t at, end;
     uint32_t y, z; // the column at its level
-} grid_window;
+} bpx_grid_window;
 
 enum { GRID_UP_MAX = 4 * (BPX_GRID_LEVELS - 1) };
 
@@ -101,7 +101,7 @@ static bool grid_column(const bpx_grid_layout *g, int l, uint32_t c, const bpx_g
                              g->id, g->cx, g->flags, 0};
     uint32_t y = (c - lv->first_column) / lv->nz, z = (c - lv->first_column) % lv->nz;
     // The coarser columns this column's home boxes may cover: (y or y+1, z or z+1) >> shift.
-    grid_window w[GRID_UP_MAX];
+    bpx_grid_window w[GRID_UP_MAX];
     int first_window[BPX_GRID_LEVELS + 1];
     int count = 0;
     for (int m = l + 1; m < g->windowed; m++) {
@@ -117,14 +117,18 @@ static bool grid_column(const bpx_grid_layout *g, int l, uint32_t c, const bpx_g
                 uint32_t at = g->column_start[cm], end = g->column_start[cm + 1];
                 uint32_t want = r->cx[s] >> shift;
                 at = grid_lower_bound(g->cx, at, end, want ? want - 1 : 0);
-                w[count++] = (grid_window){at, end, ym, zm};
+                w[count++] = (bpx_grid_window){at, end, ym, zm};
             }
     }
     first_window[g->windowed > l + 1 ? g->windowed : l + 1] = count;
     for (uint32_t p = s; p < e; p++) {
-        const grid_probe a = {bpx_wf_set1(r->lo[0][p]), bpx_wf_set1(r->hi[0][p]),
-                              bpx_wf_set1(r->lo[1][p]), bpx_wf_set1(r->hi[1][p]),
-                              bpx_wf_set1(r->lo[2][p]), bpx_wf_set1(r->hi[2][p]), r->id[p]};
+        const bpx_grid_probe a = {bpx_wf_set1(r->lo[0][p]),
+                                  bpx_wf_set1(r->hi[0][p]),
+                                  bpx_wf_set1(r->lo[1][p]),
+                                  bpx_wf_set1(r->hi[1][p]),
+                                  bpx_wf_set1(r->lo[2][p]),
+                                  bpx_wf_set1(r->hi[2][p]),
+                                  r->id[p]};
         uint32_t flags = r->flags[p];
         if (!grid_scan(r, &a, p + 1, e, ~flags & BPX_GRID_HOME, out))
             return false;

@@ -36,7 +36,7 @@ static void sort_floats(float *v, uint32_t count)
     }
 }
 
-void bpx__grid_choose_params(const bpx_soa *s, grid_state *st, grid_params *p)
+void bpx__grid_choose_params(const bpx_soa *s, bpx_grid_state *st, bpx_grid_params *p)
 {
     uint32_t n = s->n;
     float sample[SAMPLE];
@@ -115,9 +115,9 @@ void bpx__grid_choose_params(const bpx_soa *s, grid_state *st, grid_params *p)
     p->top[0] = ((p->top[0] + 1) << p->fine_bits) - 1;
 }
 
-void bpx__grid_set_levels(grid_state *st)
+void bpx__grid_set_levels(bpx_grid_state *st)
 {
-    const grid_params *p = &st->params;
+    const bpx_grid_params *p = &st->params;
     uint32_t first = 0;
     for (int l = 0; l < LEVELS; l++) {
         bpx_grid_level *lv = &st->layout.level[l];
@@ -135,9 +135,9 @@ void bpx__grid_set_levels(grid_state *st)
 void bpx__grid_key_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    grid_job *job = context;
-    grid_state *st = job->st;
-    const grid_params *p = &st->params;
+    bpx_grid_job *job = context;
+    bpx_grid_state *st = job->st;
+    const bpx_grid_params *p = &st->params;
     const bpx_grid_level *levels = st->layout.level;
     uint32_t columns = p->columns;
     bpx_grid_cells cells = {.fine_bits = p->fine_bits};
@@ -151,7 +151,7 @@ void bpx__grid_key_task(int begin, int end, int worker, void *context)
         cells.nz[l] = levels[l].nz;
     }
     for (int c = begin; c < end; c++) {
-        grid_chunk *ch = &st->chunks[c];
+        bpx_grid_chunk *ch = &st->chunks[c];
         uint32_t *hist = st->hist + (size_t)c * columns;
         memset(hist, 0, sizeof(uint32_t) * columns);
         memset(ch->level_count, 0, sizeof ch->level_count);

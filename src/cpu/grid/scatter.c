@@ -13,7 +13,8 @@
 // in the stash until the odd one after it comes from the same chunk, and the two go out as one
 // whole line, bypassing the cache (no read for ownership of a line about to be overwritten).
 // Entries whose other half belongs to another chunk (a range's ends) are stored plainly.
-static inline void put_line(grid_entry *to, const grid_entry *first, const grid_entry *second)
+static inline void put_line(bpx_grid_entry *to, const bpx_grid_entry *first,
+                            const bpx_grid_entry *second)
 {
 #if defined(__SSE2__)
     const __m128i *a = (const __m128i *)(const void *)first;
@@ -31,8 +32,8 @@ static inline void put_line(grid_entry *to, const grid_entry *first, const grid_
 #endif
 }
 
-static inline void put(grid_state *st, grid_entry *stash, uint32_t *stash_at, uint32_t column,
-                       uint32_t at, const grid_entry *e)
+static inline void put(bpx_grid_state *st, bpx_grid_entry *stash, uint32_t *stash_at,
+                       uint32_t column, uint32_t at, const bpx_grid_entry *e)
 {
     if (!(at & 1)) {
         stash[column] = *e;
@@ -46,16 +47,16 @@ static inline void put(grid_state *st, grid_entry *stash, uint32_t *stash_at, ui
 
 void bpx__grid_scatter_task(int begin, int end, int worker, void *context)
 {
-    grid_job *job = context;
-    grid_state *st = job->st;
+    bpx_grid_job *job = context;
+    bpx_grid_state *st = job->st;
     const bpx_soa *s = &job->soa;
-    const grid_params *p = &st->params;
+    const bpx_grid_params *p = &st->params;
     uint32_t windowed = (uint32_t)st->layout.windowed, columns = p->columns;
     uint32_t wcolumns = st->wcolumns;
-    grid_entry *stash = st->stash + (size_t)worker * wcolumns;
+    bpx_grid_entry *stash = st->stash + (size_t)worker * wcolumns;
     uint32_t *stash_at = st->stash_at + (size_t)worker * wcolumns;
     for (int c = begin; c < end; c++) {
-        const grid_chunk *ch = &st->chunks[c];
+        const bpx_grid_chunk *ch = &st->chunks[c];
         uint32_t *offset = st->hist + (size_t)c * columns;
         memset(stash_at, 0xff, sizeof(uint32_t) * wcolumns);
         for (uint32_t i = ch->begin; i < ch->end; i++) {
@@ -67,10 +68,10 @@ void bpx__grid_scatter_task(int begin, int end, int worker, void *context)
             uint32_t cx = cell_of(lx, p->origin[0], p->inv[0], p->top[0]);
             uint32_t spans = (key & BPX_GRID_SPAN_Y ? BPX_GRID_SPANS_Y : 0) |
                              (key & BPX_GRID_SPAN_Z ? BPX_GRID_SPANS_Z : 0);
-            grid_entry e = {{lx, s->lo[1][i], s->lo[2][i]},
-                            {s->hi[0][i], s->hi[1][i], s->hi[2][i]},
-                            i,
-                            cx | (spans | BPX_GRID_HOME) << 24};
+            bpx_grid_entry e = {{lx, s->lo[1][i], s->lo[2][i]},
+                                {s->hi[0][i], s->hi[1][i], s->hi[2][i]},
+                                i,
+                                cx | (spans | BPX_GRID_HOME) << 24};
             uint32_t column = bpx__grid_key_column(key), nz = st->layout.level[l].nz;
             put(st, stash, stash_at, column, offset[column]++, &e);
             if (key & BPX_GRID_SPAN_Z) {

@@ -9,7 +9,8 @@
 // 5. Per column: sort by min x, write the SoA run (tasks over items of columns)
 
 // Sorts the m entries of a column by min x into r at offset `at`; x cells >> shift.
-static void sort_column(const grid_entry *ent, uint32_t m, grid_soa *r, size_t at, int shift)
+static void sort_column(const bpx_grid_entry *ent, uint32_t m, bpx_grid_soa *r, size_t at,
+                        int shift)
 {
     uint32_t *keys = r->keys + at, *ids = r->ids + at;
     for (uint32_t t = 0; t < m; t++) {
@@ -47,7 +48,7 @@ static void sort_column(const grid_entry *ent, uint32_t m, grid_soa *r, size_t a
             bpx__radix_sort(keys, ids, sk, si, m);
     }
     for (uint32_t t = 0; t < m; t++) {
-        const grid_entry *x = &ent[ids[t]];
+        const bpx_grid_entry *x = &ent[ids[t]];
         for (int a = 0; a < 3; a++) {
             r->lo[a][at + t] = x->lo[a];
             r->hi[a][at + t] = x->hi[a];
@@ -62,7 +63,7 @@ static void sort_column(const grid_entry *ent, uint32_t m, grid_soa *r, size_t a
 void bpx__grid_sort_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    grid_state *st = ((grid_job *)context)->st;
+    bpx_grid_state *st = ((bpx_grid_job *)context)->st;
     const bpx_grid_layout *g = &st->layout;
     for (int item = begin; item < end; item++) {
         int l = 0;
@@ -83,16 +84,16 @@ void bpx__grid_sort_task(int begin, int end, int worker, void *context)
 void bpx__grid_test_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    grid_job *job = context;
-    grid_state *st = job->st;
+    bpx_grid_job *job = context;
+    bpx_grid_state *st = job->st;
     for (int b = begin; b < end; b++) {
-        bpx_block *block = &job->world->blocks[b];
+        bpx_block *block = &job->cycle->sink->blocks[b];
         block->hits.count = 0;
         block->tests = 0;
         block->status = BPX_OK;
         if (b < st->item_count) {
             const bpx_grid_layout *g = &st->layout;
-            grid_soa *own = &st->scratch[worker], *shared = &st->positions;
+            bpx_grid_soa *own = &st->scratch[worker], *shared = &st->positions;
             int l = 0;
             for (uint32_t c = st->item_column[b]; c < st->item_column[b + 1]; c++) {
                 while (l + 1 < g->windowed && c >= g->level[l + 1].first_column)
@@ -101,7 +102,7 @@ void bpx__grid_test_task(int begin, int end, int worker, void *context)
                 if (s == e)
                     continue;
                 size_t at = s;
-                grid_soa *r = shared;
+                bpx_grid_soa *r = shared;
                 if (l == 0) { // sorted here, while the entries are in cache
                     at = 0;
                     r = own;

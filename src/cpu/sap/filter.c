@@ -8,9 +8,9 @@
 
 // Boxes [i0, i1) into cur, and those that left their fat boxes into changed from i0 on;
 // returns their count.
-static uint32_t check_range(const bpx_world *w, sap_state *st, uint32_t i0, uint32_t i1)
+static uint32_t check_range(const bpx_cycle *cycle, bpx_sap_state *st, uint32_t i0, uint32_t i1)
 {
-    const bpx_box_arrays *b = &w->boxes;
+    const bpx_soa *b = &cycle->boxes;
     const bpx_box *fat = st->a.fat;
     bpx_box *cur = st->a.cur;
     uint32_t *changed = st->a.changed + i0, count = 0;
@@ -53,17 +53,17 @@ static uint32_t check_range(const bpx_world *w, sap_state *st, uint32_t i0, uint
 static void check_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    sap_job *job = context;
+    bpx_sap_job *job = context;
     for (int c = begin; c < end; c++)
         job->st->chunk_count[c] =
-            check_range(job->w, job->st, chunk_begin(job->n, job->chunks, (uint32_t)c),
+            check_range(job->cycle, job->st, chunk_begin(job->n, job->chunks, (uint32_t)c),
                         chunk_begin(job->n, job->chunks, (uint32_t)c + 1));
 }
 
 // How many ranges a pass over `count` items splits into (1: serial).
-uint32_t bpx__sap_chunks_for(const bpx_world *w, size_t count)
+uint32_t bpx__sap_chunks_for(const bpx_cycle *cycle, size_t count)
 {
-    int workers = w->executor.worker_count;
+    int workers = cycle->executor->worker_count;
     if (count < PARALLEL_MIN || workers < 2)
         return 1;
     return 4 * (uint32_t)workers < CHUNKS_MAX ? 4 * (uint32_t)workers : CHUNKS_MAX;
@@ -71,16 +71,16 @@ uint32_t bpx__sap_chunks_for(const bpx_world *w, size_t count)
 
 // This cycle's boxes into cur, and the boxes that left their fat boxes into changed, in id
 // order (ranges on the workers, then packed); returns their count.
-uint32_t bpx__sap_check_boxes(const bpx_world *w, sap_state *st)
+uint32_t bpx__sap_check_boxes(const bpx_cycle *cycle, bpx_sap_state *st)
 {
-    uint32_t chunks = bpx__sap_chunks_for(w, w->n);
+    uint32_t chunks = bpx__sap_chunks_for(cycle, cycle->n);
     if (chunks == 1)
-        return check_range(w, st, 0, w->n);
-    sap_job job = {.st = st, .w = w, .n = w->n, .chunks = chunks};
-    bpx__parallel_for(&w->executor, check_task, (int)chunks, &job);
+        return check_range(cycle, st, 0, cycle->n);
+    bpx_sap_job job = {.st = st, .cycle = cycle, .n = cycle->n, .chunks = chunks};
+    bpx__parallel_for(cycle->executor, check_task, (int)chunks, &job);
     uint32_t count = 0;
     for (uint32_t c = 0; c < chunks; c++) {
-        uint32_t at = chunk_begin(w->n, chunks, c);
+        uint32_t at = chunk_begin(cycle->n, chunks, c);
         if (at != count)
             memmove(st->a.changed + count, st->a.changed + at,
                     st->chunk_count[c] * sizeof(uint32_t));
@@ -90,7 +90,7 @@ uint32_t bpx__sap_check_boxes(const bpx_world *w, sap_state *st)
 }
 
 // The fat pairs [k0, k1) whose boxes overlap, into out from k0 on; returns their count.
-static size_t filter_range(const sap_state *st, bpx_pair *out, size_t k0, size_t k1)
+static size_t filter_range(const bpx_sap_state *st, bpx_pair *out, size_t k0, size_t k1)
 {
     const bpx_box *cur = st->a.cur;
     const bpx_pair *fat = st->fat_pairs.pairs;
@@ -112,7 +112,7 @@ static size_t filter_range(const sap_state *st, bpx_pair *out, size_t k0, size_t
 static void filter_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    sap_job *job = context;
+    bpx_sap_job *job = context;
     size_t total = job->st->fat_pairs.count;
     for (int c = begin; c < end; c++)
         job->st->chunk_count[c] = (uint32_t)filter_range(job->st, job->out, (size_t)((uint64_t)total * c / job->chunks),
@@ -121,16 +121,16 @@ static void filter_task(int begin, int end, int worker, void *context)
 
 // The exact pairs, fat pairs whose boxes overlap, into out (which holds fat_pairs.count), in
 // the fat pairs' order (ranges on the workers, then packed).
-size_t bpx__sap_filter_pairs(const bpx_world *w, sap_state *st, bpx_pair *out)
+size_t bpx__sap_filter_pairs(const bpx_cycle *cycle, bpx_sap_state *st, bpx_pair *out)
 {
     size_t total = st->fat_pairs.count;
     if (total == 0)
         return 0; // out may be NULL (an empty list owns no memory): no pointer arithmetic on it
-    uint32_t chunks = total <= UINT32_MAX ? bpx__sap_chunks_for(w, total) : 1;
+    uint32_t chunks = total <= UINT32_MAX ? bpx__sap_chunks_for(cycle, total) : 1;
     if (chunks == 1)
         return filter_range(st, out, 0, total);
-    sap_job job = {.st = st, .chunks = chunks, .out = out};
-    bpx__parallel_for(&w->executor, filter_task, (int)chunks, &job);
+    bpx_sap_job job = {.st = st, .chunks = chunks, .out = out};
+    bpx__parallel_for(cycle->executor, filter_task, (int)chunks, &job);
     size_t count = 0;
     for (uint32_t c = 0; c < chunks; c++) {
         size_t at = (size_t)((uint64_t)total * c / chunks);

@@ -6,7 +6,7 @@
 #include "sap_internal.h"
 
 // where[axis] for a whole list (after a sort or a shift of every word).
-static void index_list(sap_arrays *a, int axis, uint32_t count)
+static void index_list(bpx_sap_arrays *a, int axis, uint32_t count)
 {
     const uint64_t *ends = a->ends[axis];
     uint32_t *where = a->where[axis];
@@ -17,24 +17,24 @@ static void index_list(sap_arrays *a, int axis, uint32_t count)
 static void index_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    sap_job *job = context;
+    bpx_sap_job *job = context;
     for (int axis = begin; axis < end; axis++)
         index_list(&job->st->a, axis, 2 * job->n);
 }
 
 // where for the three lists at once (on the workers from PARALLEL_MIN boxes).
-void bpx__sap_index_lists(const bpx_world *w, sap_state *st, uint32_t n)
+void bpx__sap_index_lists(const bpx_cycle *cycle, bpx_sap_state *st, uint32_t n)
 {
-    sap_job job = {.st = st, .n = n};
-    if (n >= PARALLEL_MIN && w->executor.worker_count > 1)
-        bpx__parallel_for(&w->executor, index_task, 3, &job);
+    bpx_sap_job job = {.st = st, .n = n};
+    if (n >= PARALLEL_MIN && cycle->executor->worker_count > 1)
+        bpx__parallel_for(cycle->executor, index_task, 3, &job);
     else
         index_task(0, 3, 0, &job);
 }
 
 // Puts new boxes n_old .. n-1 into the lists as if they had been inert last cycle (maxima at
 // the front, minima at the back; the next full pass puts them in order).
-void bpx__sap_append_boxes(sap_state *st, uint32_t n_old, uint32_t n)
+void bpx__sap_append_boxes(bpx_sap_state *st, uint32_t n_old, uint32_t n)
 {
     uint32_t added = n - n_old;
     const float inf = 1.0f / 0.0f;
@@ -58,10 +58,10 @@ void bpx__sap_append_boxes(sap_state *st, uint32_t n_old, uint32_t n)
 // left out). where[axis] waits for the first few-boxes mend (the one-pass mend does without):
 // a million boxes at rest may need none before their next rebuild, and its 2n scattered stores
 // would take a third of the list's time.
-static void rebuild_list(sap_state *st, uint32_t n, int axis, bpx_radix_work *work,
+static void rebuild_list(bpx_sap_state *st, uint32_t n, int axis, bpx_radix_work *work,
                          uint64_t *overlaps, uint32_t *live)
 {
-    sap_arrays *a = &st->a;
+    bpx_sap_arrays *a = &st->a;
     uint64_t *words = a->words[axis], *ends = a->ends[axis];
     for (uint32_t i = 0; i < n; i++) {
         words[i] = end_word(coord_key(a->fat[i].min[axis]), i);
@@ -90,7 +90,7 @@ static void rebuild_list(sap_state *st, uint32_t n, int axis, bpx_radix_work *wo
 static void list_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    sap_job *job = context;
+    bpx_sap_job *job = context;
     for (int axis = begin; axis < end; axis++)
         rebuild_list(job->st, job->n, axis, job->st->radix[job->chunks > 1 ? axis : 0],
                      &job->overlaps[axis], &job->live[axis]);
@@ -98,7 +98,7 @@ static void list_task(int begin, int end, int worker, void *context)
 
 // The cold sorts' work memory for `sorts` lists at once, of `words` words each: made by the
 // first rebuild that needs it (the lines only for lists long enough to stream), then kept.
-bool bpx__sap_reserve_radix(sap_state *st, int sorts, size_t words)
+bool bpx__sap_reserve_radix(bpx_sap_state *st, int sorts, size_t words)
 {
     for (int k = 0; k < sorts; k++) {
         if (!st->radix[k]) {
@@ -126,14 +126,14 @@ bool bpx__sap_reserve_radix(sap_state *st, int sorts, size_t words)
 // together, so the fastest boxes leave together: too many to mend). The first warm cycle that
 // must mend (or grow) makes them, so such a cycle is warm but may cost a sort of three lists;
 // the choice is counted again each time they are made.
-bool bpx__sap_make_lists(bpx_world *w, sap_state *st, uint32_t n, uint32_t *live)
+bool bpx__sap_make_lists(const bpx_cycle *cycle, bpx_sap_state *st, uint32_t n, uint32_t *live)
 {
-    bool parallel = n >= PARALLEL_MIN && w->executor.worker_count > 1;
+    bool parallel = n >= PARALLEL_MIN && cycle->executor->worker_count > 1;
     if (!bpx__sap_reserve_radix(st, parallel ? 3 : 1, 2 * (size_t)n))
         return false;
-    sap_job job = {.st = st, .n = n, .chunks = parallel ? 3 : 1}; // chunks: the sorts' memory
+    bpx_sap_job job = {.st = st, .n = n, .chunks = parallel ? 3 : 1}; // chunks: the sorts' memory
     if (parallel)
-        bpx__parallel_for(&w->executor, list_task, 3, &job);
+        bpx__parallel_for(cycle->executor, list_task, 3, &job);
     else
         list_task(0, 3, 0, &job);
     const uint64_t *overlaps = job.overlaps;

@@ -34,7 +34,7 @@
 
 // Sorts a change list by (i, j) (bottom-up merge sort through st->spare: O(k log k), no
 // allocation past the spare's high-water mark) and drops repeats (a pair met on several axes).
-static bool sort_unique(sap_state *st, bpx_pair_list *list)
+static bool sort_unique(bpx_sap_state *st, bpx_pair_list *list)
 {
     size_t count = list->count;
     if (count < 2)
@@ -77,7 +77,7 @@ static bool sort_unique(sap_state *st, bpx_pair_list *list)
 // noting in st->changes every box whose fat overlap with b changes when b's fat box goes from
 // `before` to st->a.fat[b] (the other boxes as they are now). Returns the moves, or
 // UINT64_MAX when memory ran out.
-static uint64_t move_end(sap_state *st, int axis, uint32_t count, uint32_t at, uint64_t x,
+static uint64_t move_end(bpx_sap_state *st, int axis, uint32_t count, uint32_t at, uint64_t x,
                          const bpx_box *before)
 {
     uint64_t *ends = st->a.ends[axis];
@@ -116,7 +116,8 @@ static uint64_t move_end(sap_state *st, int axis, uint32_t count, uint32_t at, u
 
 // Few boxes left their fat boxes: each in turn gets its new fat box, and its six endpoints
 // are found (where) and moved to their places, the lists sorted at every step.
-static mend_result mend_few(sap_state *st, uint32_t n, uint32_t changed, uint64_t budget)
+static bpx_sap_mend_result mend_few(bpx_sap_state *st, uint32_t n, uint32_t changed,
+                                    uint64_t budget)
 {
     uint64_t moves = 0;
     for (uint32_t c = 0; c < changed; c++) {
@@ -163,9 +164,9 @@ static inline uint64_t fresh_word(uint64_t w, const bpx_box *fat, int axis, cons
 // unmade: a million boxes at rest after a rebuild leave their fat boxes together ~60 cycles
 // later, too many to mend, and indexing the lists first would add 45 ms to that give-up on 2
 // threads (`bpx bench --backend sap --scene resting --sizes 1000000 --threads 2`).
-static inline mend_result mend_list_as(sap_state *st, uint32_t n, uint32_t changed,
-                                       uint64_t budget, int axis, atomic_bool *stop,
-                                       const uint64_t *moved, bool keep_where)
+static inline bpx_sap_mend_result mend_list_as(bpx_sap_state *st, uint32_t n, uint32_t changed,
+                                               uint64_t budget, int axis, atomic_bool *stop,
+                                               const uint64_t *moved, bool keep_where)
 {
     const bpx_box *fat = st->a.fat, *prev = st->a.fat_prev;
     bpx_pair_list *changes = &st->axis_changes[axis];
@@ -219,8 +220,9 @@ static inline mend_result mend_list_as(sap_state *st, uint32_t n, uint32_t chang
     return MEND_DONE;
 }
 
-static mend_result mend_list(sap_state *st, uint32_t n, uint32_t changed, uint64_t budget,
-                             int axis, atomic_bool *stop, const uint64_t *moved)
+static bpx_sap_mend_result mend_list(bpx_sap_state *st, uint32_t n, uint32_t changed,
+                                     uint64_t budget, int axis, atomic_bool *stop,
+                                     const uint64_t *moved)
 {
     return st->indexed ? mend_list_as(st, n, changed, budget, axis, stop, moved, true)
                        : mend_list_as(st, n, changed, budget, axis, stop, moved, false);
@@ -229,9 +231,9 @@ static mend_result mend_list(sap_state *st, uint32_t n, uint32_t changed, uint64
 static void mend_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    sap_job *job = context;
+    bpx_sap_job *job = context;
     for (int axis = begin; axis < end; axis++) {
-        mend_result r = MEND_GAVE_UP;
+        bpx_sap_mend_result r = MEND_GAVE_UP;
         if (!atomic_load_explicit(&job->stop, memory_order_relaxed))
             r = mend_list(job->st, job->n, job->changed, job->budget, axis, &job->stop,
                           job->moved);
@@ -241,8 +243,8 @@ static void mend_task(int begin, int end, int worker, void *context)
     }
 }
 
-static mend_result mend_all(bpx_world *w, sap_state *st, uint32_t n, uint32_t changed,
-                            uint64_t budget)
+static bpx_sap_mend_result mend_all(const bpx_cycle *cycle, bpx_sap_state *st, uint32_t n,
+                                    uint32_t changed, uint64_t budget)
 {
     for (uint32_t c = 0; c < changed; c++) {
         uint32_t b = st->a.changed[c];
@@ -255,13 +257,13 @@ static mend_result mend_all(bpx_world *w, sap_state *st, uint32_t n, uint32_t ch
         for (uint32_t c = 0; c < changed; c++)
             moved[st->a.changed[c] / 64] |= UINT64_C(1) << (st->a.changed[c] % 64);
     }
-    sap_job job = {.st = st, .n = n, .changed = changed, .budget = budget, .moved = moved};
+    bpx_sap_job job = {.st = st, .n = n, .changed = changed, .budget = budget, .moved = moved};
     atomic_init(&job.stop, false);
-    if (n >= PARALLEL_MIN && w->executor.worker_count > 1)
-        bpx__parallel_for(&w->executor, mend_task, 3, &job);
+    if (n >= PARALLEL_MIN && cycle->executor->worker_count > 1)
+        bpx__parallel_for(cycle->executor, mend_task, 3, &job);
     else
         mend_task(0, 3, 0, &job);
-    mend_result r = MEND_DONE; // running out of memory outranks giving up
+    bpx_sap_mend_result r = MEND_DONE; // running out of memory outranks giving up
     size_t noted = 0;
     for (int axis = 0; axis < 3; axis++) {
         if (job.result[axis] == MEND_NO_MEMORY || (job.result[axis] == MEND_GAVE_UP && r == MEND_DONE))
@@ -284,7 +286,7 @@ static mend_result mend_all(bpx_world *w, sap_state *st, uint32_t n, uint32_t ch
 
 // fat_pairs after the changes: each pair noted is in the new list iff the fat boxes overlap now,
 // whether or not it was in the old one.
-static void merge_changes(sap_state *st)
+static void merge_changes(bpx_sap_state *st)
 {
     const bpx_pair *old = st->fat_pairs.pairs, *maybe = st->changes.pairs;
     size_t old_count = st->fat_pairs.count, maybe_count = st->changes.count;
@@ -308,9 +310,9 @@ static void merge_changes(sap_state *st)
 
 // The warm cycle into st->fat_pairs. MEND_GAVE_UP: too many moves (or an inconsistency); the
 // caller rebuilds. On MEND_NO_MEMORY the state is invalid (the caller marks it so).
-mend_result bpx__sap_warm_cycle(bpx_world *w, sap_state *st)
+bpx_sap_mend_result bpx__sap_warm_cycle(const bpx_cycle *cycle, bpx_sap_state *st)
 {
-    uint32_t n = w->n;
+    uint32_t n = cycle->n;
     bool grown = n > st->n;
     uint64_t budget =
         (uint64_t)MOVES_PER_BOX * n / (n > CACHED_BOXES ? UNCACHED_DIVISOR : 1) + MOVES_BASE;
@@ -322,14 +324,14 @@ mend_result bpx__sap_warm_cycle(bpx_world *w, sap_state *st)
             st->counters.untried++;
             return MEND_GAVE_UP;
         }
-        if (!bpx__sap_make_lists(w, st, st->n, &live))
+        if (!bpx__sap_make_lists(cycle, st, st->n, &live))
             return MEND_NO_MEMORY;
     }
     if (grown) {
         bpx__sap_append_boxes(st, st->n, n);
         st->indexed = true;
     }
-    uint32_t changed = bpx__sap_check_boxes(w, st);
+    uint32_t changed = bpx__sap_check_boxes(cycle, st);
     st->checked = true;
     if (st->scan && grown) { // the new boxes enter the scan list as inert, at its end
         int order[3];
@@ -346,19 +348,19 @@ mend_result bpx__sap_warm_cycle(bpx_world *w, sap_state *st)
             st->counters.untried++;
             return MEND_GAVE_UP;
         }
-        if (!bpx__sap_make_lists(w, st, n, &live))
+        if (!bpx__sap_make_lists(cycle, st, n, &live))
             return MEND_NO_MEMORY;
     }
     st->changes.count = 0;
-    mend_result r = MEND_DONE;
+    bpx_sap_mend_result r = MEND_DONE;
     if (st->scan) {
         if (changed > 0)
-            r = bpx__sap_mend_scan(w, st, n, changed);
+            r = bpx__sap_mend_scan(cycle, st, n, changed);
     } else if (grown || changed > n / FEW_DIVISOR + FEW_BASE) {
-        r = mend_all(w, st, n, changed, budget);
+        r = mend_all(cycle, st, n, changed, budget);
     } else if (changed > 0) {
         if (!st->indexed) {
-            bpx__sap_index_lists(w, st, n);
+            bpx__sap_index_lists(cycle, st, n);
             st->indexed = true;
         }
         r = mend_few(st, n, changed, budget);

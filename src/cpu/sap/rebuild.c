@@ -30,10 +30,10 @@
 
 // Sweeps the `live` boxes of sorted_ids (ids in min order of `axis`), each as `boxes` has it,
 // into block 0, in (i, j) order.
-static bpx_status sweep(bpx_world *w, sap_state *st, const bpx_box *boxes, int axis,
+static bpx_status sweep(const bpx_cycle *cycle, bpx_sap_state *st, const bpx_box *boxes, int axis,
                         uint32_t live)
 {
-    sap_arrays *a = &st->a;
+    bpx_sap_arrays *a = &st->a;
     const int order[3] = {axis, axis == 0 ? 1 : 0, axis == 2 ? 1 : 2}; // slot 0: swept axis
     for (int s = 0; s < 3; s++) {
         float *slo = a->lo[s], *shi = a->hi[s];
@@ -53,27 +53,28 @@ static bpx_status sweep(bpx_world *w, sap_state *st, const bpx_box *boxes, int a
     int blocks = (int)((live + ROWS_PER_BLOCK - 1) / ROWS_PER_BLOCK);
     if (blocks < 1)
         blocks = 1;
-    bpx_status status = bpx__emitter_reserve_blocks(w, blocks);
+    bpx_status status = bpx__emitter_reserve_blocks(cycle->sink, blocks);
     if (status != BPX_OK)
         return status;
     for (int k = 0; k < blocks; k++) {
         uint32_t begin = (uint32_t)k * ROWS_PER_BLOCK;
-        w->blocks[k].row_begin = begin;
-        w->blocks[k].row_end = live - begin < ROWS_PER_BLOCK ? live : begin + ROWS_PER_BLOCK;
+        cycle->sink->blocks[k].row_begin = begin;
+        cycle->sink->blocks[k].row_end =
+            live - begin < ROWS_PER_BLOCK ? live : begin + ROWS_PER_BLOCK;
     }
-    w->block_count = blocks;
-    w->planned_n = UINT32_MAX; // the layout is this backend's own
+    cycle->sink->block_count = blocks;
+    cycle->sink->planned_n = UINT32_MAX; // the layout is this backend's own
     bpx_sorted sorted = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]},
                          a->sorted_ids, live};
-    bpx__prune_sweep_blocks(w, &sorted, blocks);
-    return bpx__emitter_sort_blocks(w, &st->merged, &st->spare, a->counts);
+    bpx__prune_sweep_blocks(cycle, &sorted, blocks);
+    return bpx__emitter_sort_blocks(cycle->sink, cycle->n, &st->merged, &st->spare, a->counts);
 }
 
 static void soa_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    sap_job *job = context;
-    sap_arrays *a = &job->st->a;
+    bpx_sap_job *job = context;
+    bpx_sap_arrays *a = &job->st->a;
     for (int c = begin; c < end; c++)
         for (uint32_t i = chunk_begin(job->n, job->chunks, (uint32_t)c),
                       i1 = chunk_begin(job->n, job->chunks, (uint32_t)c + 1);
@@ -86,15 +87,15 @@ static void soa_task(int begin, int end, int worker, void *context)
 
 // The pairs of `boxes` (all n, by id) by the grid, into block 0 in (i, j) order: for rebuilds
 // where one axis's sweep would meet too many boxes per box (millions at constant density).
-static bpx_status grid_pairs(bpx_world *w, sap_state *st, const bpx_box *boxes)
+static bpx_status grid_pairs(const bpx_cycle *cycle, bpx_sap_state *st, const bpx_box *boxes)
 {
-    sap_arrays *a = &st->a;
-    uint32_t n = w->n, padded = (n + PAD - 1) / PAD * PAD;
-    sap_job job = {.st = st, .n = n, .chunks = bpx__sap_chunks_for(w, n), .boxes = boxes};
+    bpx_sap_arrays *a = &st->a;
+    uint32_t n = cycle->n, padded = (n + PAD - 1) / PAD * PAD;
+    bpx_sap_job job = {.st = st, .n = n, .chunks = bpx__sap_chunks_for(cycle, n), .boxes = boxes};
     if (job.chunks == 1)
         soa_task(0, 1, 0, &job);
     else
-        bpx__parallel_for(&w->executor, soa_task, (int)job.chunks, &job);
+        bpx__parallel_for(cycle->executor, soa_task, (int)job.chunks, &job);
     for (int axis = 0; axis < 3; axis++)
         for (uint32_t i = n; i < padded; i++) {
             a->lo[axis][i] = 1.0f / 0.0f;
@@ -102,7 +103,7 @@ static bpx_status grid_pairs(bpx_world *w, sap_state *st, const bpx_box *boxes)
         }
     bpx_soa soa = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]}, n};
     bpx__grid_forget(st->grid); // its last call may be long ago, on other boxes
-    return bpx__grid_find(w, &st->grid, soa);
+    return bpx__grid_find(cycle, &st->grid, soa);
 }
 
 // What the margins need of a range of boxes: per axis, the live (non-inert) boxes, the sum of
@@ -211,12 +212,12 @@ static double sample_quartile(const bpx_box *cur, uint32_t n, int axis)
 // count. With them, the fewest endpoint moves a box that leaves its fat box is expected to cost:
 // its two endpoints on the axis it left by, each past a margin's worth of the list at the list's
 // mean density (denser clusters cost more, so this errs low), on the axis where that is least.
-static void set_margins(const bpx_world *w, sap_state *st)
+static void set_margins(const bpx_cycle *cycle, bpx_sap_state *st)
 {
-    margin_job job = {.cur = st->a.cur, .n = w->n, .chunks = w->n / PARALLEL_MIN + 1};
+    margin_job job = {.cur = st->a.cur, .n = cycle->n, .chunks = cycle->n / PARALLEL_MIN + 1};
     job.chunks = job.chunks < CHUNKS_MAX ? job.chunks : CHUNKS_MAX;
-    if (job.chunks > 1 && w->executor.worker_count > 1)
-        bpx__parallel_for(&w->executor, margin_task, (int)job.chunks, &job);
+    if (job.chunks > 1 && cycle->executor->worker_count > 1)
+        bpx__parallel_for(cycle->executor, margin_task, (int)job.chunks, &job);
     else
         margin_task(0, (int)job.chunks, 0, &job);
     margin_part all = job.part[0];
@@ -232,7 +233,7 @@ static void set_margins(const bpx_world *w, sap_state *st)
     for (int axis = 0; axis < 3; axis++) {
         uint32_t live = all.live[axis];
         double mean = live ? all.sum[axis] / live : 0.0;
-        double quartile = sample_quartile(st->a.cur, w->n, axis);
+        double quartile = sample_quartile(st->a.cur, cycle->n, axis);
         double margin = mean / MARGIN_DIVISOR;
         if (quartile >= 0.0 && margin > quartile / MARGIN_QUARTILE_DIVISOR)
             margin = quartile / MARGIN_QUARTILE_DIVISOR;
@@ -247,8 +248,8 @@ static void set_margins(const bpx_world *w, sap_state *st)
 static void fatten_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
-    sap_job *job = context;
-    sap_arrays *a = &job->st->a;
+    bpx_sap_job *job = context;
+    bpx_sap_arrays *a = &job->st->a;
     for (int c = begin; c < end; c++)
         for (uint32_t i = chunk_begin(job->n, job->chunks, (uint32_t)c),
                       i1 = chunk_begin(job->n, job->chunks, (uint32_t)c + 1);
@@ -257,29 +258,29 @@ static void fatten_task(int begin, int end, int worker, void *context)
 }
 
 // Every box's new fat box (ranges on the workers).
-static void fatten_all(const bpx_world *w, sap_state *st)
+static void fatten_all(const bpx_cycle *cycle, bpx_sap_state *st)
 {
-    sap_job job = {.st = st, .n = w->n, .chunks = bpx__sap_chunks_for(w, w->n)};
+    bpx_sap_job job = {.st = st, .n = cycle->n, .chunks = bpx__sap_chunks_for(cycle, cycle->n)};
     if (job.chunks == 1)
         fatten_task(0, 1, 0, &job);
     else
-        bpx__parallel_for(&w->executor, fatten_task, (int)job.chunks, &job);
+        bpx__parallel_for(cycle->executor, fatten_task, (int)job.chunks, &job);
 }
 
 // Rebuilds the fat boxes, the lists (see bpx__sap_make_lists) and the fat pairs by one sweep or
 // the grid (into st->fat_pairs), and the exact pairs into block 0.
-bpx_status bpx__sap_full_rebuild(bpx_world *w, sap_state *st)
+bpx_status bpx__sap_full_rebuild(const bpx_cycle *cycle, bpx_sap_state *st)
 {
-    uint32_t n = w->n;
-    sap_arrays *a = &st->a;
+    uint32_t n = cycle->n;
+    bpx_sap_arrays *a = &st->a;
     if (!st->checked) // for cur (a warm attempt this cycle has made it)
-        bpx__sap_check_boxes(w, st);
-    set_margins(w, st);
-    fatten_all(w, st);
+        bpx__sap_check_boxes(cycle, st);
+    set_margins(cycle, st);
+    fatten_all(cycle, st);
     uint32_t live = 0;
     st->listed = st->indexed = false;
     bool counted = st->use_grid && n - n / 8 <= st->counted_n && st->counted_n <= n + n / 8;
-    if (!counted && !bpx__sap_make_lists(w, st, n, &live))
+    if (!counted && !bpx__sap_make_lists(cycle, st, n, &live))
         return BPX_ERR_OUT_OF_MEMORY;
     int axis = st->sweep_axis;
     if (!st->use_grid) {
@@ -290,7 +291,8 @@ bpx_status bpx__sap_full_rebuild(bpx_world *w, sap_state *st)
             if (!(ends[e] & MAX_BIT) && (uint32_t)(ends[e] >> 32) != inf_key)
                 a->sorted_ids[k++] = (uint32_t)ends[e] & BOX_MASK;
     }
-    bpx_status status = st->use_grid ? grid_pairs(w, st, a->fat) : sweep(w, st, a->fat, axis, live);
+    bpx_status status =
+        st->use_grid ? grid_pairs(cycle, st, a->fat) : sweep(cycle, st, a->fat, axis, live);
     if (status != BPX_OK)
         return status;
     // Few boxes of even extents on the swept axis: warm cycles scan (see bpx__sap_mend_scan).
@@ -309,7 +311,7 @@ bpx_status bpx__sap_full_rebuild(bpx_world *w, sap_state *st)
         bpx__sap_scan_list(st, n, live);
 
     // Keep the fat pairs, with room for the warm cycles to come; block 0 gets the exact ones.
-    bpx_pair_list *found = &w->blocks[0].hits;
+    bpx_pair_list *found = &cycle->sink->blocks[0].hits;
     size_t room = found->count + found->count / 2 + FIRST_CHANGES;
     size_t changes = FIRST_CHANGES + n / 16;
     st->fat_pairs.count = st->changes.count = 0;
@@ -324,22 +326,22 @@ bpx_status bpx__sap_full_rebuild(bpx_world *w, sap_state *st)
     if (found->count)
         memcpy(st->fat_pairs.pairs, found->pairs, found->count * sizeof(bpx_pair));
     st->fat_pairs.count = found->count;
-    found->count = bpx__sap_filter_pairs(w, st, found->pairs);
+    found->count = bpx__sap_filter_pairs(cycle, st, found->pairs);
     return BPX_OK;
 }
 
 // The pairs by one sweep over the minima of the sweep axis the lists last chose, radix sorted
 // (or by the grid, if they chose it); no endpoint lists (the next cycle will not mend).
-bpx_status bpx__sap_lite_rebuild(bpx_world *w, sap_state *st)
+bpx_status bpx__sap_lite_rebuild(const bpx_cycle *cycle, bpx_sap_state *st)
 {
-    uint32_t n = w->n;
-    sap_arrays *a = &st->a;
+    uint32_t n = cycle->n;
+    bpx_sap_arrays *a = &st->a;
     if (!bpx__sap_reserve_radix(st, 1, n))
         return BPX_ERR_OUT_OF_MEMORY;
     if (!st->checked) // for cur (a warm attempt this cycle has made it)
-        bpx__sap_check_boxes(w, st);
+        bpx__sap_check_boxes(cycle, st);
     if (st->use_grid)
-        return grid_pairs(w, st, a->cur);
+        return grid_pairs(cycle, st, a->cur);
     const uint32_t inf_key = coord_key(1.0f / 0.0f);
     uint64_t *words = a->words[0], *sorted = a->words[1];
     for (uint32_t i = 0; i < n; i++)
@@ -350,5 +352,5 @@ bpx_status bpx__sap_lite_rebuild(bpx_world *w, sap_state *st)
         live--;
     for (uint32_t k = 0; k < live; k++)
         a->sorted_ids[k] = (uint32_t)sorted[k];
-    return sweep(w, st, a->cur, st->sweep_axis, live);
+    return sweep(cycle, st, a->cur, st->sweep_axis, live);
 }

@@ -1,6 +1,7 @@
 // The sap backend: sweep and prune with temporal coherence (the persistent sorted endpoint
 // lists of SOLID and of Bullet's AxisSweep3, written here from the idea, not their code), over
-// fat boxes.
+// fat boxes. Paper modules: the comparator, past the paper (the pairs kept between cycles, as the
+// paper's sweep-and-prune baseline of Table 2 does); its exact filter emits in (i, j) order.
 //
 // This file: the state's memory, and each cycle's choice between the warm cycle (mend.c) and a
 // rebuild (rebuild.c); sap_internal.h describes the state and lists the other files.
@@ -25,7 +26,7 @@
 // Memory
 
 // Every array of a with its size in bytes for `capacity` boxes; returns the count.
-static int array_table(sap_arrays *a, size_t capacity, void ***ptrs, size_t *sizes)
+static int array_table(bpx_sap_arrays *a, size_t capacity, void ***ptrs, size_t *sizes)
 {
     int k = 0;
     for (int axis = 0; axis < 3; axis++) {
@@ -58,7 +59,7 @@ static int array_table(sap_arrays *a, size_t capacity, void ***ptrs, size_t *siz
     return k;
 }
 
-static void free_arrays(sap_arrays *a, uint32_t capacity)
+static void free_arrays(bpx_sap_arrays *a, uint32_t capacity)
 {
     void **ptrs[ARRAY_COUNT];
     size_t sizes[ARRAY_COUNT];
@@ -75,11 +76,9 @@ static void list_free(bpx_pair_list *list)
     *list = (bpx_pair_list){0};
 }
 
-static void sap_destroy(bpx_world *w)
+static void sap_destroy(void *state)
 {
-    sap_state *st = w->backend_state;
-    if (!st)
-        return;
+    bpx_sap_state *st = state;
     free_arrays(&st->a, st->capacity);
     for (int k = 0; k < 3; k++)
         if (st->radix[k]) {
@@ -93,12 +92,11 @@ static void sap_destroy(bpx_world *w)
     for (size_t k = 0; k < sizeof lists / sizeof lists[0]; k++)
         list_free(lists[k]);
     bpx__free(st, sizeof *st);
-    w->backend_state = NULL;
 }
 
 // Makes the arrays hold n boxes. With `keep`, the endpoint lists (2 * st->n each) and the fat
 // boxes (st->n) survive a move to bigger arrays. All or nothing: on failure st is as it was.
-static bool reserve_arrays(sap_state *st, uint32_t n, bool keep)
+static bool reserve_arrays(bpx_sap_state *st, uint32_t n, bool keep)
 {
     if (n <= st->capacity && st->a.ends[0])
         return true;
@@ -110,7 +108,7 @@ static bool reserve_arrays(sap_state *st, uint32_t n, bool keep)
         capacity = BPX_MAX_BOXES;
     if (capacity == 0)
         capacity = 1;
-    sap_arrays grown = {0};
+    bpx_sap_arrays grown = {0};
     void **ptrs[ARRAY_COUNT];
     size_t sizes[ARRAY_COUNT];
     int count = array_table(&grown, capacity, ptrs, sizes);
@@ -141,16 +139,16 @@ static bool reserve_arrays(sap_state *st, uint32_t n, bool keep)
 // ---------------------------------------------------------------------------------------------
 // The backend
 
-static bpx_status sap_compare(bpx_world *w)
+static bpx_status sap_compare(void **state, bpx_cycle *cycle)
 {
-    sap_state *st = w->backend_state;
+    bpx_sap_state *st = *state;
     if (!st) {
         if (!(st = bpx__alloc(sizeof *st)))
             return BPX_ERR_OUT_OF_MEMORY;
-        *st = (sap_state){0};
-        w->backend_state = st;
+        *st = (bpx_sap_state){0};
+        *state = st;
     }
-    uint32_t n = w->n;
+    uint32_t n = cycle->n;
     // Two give-ups in a row mean the motion is not coherent: rebuild without trying, and try
     // mending again every RETRY_EVERY cycles (a single jump costs one wasted attempt, a run of
     // incoherent cycles one in RETRY_EVERY).
@@ -164,7 +162,7 @@ static bpx_status sap_compare(bpx_world *w)
     st->checked = false;
     bpx_status status = BPX_OK;
     if (warm) {
-        mend_result r = bpx__sap_warm_cycle(w, st);
+        bpx_sap_mend_result r = bpx__sap_warm_cycle(cycle, st);
         if (r == MEND_NO_MEMORY)
             return BPX_ERR_OUT_OF_MEMORY;
         st->give_ups = r == MEND_DONE ? 0 : st->give_ups + 1;
@@ -177,27 +175,27 @@ static bpx_status sap_compare(bpx_world *w)
     if (warm) {
         // Block 0 gets the exact pairs; the other blocks, left by the last rebuild, are
         // dropped.
-        status = bpx__emitter_reserve_blocks(w, 1);
+        status = bpx__emitter_reserve_blocks(cycle->sink, 1);
         if (status != BPX_OK)
             return status;
-        bpx_block *out = &w->blocks[0];
+        bpx_block *out = &cycle->sink->blocks[0];
         out->hits.count = 0;
         if (!bpx__list_reserve(&out->hits, st->fat_pairs.count))
             return BPX_ERR_OUT_OF_MEMORY;
-        out->hits.count = bpx__sap_filter_pairs(w, st, out->hits.pairs);
+        out->hits.count = bpx__sap_filter_pairs(cycle, st, out->hits.pairs);
         out->tests = st->fat_pairs.count;
         out->status = BPX_OK;
-        w->block_count = 1;
-        w->planned_n = UINT32_MAX;
+        cycle->sink->block_count = 1;
+        cycle->sink->planned_n = UINT32_MAX;
     } else {
         // The lists are wanted only when the next cycle may mend: while coherent, or on the
         // cycle before a retry.
         lists = st->give_ups < 2 || st->waited + 1 >= RETRY_EVERY;
-        status = lists ? bpx__sap_full_rebuild(w, st) : bpx__sap_lite_rebuild(w, st);
+        status = lists ? bpx__sap_full_rebuild(cycle, st) : bpx__sap_lite_rebuild(cycle, st);
         if (status != BPX_OK)
             return status;
     }
-    w->stats.rebuilt = !warm;
+    cycle->report.rebuilt = !warm;
     st->n = n;
     st->valid = lists;
     return BPX_OK;
@@ -205,7 +203,7 @@ static bpx_status sap_compare(bpx_world *w)
 
 bpx_sap_counters bpx__sap_counters(const bpx_world *w)
 {
-    const sap_state *st = w->backend == &bpx__sap_backend ? w->backend_state : NULL;
+    const bpx_sap_state *st = bpx__world_backend_state(w, &bpx__sap_backend);
     bpx_sap_counters c = st ? st->counters : (bpx_sap_counters){0};
     for (int axis = 0; axis < 3 && st; axis++)
         c.margin[axis] = st->margin[axis];

@@ -30,8 +30,8 @@
 #include <string.h>
 
 #include "core/alloc.h"
+#include "core/backend.h"
 #include "core/transpose.h"
-#include "core/world.h"
 #include "cpu/backends.h"
 #include "cpu/sort.h"
 
@@ -78,7 +78,7 @@ enum {
 #define BOX_MASK 0x7fffffffu        // in an endpoint word: the box (BPX_MAX_BOXES = 2^30)
 
 // The per-box arrays, allocated together (capacity boxes each, or as noted).
-typedef struct sap_arrays {
+typedef struct bpx_sap_arrays {
     uint64_t *ends[3];                                 // 2 * capacity: sorted endpoint words
     uint32_t *where[3];                                // 2 * capacity: where[axis][end_slot(w)]
                                                        // is word w's index in ends[axis]
@@ -91,11 +91,11 @@ typedef struct sap_arrays {
     float *lo[3], *hi[3];                              // capacity + PAD: cold sweep SoA
     uint32_t *sorted_ids;                              // capacity + PAD
     uint32_t *counts;                                  // capacity + 1: pair counting sorts
-} sap_arrays;
+} bpx_sap_arrays;
 
 enum { ARRAY_COUNT = 3 + 3 + 3 + 4 + 6 + 2 };
 
-typedef struct sap_state {
+typedef struct bpx_sap_state {
     uint32_t capacity; // boxes the arrays hold
     uint32_t n;        // boxes the lists describe (when valid)
     bool valid;        // fat and fat_pairs describe the last completed cycle (ends if listed)
@@ -114,30 +114,30 @@ typedef struct sap_state {
     bpx_radix_work *radix[3]; // the cold sorts' work memory: one per list sorted at once
     float margin[3];   // fat margin per axis, set by each full rebuild
     float least_moves; // fewest endpoint moves a box leaving its fat box is expected to cost
-    sap_arrays a;
+    bpx_sap_arrays a;
     bpx_pair_list fat_pairs; // pairs of overlapping fat boxes, (i, j) order
     bpx_pair_list merged;    // the merge's output, then swapped with fat_pairs
     bpx_pair_list changes;   // pairs whose fat overlap may have changed this cycle
     bpx_pair_list axis_changes[3]; // the same, noted by each list's mending
     uint32_t chunk_count[CHUNKS_MAX]; // a split pass's output per range
     bpx_pair_list spare;     // sort scratch
-} sap_state;
+} bpx_sap_state;
 
-typedef enum mend_result { MEND_DONE, MEND_GAVE_UP, MEND_NO_MEMORY } mend_result;
+typedef enum bpx_sap_mend_result { MEND_DONE, MEND_GAVE_UP, MEND_NO_MEMORY } bpx_sap_mend_result;
 
-typedef struct sap_job {
-    sap_state *st;
-    const bpx_world *w;
+typedef struct bpx_sap_job {
+    bpx_sap_state *st;
+    const bpx_cycle *cycle;
     uint32_t n, chunks, changed;
     uint64_t budget;
     atomic_bool stop; // a list gave up (or ran out of memory): the others stop too
-    mend_result result[3];
+    bpx_sap_mend_result result[3];
     uint64_t overlaps[3]; // a full rebuild's pairs overlapping on each axis
     uint32_t live[3];     // and its boxes that are not inert (the same count on each)
     const bpx_box *boxes; // the grid's input, into SoA
     const uint64_t *moved; // the one-pass mend's changed boxes, a bit each (without where)
     bpx_pair *out;
-} sap_job;
+} bpx_sap_job;
 
 // ---------------------------------------------------------------------------------------------
 // Keys, boxes, pairs, ranges
@@ -222,7 +222,7 @@ static inline void scan_order(int axis, int order[3])
     order[2] = axis == 2 ? 1 : 2;
 }
 
-static inline void scan_put(sap_arrays *a, uint32_t k, const bpx_box *f, const int order[3],
+static inline void scan_put(bpx_sap_arrays *a, uint32_t k, const bpx_box *f, const int order[3],
                             uint32_t b)
 {
     for (int s = 0; s < 3; s++) {
@@ -247,20 +247,21 @@ static inline float float_above(double x)
 // Across the files of this folder
 
 // lists.c: the endpoint lists.
-void bpx__sap_index_lists(const bpx_world *w, sap_state *st, uint32_t n);
-void bpx__sap_append_boxes(sap_state *st, uint32_t n_old, uint32_t n);
-bool bpx__sap_reserve_radix(sap_state *st, int sorts, size_t words);
-bool bpx__sap_make_lists(bpx_world *w, sap_state *st, uint32_t n, uint32_t *live);
+void bpx__sap_index_lists(const bpx_cycle *cycle, bpx_sap_state *st, uint32_t n);
+void bpx__sap_append_boxes(bpx_sap_state *st, uint32_t n_old, uint32_t n);
+bool bpx__sap_reserve_radix(bpx_sap_state *st, int sorts, size_t words);
+bool bpx__sap_make_lists(const bpx_cycle *cycle, bpx_sap_state *st, uint32_t n, uint32_t *live);
 // mend.c: the warm cycle.
-mend_result bpx__sap_warm_cycle(bpx_world *w, sap_state *st);
+bpx_sap_mend_result bpx__sap_warm_cycle(const bpx_cycle *cycle, bpx_sap_state *st);
 // scan.c: the scan mend.
-void bpx__sap_scan_pad(sap_arrays *a, uint32_t n, const int order[3]);
-void bpx__sap_scan_list(sap_state *st, uint32_t n, uint32_t live);
-mend_result bpx__sap_mend_scan(const bpx_world *w, sap_state *st, uint32_t n, uint32_t changed);
+void bpx__sap_scan_pad(bpx_sap_arrays *a, uint32_t n, const int order[3]);
+void bpx__sap_scan_list(bpx_sap_state *st, uint32_t n, uint32_t live);
+bpx_sap_mend_result bpx__sap_mend_scan(const bpx_cycle *cycle, bpx_sap_state *st, uint32_t n,
+                                       uint32_t changed);
 // filter.c: the boxes against their fat boxes, and the exact filter.
-uint32_t bpx__sap_chunks_for(const bpx_world *w, size_t count);
-uint32_t bpx__sap_check_boxes(const bpx_world *w, sap_state *st);
-size_t bpx__sap_filter_pairs(const bpx_world *w, sap_state *st, bpx_pair *out);
+uint32_t bpx__sap_chunks_for(const bpx_cycle *cycle, size_t count);
+uint32_t bpx__sap_check_boxes(const bpx_cycle *cycle, bpx_sap_state *st);
+size_t bpx__sap_filter_pairs(const bpx_cycle *cycle, bpx_sap_state *st, bpx_pair *out);
 // rebuild.c: the cold cycle.
-bpx_status bpx__sap_full_rebuild(bpx_world *w, sap_state *st);
-bpx_status bpx__sap_lite_rebuild(bpx_world *w, sap_state *st);
+bpx_status bpx__sap_full_rebuild(const bpx_cycle *cycle, bpx_sap_state *st);
+bpx_status bpx__sap_lite_rebuild(const bpx_cycle *cycle, bpx_sap_state *st);

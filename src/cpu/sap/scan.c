@@ -39,7 +39,7 @@ static inline uint32_t scan_bound(const float *lo, uint32_t k0, uint32_t k1, flo
 }
 
 // Moves the entries [from, to) to [from + by, to + by) (by is -1 or +1).
-static inline void scan_shift(sap_arrays *a, uint32_t from, uint32_t to, int by)
+static inline void scan_shift(bpx_sap_arrays *a, uint32_t from, uint32_t to, int by)
 {
     size_t count = to - from;
     for (int s = 0; s < 3; s++) {
@@ -50,7 +50,7 @@ static inline void scan_shift(sap_arrays *a, uint32_t from, uint32_t to, int by)
 }
 
 // Inert boxes after the n entries of the scan list: a scan reads up to a vector past its end.
-void bpx__sap_scan_pad(sap_arrays *a, uint32_t n, const int order[3])
+void bpx__sap_scan_pad(bpx_sap_arrays *a, uint32_t n, const int order[3])
 {
     const float inf = 1.0f / 0.0f;
     const bpx_box inert = {{inf, inf, inf}, {-inf, -inf, -inf}};
@@ -60,9 +60,9 @@ void bpx__sap_scan_pad(sap_arrays *a, uint32_t n, const int order[3])
 
 // The scan list after a full rebuild's sweep (its first `live` entries): the inert boxes after
 // them, and the padding.
-void bpx__sap_scan_list(sap_state *st, uint32_t n, uint32_t live)
+void bpx__sap_scan_list(bpx_sap_state *st, uint32_t n, uint32_t live)
 {
-    sap_arrays *a = &st->a;
+    bpx_sap_arrays *a = &st->a;
     int order[3];
     scan_order(st->sweep_axis, order);
     uint32_t k = live;
@@ -72,15 +72,16 @@ void bpx__sap_scan_list(sap_state *st, uint32_t n, uint32_t live)
     bpx__sap_scan_pad(a, n, order);
 }
 
-mend_result bpx__sap_mend_scan(const bpx_world *w, sap_state *st, uint32_t n, uint32_t changed)
+bpx_sap_mend_result bpx__sap_mend_scan(const bpx_cycle *cycle, bpx_sap_state *st, uint32_t n,
+                                       uint32_t changed)
 {
-    sap_arrays *a = &st->a;
+    bpx_sap_arrays *a = &st->a;
     int order[3];
     scan_order(st->sweep_axis, order);
     const float *lo0 = a->lo[0];
     const bpx_sorted list = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]},
                              a->sorted_ids, n};
-    bpx_scan_differs_fn *differs = bpx__scan_differs_for(w->simd);
+    bpx_scan_differs_fn *differs = bpx__scan_differs_for(cycle->simd);
     uint32_t *found = (uint32_t *)a->words[0]; // free in a warm cycle
     uint64_t work = 0, budget = (uint64_t)SCAN_WORK_PER_BOX * n + MOVES_BASE;
     for (uint32_t c = 0; c < changed; c++) {
