@@ -66,8 +66,8 @@ typedef struct bpx_block {
 /// The pair sink: the collision emitter's blocks. A backend either plans blocks over the rows
 /// (bpx__emitter_plan, _plan_rows) and fills each in (i, j) order from its workers, or takes
 /// one block (bpx__emitter_one_block) for a list it orders itself, or lays out blocks of its own
-/// (bpx__emitter_reserve_blocks, then block_count; planned_n = UINT32_MAX) whose hits come in
-/// any order and are put in order by bpx__emitter_sort_blocks. The world then joins the blocks
+/// (bpx__emitter_own_blocks) whose hits come in any order and are put in order by
+/// bpx__emitter_sort_blocks. The world then joins the blocks
 /// in block order into the one ordered list.
 typedef struct bpx_emitter {
     bpx_block *blocks;
@@ -170,8 +170,12 @@ static inline bool bpx__pair_less(bpx_pair a, bpx_pair b)
 }
 
 // The pair sink's calls (emitter.c).
-/// Makes room for `count` blocks (new ones zeroed), for comparators that lay out their own.
+/// Makes room for `count` blocks (new ones zeroed).
 bpx_status bpx__emitter_reserve_blocks(bpx_emitter *e, int count);
+/// For comparators that lay out blocks of their own (rows of their own order, cells): `count`
+/// blocks, whose rows and hits the backend sets; hits in any order then go through
+/// bpx__emitter_sort_blocks, or a backend that orders its own leaves them (i, j)-ordered.
+bpx_status bpx__emitter_own_blocks(bpx_emitter *e, int count);
 /// For comparators that emit one ordered list: one block over every row (planned again when n
 /// changed), emptied; *out is that block.
 bpx_status bpx__emitter_one_block(bpx_emitter *e, uint32_t n, bpx_block **out);

@@ -32,6 +32,16 @@ bpx_status bpx__emitter_reserve_blocks(bpx_emitter *e, int wanted)
     return BPX_OK;
 }
 
+bpx_status bpx__emitter_own_blocks(bpx_emitter *e, int count)
+{
+    bpx_status status = bpx__emitter_reserve_blocks(e, count);
+    if (status != BPX_OK)
+        return status;
+    e->block_count = count;
+    e->planned_n = UINT32_MAX; // the layout is the backend's own
+    return BPX_OK;
+}
+
 bpx_status bpx__emitter_one_block(bpx_emitter *e, uint32_t n, bpx_block **out)
 {
     if (e->planned_n != n) {

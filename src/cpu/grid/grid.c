@@ -329,11 +329,9 @@ static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
     st->big_parts = (uint32_t)((((size_t)n + PAD - 1) / PAD * PAD + BIG_SPAN - 1) / BIG_SPAN);
     st->big_items = big ? (int)st->big_parts : 0;
     int blocks = st->item_count + st->big_items;
-    bpx_status status = bpx__emitter_reserve_blocks(cycle->sink, blocks);
+    bpx_status status = bpx__emitter_own_blocks(cycle->sink, blocks);
     if (status != BPX_OK)
         return status;
-    cycle->sink->block_count = blocks;
-    cycle->sink->planned_n = UINT32_MAX; // the layout is this backend's own
     // Room for about last cycle's hits per block, so coherent cycles do not grow lists.
     if ((size_t)blocks > st->block_hits_capacity) {
         size_t old = st->block_hits_capacity, cap = (size_t)blocks + (size_t)blocks / 2;

@@ -53,7 +53,7 @@ static bpx_status sweep(const bpx_cycle *cycle, bpx_sap_state *st, const bpx_box
     int blocks = (int)((live + ROWS_PER_BLOCK - 1) / ROWS_PER_BLOCK);
     if (blocks < 1)
         blocks = 1;
-    bpx_status status = bpx__emitter_reserve_blocks(cycle->sink, blocks);
+    bpx_status status = bpx__emitter_own_blocks(cycle->sink, blocks);
     if (status != BPX_OK)
         return status;
     for (int k = 0; k < blocks; k++) {
@@ -62,8 +62,6 @@ static bpx_status sweep(const bpx_cycle *cycle, bpx_sap_state *st, const bpx_box
         cycle->sink->blocks[k].row_end =
             live - begin < ROWS_PER_BLOCK ? live : begin + ROWS_PER_BLOCK;
     }
-    cycle->sink->block_count = blocks;
-    cycle->sink->planned_n = UINT32_MAX; // the layout is this backend's own
     bpx_sorted sorted = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]},
                          a->sorted_ids, live};
     bpx__prune_sweep_blocks(cycle, &sorted, blocks);

@@ -175,7 +175,7 @@ static bpx_status sap_compare(void **state, bpx_cycle *cycle)
     if (warm) {
         // Block 0 gets the exact pairs; the other blocks, left by the last rebuild, are
         // dropped.
-        status = bpx__emitter_reserve_blocks(cycle->sink, 1);
+        status = bpx__emitter_own_blocks(cycle->sink, 1);
         if (status != BPX_OK)
             return status;
         bpx_block *out = &cycle->sink->blocks[0];
@@ -185,8 +185,6 @@ static bpx_status sap_compare(void **state, bpx_cycle *cycle)
         out->hits.count = bpx__sap_filter_pairs(cycle, st, out->hits.pairs);
         out->tests = st->fat_pairs.count;
         out->status = BPX_OK;
-        cycle->sink->block_count = 1;
-        cycle->sink->planned_n = UINT32_MAX;
     } else {
         // The lists are wanted only when the next cycle may mend: while coherent, or on the
         // cycle before a retry.
