@@ -42,6 +42,23 @@ typedef struct bpx_soa {
     uint32_t n;
 } bpx_soa;
 
+/// Six SoA arrays with their capacity in boxes (padding included): the world's boxes, and boxes
+/// of a backend's own (hybrid's sides), made with bpx__box_arrays_* (boxes.c).
+typedef struct bpx_box_arrays {
+    float *lo[3];
+    float *hi[3];
+    uint32_t capacity;
+} bpx_box_arrays;
+
+/// Boxes plus padding: n rounded up to whole groups of BPX_PAD_LANES, plus one more group.
+uint32_t bpx__boxes_padded(uint32_t n);
+/// Makes b hold n boxes plus padding; contents are not kept. False when memory ran out (b is
+/// then as it was).
+bool bpx__box_arrays_reserve(bpx_box_arrays *b, uint32_t n);
+/// Pads b after n boxes with inert ones.
+void bpx__box_arrays_pad(bpx_box_arrays *b, uint32_t n);
+void bpx__box_arrays_free(bpx_box_arrays *b);
+
 /// A growable list of pairs; memory is kept between cycles.
 typedef struct bpx_pair_list {
     bpx_pair *pairs;

@@ -5,14 +5,8 @@
 
 #include "world.h"
 
-/// Boxes plus padding: n rounded up to whole groups of BPX_PAD_LANES, plus one more group.
-uint32_t bpx__boxes_padded(uint32_t n);
-/// Makes b hold n boxes plus padding; contents are not kept. False when memory ran out (b is
-/// then as it was).
-bool bpx__box_arrays_reserve(bpx_box_arrays *b, uint32_t n);
-/// Pads b after n boxes with inert ones.
-void bpx__box_arrays_pad(bpx_box_arrays *b, uint32_t n);
-void bpx__box_arrays_free(bpx_box_arrays *b);
+// (The box arrays themselves, bpx_box_arrays and bpx__box_arrays_*, are in backend.h: backends
+// that hold boxes of their own use them too.)
 
 /// Resizes the current boxes to n, keeping boxes below min(n, old n); new slots are inert.
 bool bpx__boxes_resize(bpx_world *w, uint32_t n);

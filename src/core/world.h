@@ -3,13 +3,6 @@
 
 #include "backend.h"
 
-/// Six SoA arrays with their capacity in boxes (padding included).
-typedef struct bpx_box_arrays {
-    float *lo[3];
-    float *hi[3];
-    uint32_t capacity;
-} bpx_box_arrays;
-
 struct bpx_world {
     bpx_world_def def;
     const bpx_backend_impl *backend;

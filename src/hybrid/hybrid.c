@@ -1,9 +1,12 @@
 // The hybrid backend: the CPU and a device share one cycle (the paper's future work). Paper
-// modules: the emitter, joining the two sides' ordered streams; the comparators are two worlds'.
+// modules: the emitter, joining the two sides' ordered streams; the comparators are two other
+// backends', composed through the backend contract (core/backend.h): each side is a state slot,
+// boxes of its own and a pair sink, and hybrid never looks inside either backend.
 //
-// Space is cut along x. The CPU gets the boxes that reach below the cut, the device (cuda where
-// a GPU is usable, else opencl) those that reach above it, and both run at once: the device
-// world on a thread of this backend's own, the CPU world on the caller's. A pair is kept by
+// Space is cut along x. The CPU (auto) gets the boxes that reach below the cut, the device (cuda
+// where a GPU is usable, else opencl) those that reach above it, and both run at once: the
+// device side on a thread of this backend's own, the CPU side on the caller's, with the world's
+// workers. A pair is kept by
 // the side that holds its corner (the larger of the two min x): x < cut on the CPU, else on
 // the device. The corner lies in both boxes, so both reach that side, and no pair is found
 // twice (the rule libbpx_mpi uses between ranks). Each side's pairs, mapped back to world ids
@@ -35,12 +38,20 @@ enum {
     CHUNK_MIN = 16384,      // items; fewer go to one chunk
 };
 
+// One side: a backend run through the contract on boxes of its own.
 typedef struct side {
-    bpx_world *world;
-    bpx_box *boxes;
-    uint32_t *ids; // world id of each box, ascending
-    float *lo_x;   // each box's min x, for the corner rule
-    uint32_t n, capacity;
+    const bpx_backend_impl *impl;
+    void *state; // the backend's
+    bpx_world_def def;
+    bpx_executor executor; // the device side's: one worker (the device does the work)
+    bpx_box_arrays boxes;  // SoA, padded
+    uint32_t *ids;         // world id of each box, ascending
+    uint32_t n, capacity;  // boxes; capacity of ids
+    uint64_t version;      // of the side's boxes (a new set every cycle)
+    bpx_emitter sink;
+    bpx_pair_list pairs; // the sink's blocks joined
+    bpx_error error;
+    bpx_cycle cycle;
     uint64_t ns;
     bpx_status status;
 } side;
@@ -65,6 +76,20 @@ static bpx_backend device_backend(void)
     return BPX_BACKEND_COUNT;
 }
 
+static const bpx_backend_impl *device_impl(bpx_backend id)
+{
+#if BPX_HAVE_CUDA
+    if (id == BPX_BACKEND_CUDA)
+        return &bpx__cuda_backend;
+#endif
+#if BPX_HAVE_OPENCL
+    if (id == BPX_BACKEND_OPENCL)
+        return &bpx__opencl_backend;
+#endif
+    (void)id;
+    return NULL;
+}
+
 static bool hybrid_query(const bpx_world_def *def, const char **reason, char *detail,
                          size_t size)
 {
@@ -78,13 +103,40 @@ static bool hybrid_query(const bpx_world_def *def, const char **reason, char *de
     return true;
 }
 
+// The side's cycle, then its pairs joined into one ordered list.
 static void run_side(side *s)
 {
     uint64_t start = bpx__now_ns();
-    s->status = bpx_world_set_boxes(s->world, s->boxes, s->n);
-    if (s->status == BPX_OK)
-        s->status = bpx_world_collide(s->world);
+    bpx__error_clear(&s->error);
+    bpx_status status = s->impl->compare(&s->state, &s->cycle);
+    size_t total = 0;
+    if (status == BPX_OK)
+        status = bpx__emitter_total(&s->sink, &total);
+    s->pairs.count = 0;
+    if (status == BPX_OK && !bpx__list_reserve(&s->pairs, total))
+        status = BPX_ERR_OUT_OF_MEMORY;
+    if (status == BPX_OK) {
+        bpx__emitter_merge(&s->sink, s->pairs.pairs);
+        s->pairs.count = total;
+    }
+    if (status == BPX_ERR_OUT_OF_MEMORY || status == BPX_ERR_TOO_MANY_PAIRS) {
+        bpx__emitter_release(&s->sink); // as the world does: a cycle too big leaves none held
+        bpx__list_free(&s->pairs);
+    }
+    if (status != BPX_OK && s->error.status != status)
+        bpx__error(&s->error, status, UINT32_MAX, -1, "%s", bpx_status_string(status));
+    s->status = status;
     s->ns = bpx__now_ns() - start;
+}
+
+static void side_free(side *s)
+{
+    if (s->state && s->impl && s->impl->destroy)
+        s->impl->destroy(s->state);
+    bpx__emitter_free(&s->sink);
+    bpx__list_free(&s->pairs);
+    bpx__box_arrays_free(&s->boxes);
+    bpx__free(s->ids, sizeof(uint32_t) * s->capacity);
 }
 
 static void *device_thread(void *arg)
@@ -118,13 +170,8 @@ static void hybrid_destroy(void *state)
     }
     pthread_cond_destroy(&h->wake);
     pthread_mutex_destroy(&h->lock);
-    side *sides[2] = {&h->cpu, &h->device};
-    for (int k = 0; k < 2; k++) {
-        bpx_world_destroy(sides[k]->world);
-        bpx__free(sides[k]->boxes, sizeof(bpx_box) * sides[k]->capacity);
-        bpx__free(sides[k]->ids, sizeof(uint32_t) * sides[k]->capacity);
-        bpx__free(sides[k]->lo_x, sizeof(float) * sides[k]->capacity);
-    }
+    side_free(&h->cpu);
+    side_free(&h->device);
     bpx__free(h, sizeof *h);
 }
 
@@ -137,43 +184,67 @@ static bpx_status make_state(const bpx_world_def *def, hybrid **out)
     pthread_mutex_init(&h->lock, NULL);
     pthread_cond_init(&h->wake, NULL);
     h->share = def->hybrid_device_share > 0 ? def->hybrid_device_share : 0.5f;
-    bpx_world_def cpu = *def;
-    cpu.backend = BPX_BACKEND_AUTO;
-    cpu.track_events = false;
-    bpx_status s = bpx_world_create(&cpu, &h->cpu.world);
-    if (s == BPX_OK && pthread_create(&h->thread, NULL, device_thread, h) != 0)
-        s = BPX_ERR_OUT_OF_MEMORY;
-    h->started = s == BPX_OK;
-    if (s != BPX_OK) {
-        hybrid_destroy(h);
-        return s;
+    // The cpu side: auto on the world's workers. The device side: its backend, made when the
+    // device first gets boxes, so that a world that stays small never opens the device.
+    h->cpu.impl = &bpx__auto_backend;
+    h->cpu.def = *def;
+    h->cpu.def.backend = BPX_BACKEND_AUTO;
+    h->device.def = *def;
+    h->device.def.backend = device_backend();
+    h->device.def.worker_count = 1;
+    h->device.def.enqueue_task = NULL;
+    h->device.def.finish_task = NULL;
+    h->device.def.user_task_context = NULL;
+    h->device.impl = device_impl(h->device.def.backend);
+    h->device.executor = (bpx_executor){.worker_count = 1};
+    side *sides[2] = {&h->cpu, &h->device};
+    for (int k = 0; k < 2; k++) {
+        sides[k]->sink.planned_n = UINT32_MAX;
+        bpx__error_clear(&sides[k]->error);
     }
+    if (!h->device.impl || pthread_create(&h->thread, NULL, device_thread, h) != 0) {
+        hybrid_destroy(h);
+        return BPX_ERR_OUT_OF_MEMORY;
+    }
+    h->started = true;
     *out = h;
     return BPX_OK;
 }
 
+// Room for n boxes on a side (at most every box goes to one side).
 static bool reserve(side *s, uint32_t n)
 {
-    if (n <= s->capacity)
+    if (n <= s->capacity && s->ids)
         return true;
-    uint32_t capacity = n + n / 2;
-    bpx_box *boxes = bpx__alloc(sizeof(bpx_box) * capacity);
+    uint32_t capacity = n + n / 2 + 64;
+    if (capacity < n) // past 2^32
+        capacity = n;
     uint32_t *ids = bpx__alloc(sizeof(uint32_t) * capacity);
-    float *lo_x = bpx__alloc(sizeof(float) * capacity);
-    if (!boxes || !ids || !lo_x) {
-        bpx__free(boxes, sizeof(bpx_box) * capacity);
+    if (!ids || !bpx__box_arrays_reserve(&s->boxes, capacity)) {
         bpx__free(ids, sizeof(uint32_t) * capacity);
-        bpx__free(lo_x, sizeof(float) * capacity);
         return false;
     }
-    bpx__free(s->boxes, sizeof(bpx_box) * s->capacity);
     bpx__free(s->ids, sizeof(uint32_t) * s->capacity);
-    bpx__free(s->lo_x, sizeof(float) * s->capacity);
-    s->boxes = boxes;
     s->ids = ids;
-    s->lo_x = lo_x;
     s->capacity = capacity;
     return true;
+}
+
+// The side's view of its cycle: its boxes (padded), the world's SIMD width.
+static void prepare_cycle(side *s, bpx_simd simd, const bpx_executor *executor)
+{
+    bpx__box_arrays_pad(&s->boxes, s->n);
+    const bpx_box_arrays *b = &s->boxes;
+    s->cycle = (bpx_cycle){
+        .boxes = {{b->lo[0], b->lo[1], b->lo[2]}, {b->hi[0], b->hi[1], b->hi[2]}, s->n},
+        .n = s->n,
+        .boxes_version = ++s->version,
+        .def = &s->def,
+        .simd = simd,
+        .executor = executor,
+        .sink = &s->sink,
+        .error = &s->error,
+    };
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -241,16 +312,16 @@ static void split_task(int begin, int end, int worker, void *context)
                 continue; // a removed id's inert box
             bool below = soa.lo[0][i] < job->cut, above = soa.hi[0][i] >= job->cut;
             if (job->write) {
-                bpx_box box = {{soa.lo[0][i], soa.lo[1][i], soa.lo[2][i]},
-                               {soa.hi[0][i], soa.hi[1][i], soa.hi[2][i]}};
                 side *sides[2] = {below ? cpu : NULL, above ? device : NULL};
                 size_t *to[2] = {&to_cpu, &to_device};
                 for (int k = 0; k < 2; k++)
                     if (sides[k]) {
                         size_t at = (*to[k])++;
-                        sides[k]->boxes[at] = box;
+                        for (int a = 0; a < 3; a++) {
+                            sides[k]->boxes.lo[a][at] = soa.lo[a][i];
+                            sides[k]->boxes.hi[a][at] = soa.hi[a][i];
+                        }
                         sides[k]->ids[at] = i;
-                        sides[k]->lo_x[at] = box.min[0];
                     }
             } else {
                 to_cpu += below;
@@ -280,7 +351,8 @@ static void keep_task(int begin, int end, int worker, void *context)
         size_t kept = 0, at = job->write ? job->kept_at[c] : 0;
         for (size_t p = first; p < last; p++) {
             uint32_t i = pairs[p].i, j = pairs[p].j;
-            float corner = s->lo_x[i] > s->lo_x[j] ? s->lo_x[i] : s->lo_x[j];
+            const float *lo_x = s->boxes.lo[0];
+            float corner = lo_x[i] > lo_x[j] ? lo_x[i] : lo_x[j];
             if ((corner >= job->cut) != (k == 1))
                 continue;
             if (job->write)
@@ -356,26 +428,12 @@ static float place_cut(hybrid *h, bpx_soa soa, float share)
     return h->sample[k < m ? k : m - 1];
 }
 
-// The device's world, made when the device first gets boxes: a world that stays small never
-// opens the device.
-static bpx_status make_device_world(const bpx_world_def *def, hybrid *h)
-{
-    bpx_world_def device = *def;
-    device.backend = device_backend();
-    device.track_events = false;
-    device.worker_count = 1; // the device does the work; its host side is light
-    device.enqueue_task = NULL;
-    device.finish_task = NULL;
-    device.user_task_context = NULL;
-    return bpx_world_create(&device, &h->device.world);
-}
-
 static bpx_status hybrid_compare(void **state, bpx_cycle *c)
 {
     hybrid *h = *state;
     bpx_status s = BPX_OK;
     if (!h && (s = make_state(c->def, &h)) != BPX_OK)
-        return bpx__error(c->error, s, UINT32_MAX, -1, "hybrid: could not make its cpu world: %s",
+        return bpx__error(c->error, s, UINT32_MAX, -1, "hybrid: could not start: %s",
                           bpx_status_string(s));
     *state = h;
     bpx_block *block;
@@ -401,9 +459,8 @@ static bpx_status hybrid_compare(void **state, bpx_cycle *c)
 
     // Both sides at once; the device's only when it has boxes (no launch for nothing).
     bool device_runs = h->device.n > 0;
-    if (device_runs && !h->device.world && (s = make_device_world(c->def, h)) != BPX_OK)
-        return bpx__error(c->error, s, UINT32_MAX, -1, "hybrid: could not open the device: %s",
-                          bpx_status_string(s));
+    prepare_cycle(&h->cpu, c->simd, c->executor);
+    prepare_cycle(&h->device, c->simd, &h->device.executor);
     if (device_runs) {
         pthread_mutex_lock(&h->lock);
         h->job = 1;
@@ -422,18 +479,18 @@ static bpx_status hybrid_compare(void **state, bpx_cycle *c)
     }
     if (h->cpu.status != BPX_OK || h->device.status != BPX_OK) {
         const side *bad = h->cpu.status != BPX_OK ? &h->cpu : &h->device;
-        bpx__log(0, "hybrid: the %s side failed: %s", bad == &h->cpu ? "cpu" : "device",
-                 bpx_world_error(bad->world)->message);
-        return bad->status;
+        const char *name = bad == &h->cpu ? "cpu" : "device";
+        bpx__log(0, "hybrid: the %s side failed: %s", name, bad->error.message);
+        return bpx__error(c->error, bad->status, UINT32_MAX, -1, "hybrid, %s side: %s", name,
+                          bad->error.message);
     }
 
     // The corner rule over both sides' pairs, then one merge of the two ordered lists.
     job.write = false;
-    job.found[0] = bpx_world_pairs(h->cpu.world, &job.found_count[0]);
-    job.found[1] = NULL;
-    job.found_count[1] = 0;
-    if (device_runs)
-        job.found[1] = bpx_world_pairs(h->device.world, &job.found_count[1]);
+    job.found[0] = h->cpu.pairs.pairs;
+    job.found_count[0] = h->cpu.pairs.count;
+    job.found[1] = device_runs ? h->device.pairs.pairs : NULL;
+    job.found_count[1] = device_runs ? h->device.pairs.count : 0;
     bpx_pair_list *lists[2] = {&block->stage, &block->hits};
     size_t found = job.found_count[0] + job.found_count[1];
     if (!bpx__list_reserve(lists[0], found) || !bpx__list_reserve(lists[1], found))
@@ -456,11 +513,15 @@ static bpx_status hybrid_compare(void **state, bpx_cycle *c)
     job.merged = lists[1]->pairs;
     run_chunks(c, merge_task, merge_chunks, &job);
     block->hits.count = total;
-    block->tests = bpx_world_stats(h->cpu.world).pair_tests +
-                   (device_runs ? bpx_world_stats(h->device.world).pair_tests : 0);
+    block->tests = 0;
+    for (int k = 0; k < (device_runs ? 2 : 1); k++) {
+        const bpx_emitter *sink = k == 0 ? &h->cpu.sink : &h->device.sink;
+        for (int b = 0; b < sink->block_count; b++)
+            block->tests += sink->blocks[b].tests;
+    }
 
     // What the device did, and the next cycle's share from both sides' measured speed.
-    bpx_cycle_stats ds = bpx_world_stats(h->device.world);
+    const bpx_backend_report ds = h->device.cycle.report;
     c->report.transfer_in_ns = device_runs ? ds.transfer_in_ns : 0;
     c->report.transfer_out_ns = device_runs ? ds.transfer_out_ns : 0;
     c->report.device_ns = device_runs ? ds.device_ns : 0;
