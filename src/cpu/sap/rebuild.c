@@ -330,7 +330,7 @@ bpx_status bpx__sap_full_rebuild(const bpx_cycle *cycle, bpx_sap_state *st)
 
 // The pairs by one sweep over the minima of the sweep axis the lists last chose, radix sorted
 // (or by the grid, if they chose it); no endpoint lists (the next cycle will not mend).
-bpx_status bpx__sap_lite_rebuild(const bpx_cycle *cycle, bpx_sap_state *st)
+bpx_status bpx__sap_rebuild_without_lists(const bpx_cycle *cycle, bpx_sap_state *st)
 {
     uint32_t n = cycle->n;
     bpx_sap_arrays *a = &st->a;

@@ -189,7 +189,7 @@ static bpx_status sap_compare(void **state, bpx_cycle *cycle)
         // The lists are wanted only when the next cycle may mend: while coherent, or on the
         // cycle before a retry.
         lists = st->give_ups < 2 || st->waited + 1 >= RETRY_EVERY;
-        status = lists ? bpx__sap_full_rebuild(cycle, st) : bpx__sap_lite_rebuild(cycle, st);
+        status = lists ? bpx__sap_full_rebuild(cycle, st) : bpx__sap_rebuild_without_lists(cycle, st);
         if (status != BPX_OK)
             return status;
     }

@@ -264,4 +264,4 @@ uint32_t bpx__sap_check_boxes(const bpx_cycle *cycle, bpx_sap_state *st);
 size_t bpx__sap_filter_pairs(const bpx_cycle *cycle, bpx_sap_state *st, bpx_pair *out);
 // rebuild.c: the cold cycle.
 bpx_status bpx__sap_full_rebuild(const bpx_cycle *cycle, bpx_sap_state *st);
-bpx_status bpx__sap_lite_rebuild(const bpx_cycle *cycle, bpx_sap_state *st);
+bpx_status bpx__sap_rebuild_without_lists(const bpx_cycle *cycle, bpx_sap_state *st);
