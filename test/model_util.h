@@ -3,6 +3,8 @@
 
 #include <time.h>
 
+#include <bpx/model.h>
+
 #include "pairs_util.h"
 
 static inline double now_s(void)

@@ -1,11 +1,73 @@
-// bpx demo: the SDL2 window (see demo_window.h). SPDX-License-Identifier: MIT
+// bpx demo: the SDL2 window (see demo_window.h), SDL2 opened at run time (dlopen of
+// libSDL2-2.0.so.0), so that bpx starts without it. SPDX-License-Identifier: MIT
 #include "demo_window.h"
 
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #if defined(BPX_DEMO_WINDOW)
 #include <SDL.h>
+
+#include "dynload.h"
+
+#if defined(__APPLE__)
+#define SDL_LIBRARY "libSDL2-2.0.0.dylib"
+#else
+#define SDL_LIBRARY "libSDL2-2.0.so.0"
+#endif
+
+// The functions of SDL2 the window calls, each with its type from SDL.h; called as sdl.F(...).
+#define SDL_FUNCTIONS(X)                                                                           \
+    X(SDL_InitSubSystem)                                                                           \
+    X(SDL_QuitSubSystem)                                                                           \
+    X(SDL_Quit)                                                                                    \
+    X(SDL_GetError)                                                                                \
+    X(SDL_CreateWindow)                                                                            \
+    X(SDL_DestroyWindow)                                                                           \
+    X(SDL_CreateRenderer)                                                                          \
+    X(SDL_GetRendererInfo)                                                                         \
+    X(SDL_DestroyRenderer)                                                                         \
+    X(SDL_CreateTexture)                                                                           \
+    X(SDL_UpdateTexture)                                                                           \
+    X(SDL_DestroyTexture)                                                                          \
+    X(SDL_RenderClear)                                                                             \
+    X(SDL_RenderCopy)                                                                              \
+    X(SDL_RenderReadPixels)                                                                        \
+    X(SDL_RenderPresent)                                                                           \
+    X(SDL_PollEvent)                                                                               \
+    X(SDL_GetCurrentVideoDriver)
+
+#define SDL_POINTER(f) __typeof__(&f) f;
+static struct {
+    SDL_FUNCTIONS(SDL_POINTER)
+} sdl;
+
+static pthread_once_t sdl_once = PTHREAD_ONCE_INIT;
+static char sdl_missing[512]; // empty once SDL2 is loaded
+
+static void load_sdl(void)
+{
+    void *handle = bpx_dynload_open(SDL_LIBRARY, sdl_missing, sizeof sdl_missing);
+#define SDL_LOAD(f)                                                                                \
+    if (handle && !(sdl.f = (__typeof__(&f))bpx_dynload_symbol(handle, SDL_LIBRARY, #f,            \
+                                                                sdl_missing, sizeof sdl_missing)))     \
+        handle = NULL;
+    SDL_FUNCTIONS(SDL_LOAD)
+#undef SDL_LOAD
+    if (handle)
+        sdl_missing[0] = '\0';
+    else
+        strncat(sdl_missing, "; install SDL2 (Debian: libsdl2-2.0-0) for --window",
+                sizeof sdl_missing - strlen(sdl_missing) - 1);
+}
+
+const char *demo_window_unavailable(void)
+{
+    pthread_once(&sdl_once, load_sdl);
+    return sdl_missing[0] ? sdl_missing : NULL;
+}
 
 struct demo_window {
     SDL_Window *window;
@@ -16,33 +78,35 @@ struct demo_window {
     char renderer_name[64];
 };
 
-bool demo_window_available(void)
-{
-    return true;
-}
-
 static int sdl_fail(demo_error *err, const char *what)
 {
     if (err)
-        snprintf(err->message, sizeof err->message, "%s: %s", what, SDL_GetError());
+        snprintf(err->message, sizeof err->message, "%s: %s", what, sdl.SDL_GetError());
     return -1;
 }
 
 int demo_window_open(int width, int height, const char *title, demo_window **out, demo_error *err)
 {
     *out = NULL;
-    if (SDL_InitSubSystem(SDL_INIT_VIDEO) != 0)
+    const char *missing = demo_window_unavailable();
+    if (missing) {
+        if (err)
+            snprintf(err->message, sizeof err->message, "no window: %.*s",
+                     (int)sizeof err->message - 16, missing);
+        return -1;
+    }
+    if (sdl.SDL_InitSubSystem(SDL_INIT_VIDEO) != 0)
         return sdl_fail(err, "cannot start SDL video (is there a display? try xvfb-run)");
     demo_window *w = calloc(1, sizeof *w);
     if (!w) {
-        SDL_QuitSubSystem(SDL_INIT_VIDEO);
+        sdl.SDL_QuitSubSystem(SDL_INIT_VIDEO);
         if (err)
             snprintf(err->message, sizeof err->message, "out of memory");
         return -1;
     }
     w->width = width;
     w->height = height;
-    w->window = SDL_CreateWindow(title, SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, width,
+    w->window = sdl.SDL_CreateWindow(title, SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, width,
                                  height, SDL_WINDOW_SHOWN);
     if (!w->window) {
         sdl_fail(err, "cannot open a window");
@@ -50,9 +114,9 @@ int demo_window_open(int width, int height, const char *title, demo_window **out
         return -1;
     }
     // Any renderer will do for a blit; fall back to SDL's software renderer (no GPU, Xvfb).
-    w->renderer = SDL_CreateRenderer(w->window, -1, 0);
+    w->renderer = sdl.SDL_CreateRenderer(w->window, -1, 0);
     if (!w->renderer)
-        w->renderer = SDL_CreateRenderer(w->window, -1, SDL_RENDERER_SOFTWARE);
+        w->renderer = sdl.SDL_CreateRenderer(w->window, -1, SDL_RENDERER_SOFTWARE);
     if (!w->renderer) {
         sdl_fail(err, "cannot create an SDL renderer");
         demo_window_close(w);
@@ -60,8 +124,8 @@ int demo_window_open(int width, int height, const char *title, demo_window **out
     }
     SDL_RendererInfo info;
     snprintf(w->renderer_name, sizeof w->renderer_name, "%s",
-             SDL_GetRendererInfo(w->renderer, &info) == 0 ? info.name : "unknown");
-    w->texture = SDL_CreateTexture(w->renderer, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING,
+             sdl.SDL_GetRendererInfo(w->renderer, &info) == 0 ? info.name : "unknown");
+    w->texture = sdl.SDL_CreateTexture(w->renderer, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING,
                                    width, height);
     if (!w->texture) {
         sdl_fail(err, "cannot create an SDL texture");
@@ -75,23 +139,23 @@ int demo_window_open(int width, int height, const char *title, demo_window **out
 int demo_window_show(demo_window *w, const unsigned char *rgb, unsigned char *capture,
                      demo_error *err)
 {
-    if (SDL_UpdateTexture(w->texture, NULL, rgb, w->width * 3) != 0)
+    if (sdl.SDL_UpdateTexture(w->texture, NULL, rgb, w->width * 3) != 0)
         return sdl_fail(err, "cannot update the window's texture");
-    if (SDL_RenderClear(w->renderer) != 0 ||
-        SDL_RenderCopy(w->renderer, w->texture, NULL, NULL) != 0)
+    if (sdl.SDL_RenderClear(w->renderer) != 0 ||
+        sdl.SDL_RenderCopy(w->renderer, w->texture, NULL, NULL) != 0)
         return sdl_fail(err, "cannot draw into the window");
     // Read back before presenting: after SDL_RenderPresent the back buffer is undefined.
     if (capture &&
-        SDL_RenderReadPixels(w->renderer, NULL, SDL_PIXELFORMAT_RGB24, capture, w->width * 3) != 0)
+        sdl.SDL_RenderReadPixels(w->renderer, NULL, SDL_PIXELFORMAT_RGB24, capture, w->width * 3) != 0)
         return sdl_fail(err, "cannot read the window's pixels back");
-    SDL_RenderPresent(w->renderer);
+    sdl.SDL_RenderPresent(w->renderer);
     return 0;
 }
 
 bool demo_window_should_close(demo_window *w)
 {
     SDL_Event event;
-    while (SDL_PollEvent(&event)) {
+    while (sdl.SDL_PollEvent(&event)) {
         if (event.type == SDL_QUIT)
             w->closed = true;
         else if (event.type == SDL_KEYDOWN &&
@@ -104,7 +168,7 @@ bool demo_window_should_close(demo_window *w)
 const char *demo_window_driver(const demo_window *w)
 {
     (void)w;
-    const char *driver = SDL_GetCurrentVideoDriver();
+    const char *driver = sdl.SDL_GetCurrentVideoDriver();
     return driver ? driver : "none";
 }
 
@@ -118,25 +182,26 @@ void demo_window_close(demo_window *w)
     if (!w)
         return;
     if (w->texture)
-        SDL_DestroyTexture(w->texture);
+        sdl.SDL_DestroyTexture(w->texture);
     if (w->renderer)
-        SDL_DestroyRenderer(w->renderer);
+        sdl.SDL_DestroyRenderer(w->renderer);
     if (w->window)
-        SDL_DestroyWindow(w->window);
+        sdl.SDL_DestroyWindow(w->window);
     free(w);
-    SDL_QuitSubSystem(SDL_INIT_VIDEO);
-    SDL_Quit();
+    sdl.SDL_QuitSubSystem(SDL_INIT_VIDEO);
+    sdl.SDL_Quit();
 }
 
-#else // no SDL2 in this build
+#else // SDL.h was not found when this build was configured
 
 struct demo_window {
     int unused;
 };
 
-bool demo_window_available(void)
+const char *demo_window_unavailable(void)
 {
-    return false;
+    return "this bpx was built without SDL2 (SDL.h was not found: install libsdl2-dev, "
+           "configure and build again)";
 }
 
 int demo_window_open(int width, int height, const char *title, demo_window **out, demo_error *err)
@@ -144,9 +209,8 @@ int demo_window_open(int width, int height, const char *title, demo_window **out
     (void)width, (void)height, (void)title;
     *out = NULL;
     if (err)
-        snprintf(err->message, sizeof err->message,
-                 "this build has no window: SDL2 was not found when it was configured "
-                 "(install libsdl2-dev, then configure and build again)");
+        snprintf(err->message, sizeof err->message, "no window: %.*s",
+                 (int)sizeof err->message - 16, demo_window_unavailable());
     return -1;
 }
 
@@ -181,3 +245,8 @@ void demo_window_close(demo_window *w)
 }
 
 #endif
+
+bool demo_window_available(void)
+{
+    return demo_window_unavailable() == NULL;
+}

@@ -1,5 +1,5 @@
-// bpx demo: a live window through SDL2 (when the build found it): the renderer's image blitted
-// into a window each frame. SPDX-License-Identifier: MIT
+// bpx demo: a live window through SDL2, opened at run time (when the build found SDL.h): the
+// renderer's image blitted into a window each frame. SPDX-License-Identifier: MIT
 #pragma once
 
 #include <stdbool.h>
@@ -10,13 +10,18 @@
 extern "C" {
 #endif
 
-/// Whether this build has the window (SDL2 was found at build time).
+/// Whether the window can be opened: this build has SDL2's header (found when it was configured)
+/// and SDL2 (libSDL2-2.0.so.0) loads at run time. The first call loads it.
 bool demo_window_available(void);
+
+/// NULL when the window is available, else why not, naming what is missing (the library that
+/// cannot be loaded, or the header the build did not find) and what to install.
+const char *demo_window_unavailable(void);
 
 typedef struct demo_window demo_window;
 
-/// Opens a window of width x height pixels. Returns 0, or -1 with a message (no SDL2 in this
-/// build, no display, SDL error).
+/// Opens a window of width x height pixels. Returns 0, or -1 with a message (no SDL2, no display,
+/// SDL error).
 int demo_window_open(int width, int height, const char *title, demo_window **out, demo_error *err);
 
 /// Shows an RGB24 image of the window's size. If capture is not NULL it receives, as RGB24, the

@@ -1,6 +1,9 @@
 // bpx bench peers: other libraries' broad phases behind one small C API, so `bpx bench` can time
 // them side by side with bpx's backends on the same box frames. SPDX-License-Identifier: MIT
 //
+// The peers live in a module, bpx_peers.so, linked with Bullet and Box2D, that bpx opens at run
+// time (peers_loader.c): bpx itself links neither, and runs without them, with no peers.
+//
 // Peers compiled in (each only when its library was found at configure time; see README.md):
 //   "bullet-sap"    Bullet 3 btAxisSweep3 (incremental sweep and prune, 16-bit quantised)
 //   "bullet-sap32"  Bullet 3 bt32BitAxisSweep3 (the same, 32-bit quantised)
@@ -35,8 +38,12 @@ typedef struct bench_peer_info {
     uint32_t slow_n;
 } bench_peer_info;
 
-/// Peers compiled in (0 when no peer library was found at configure time).
+/// Peers available (0 when no peer library was found at configure time, or when the peers'
+/// module cannot be loaded). The first call of any of these loads the module.
 int bench_peer_count(void);
+/// NULL when the peers' module is loaded and has peers, else why there are none: the module not
+/// built, or which library it needs cannot be loaded. (peers_loader.c only.)
+const char *bench_peers_unavailable(void);
 /// The peer at index in [0, bench_peer_count()); NULL out of range.
 const bench_peer_info *bench_peer_get(int index);
 /// The index of the peer with this CLI name (exact match), or -1.

@@ -23,7 +23,6 @@
 #pragma once
 
 #include "base.h"
-#include "model.h"
 #include "overlap.h"
 #include "query.h"
 #include "types.h"

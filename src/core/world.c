@@ -30,7 +30,9 @@ static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_PRUNE] = &bpx__prune_backend,
     [BPX_BACKEND_SAP] = &bpx__sap_backend,
     [BPX_BACKEND_GRID] = &bpx__grid_backend,
+#if BPX_HAVE_MODEL
     [BPX_BACKEND_MODEL] = &bpx__model_backend,
+#endif
 #if BPX_HAVE_OPENCL
     [BPX_BACKEND_OPENCL] = &bpx__opencl_backend,
 #endif

@@ -6,6 +6,8 @@
 
 #include <stdio.h>
 
+#include <bpx/model.h>
+
 #include "cli.h"
 #include "demo_sim.h"
 

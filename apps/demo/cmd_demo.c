@@ -202,8 +202,8 @@ int cmd_demo(int argc, char **argv)
     bool use_out = o.every > 0 && (!o.window || o.out_set || o.every_set);
     bool pictures = use_out;
     if (pictures && !demo_png_available()) {
-        fprintf(stderr, "bpx demo: this bpx was built without libpng: no pictures are written "
-                        "(install libpng-dev and rebuild)\n");
+        fprintf(stderr, "bpx demo: running without libpng, so no pictures are written: %s\n",
+                demo_png_unavailable());
         pictures = false;
     }
     if (use_out && make_dirs(o.out_dir) != 0) {
@@ -211,8 +211,8 @@ int cmd_demo(int argc, char **argv)
         return release(&run, CLI_EXIT_ERROR);
     }
     if (o.window && !demo_window_available()) {
-        cli_error(command, "--window is not available: this bpx was built without SDL2 "
-                           "(install libsdl2-dev, configure and build again)");
+        cli_error(command, "--window is not available without SDL2: %s",
+                  demo_window_unavailable());
         return release(&run, CLI_EXIT_ERROR);
     }
     if (pictures || o.window) {

@@ -153,7 +153,8 @@ int cmd_bench(int argc, char **argv)
         for (int p = 0; p < bench_peer_count(); p++)
             bench_printf("%s %s (%s)", p ? ";" : "", bench_peer_get(p)->name,
                          bench_peer_get(p)->detail);
-        bench_printf("%s\n\n", bench_peer_count() ? "" : " none built in (see bench/peers)");
+        bench_printf("%s%s\n\n", bench_peer_count() ? "" : " none: ",
+                     bench_peer_count() ? "" : bench_peers_unavailable());
     }
     if (code == CLI_EXIT_OK && run_table2) {
         bench_table2_options t2 = {o.threads, table2_cycles, o.seed, bench_cmd_wanted,

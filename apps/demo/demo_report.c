@@ -192,8 +192,7 @@ void demo_cmd_print_tables(const demo_options *o, const demo_sim *sim, const dem
         printf("| pictures | %d PNG files, %dx%d, in %s/ (and stats.json) |\n", t->pictures,
                t->width, t->height, picture_dir);
     else if (picture_dir)
-        printf("| pictures | none: this build has no libpng (stats.json is in %s/) |\n",
-               picture_dir);
+        printf("| pictures | none: without libpng (stats.json is in %s/) |\n", picture_dir);
     if (o->record)
         printf("| trace | %s: %llu cycles of %u boxes, %llu bytes |\n", o->record,
                (unsigned long long)t->cycles, p->sphere_count,

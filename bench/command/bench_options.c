@@ -71,10 +71,18 @@ int bench_cmd_parse_args(int argc, char **argv, bench_options *o)
                 (o->name_count = parse_list(value, o->names, MAX_NAMES, name_storage,
                                             sizeof name_storage)) <= 0)
                 return cli_usage_error("bench", "--backend wants names like prune,bullet-dbvt");
-            for (int n = 0; n < o->name_count; n++)
-                if (!known_name(o->names[n]))
-                    return cli_usage_error(
-                        "bench", "unknown backend or peer \"%s\" (see bpx backends)", o->names[n]);
+            for (int n = 0; n < o->name_count; n++) {
+                if (known_name(o->names[n]))
+                    continue;
+                if (bench_peers_unavailable() && (strncmp(o->names[n], "bullet-", 7) == 0 ||
+                                                  strncmp(o->names[n], "box2d-", 6) == 0)) {
+                    cli_error("bench", "peer \"%s\" is not available: %s", o->names[n],
+                              bench_peers_unavailable());
+                    return CLI_EXIT_ERROR;
+                }
+                return cli_usage_error("bench", "unknown backend or peer \"%s\" (see bpx backends)",
+                                       o->names[n]);
+            }
         } else if ((m = cli_flag_value(argc, argv, &k, "--scene", &value)) != CLI_NO_MATCH) {
             const char *list[SCENES + 1];
             int count = m == CLI_MATCH ? parse_list(value, list, SCENES + 1, scene_storage,
