@@ -4,7 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "world.h"
+#include "mpi_world.h"
 
 static bpx_status check_input(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
                               size_t count) {
@@ -39,21 +39,21 @@ static bpx_status decompose(bpx_mpi_world *w, const bpx_box *boxes, size_t count
         total += (size_t)w->recv_counts[r];
     }
     if (total > INT_MAX || bpx_mpi__grow((void **)&w->samples, &w->samples_cap, total,
-                                         sizeof(rcb_sample)))
+                                         sizeof(bpx_mpi_rcb_sample)))
         bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1,
                       "no memory for %zu samples of centres", total);
     bpx_status status = bpx_mpi__agree(w);
     if (status != BPX_OK)
         return status;
     for (size_t i = 0; i < take; i++) { // evenly strided: the same picks every run
-        rcb_sample *out = &w->samples[(size_t)w->recv_displs[w->rank] + i];
+        bpx_mpi_rcb_sample *out = &w->samples[(size_t)w->recv_displs[w->rank] + i];
         const bpx_box *b = &boxes[(size_t)((unsigned __int128)i * count / take)];
-        rcb_centre(b, out->centre);
+        bpx_mpi__rcb_centre(b, out->centre);
         out->weight = (float)((double)count / (double)take);
     }
     MPI_Allgatherv(MPI_IN_PLACE, 0, w->sample_type, w->samples, w->recv_counts, w->recv_displs,
                    w->sample_type, w->comm);
-    rcb_build(&w->tree, w->samples, total);
+    bpx_mpi__rcb_build(&w->tree, w->samples, total);
     w->have_tree = true;
     w->stats.decomposed = true;
     w->stats.decomposition_count++;
@@ -101,11 +101,11 @@ static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t c
     uint64_t sent = 0;
     uint64_t cpu = bpx_mpi__cpu_ns();
     for (size_t i = 0; i < count; i++) {
-        if (rcb_inside(&w->tree, w->rank, &boxes[i])) { // most boxes: no copies, no descent
+        if (bpx_mpi__rcb_inside(&w->tree, w->rank, &boxes[i])) { // most boxes: no copies, no descent
             own++;
             continue;
         }
-        int touched = rcb_touching(&w->tree, &boxes[i], w->touched);
+        int touched = bpx_mpi__rcb_touching(&w->tree, &boxes[i], w->touched);
         for (int t = 0; t < touched; t++) {
             int r = w->touched[t];
             if (r == w->rank)
@@ -114,8 +114,8 @@ static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t c
                 w->send_counts[r]++, sent++;
         }
         float c[3];
-        rcb_centre(&boxes[i], c);
-        foreign += !rcb_holds(&w->tree, w->rank, c);
+        bpx_mpi__rcb_centre(&boxes[i], c);
+        foreign += !bpx_mpi__rcb_holds(&w->tree, w->rank, c);
     }
     w->stats.compute_cpu_ns += bpx_mpi__cpu_ns() - cpu;
     MPI_Alltoall(w->send_counts, 1, MPI_INT, w->recv_counts, 1, MPI_INT, w->comm);
@@ -148,13 +148,13 @@ static void pack(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
     memcpy(w->cursor, w->send_displs, sizeof(int) * (size_t)w->size);
     size_t own = 0;
     for (size_t i = 0; i < count; i++) {
-        if (rcb_inside(&w->tree, w->rank, &boxes[i])) {
+        if (bpx_mpi__rcb_inside(&w->tree, w->rank, &boxes[i])) {
             w->ids[own] = ids[i];
             w->own_index[own++] = (uint32_t)i;
             continue;
         }
         bpx_mpi_filter f = filters ? filters[i] : (bpx_mpi_filter){1, 0xFFFFFFFFu};
-        int touched = rcb_touching(&w->tree, &boxes[i], w->touched);
+        int touched = bpx_mpi__rcb_touching(&w->tree, &boxes[i], w->touched);
         for (int t = 0; t < touched; t++) {
             int r = w->touched[t];
             if (r == w->rank) {
@@ -200,7 +200,7 @@ static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_fil
             if (record_bytes == BPX_MPI_RECORD_FILTER_BYTES)
                 memcpy(&f, rec + 32, sizeof f);
         }
-        w->inside[k] = (uint8_t)rcb_inside(&w->tree, w->rank, &w->boxes[k]);
+        w->inside[k] = (uint8_t)bpx_mpi__rcb_inside(&w->tree, w->rank, &w->boxes[k]);
         w->source[k] = source_rank(w, from, own);
         if (gather_filters) {
             w->category[k] = f.category;
@@ -244,7 +244,7 @@ static void select_pairs(bpx_mpi_world *w) {
             float corner[3];
             for (int d = 0; d < 3; d++)
                 corner[d] = a->min[d] > b->min[d] ? a->min[d] : b->min[d];
-            if (!rcb_holds(&w->tree, w->rank, corner))
+            if (!bpx_mpi__rcb_holds(&w->tree, w->rank, corner))
                 continue;
         }
         w->next_ranks[kept] = (bpx_mpi_pair_ranks){w->source[i], w->source[j]};

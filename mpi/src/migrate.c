@@ -4,7 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "world.h"
+#include "mpi_world.h"
 
 #define MIGRATE_MAX_PAYLOAD (1u << 20)
 
@@ -60,8 +60,8 @@ bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes
     size_t leaving = 0;
     for (size_t i = 0; i < n; i++) {
         float c[3];
-        rcb_centre(&boxes[i], c);
-        int home = rcb_holds(&w->tree, w->rank, c) ? w->rank : rcb_locate(&w->tree, c);
+        bpx_mpi__rcb_centre(&boxes[i], c);
+        int home = bpx_mpi__rcb_holds(&w->tree, w->rank, c) ? w->rank : bpx_mpi__rcb_locate(&w->tree, c);
         w->home[i] = home;
         if (home != w->rank) {
             w->send_counts[home]++;

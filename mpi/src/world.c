@@ -1,6 +1,6 @@
 // The distributed world: creation, errors, accessors and the gather. The cycle is in cycle.c.
 #define _POSIX_C_SOURCE 200809L
-#include "world.h"
+#include "mpi_world.h"
 
 #include <limits.h>
 #include <stdarg.h>
@@ -130,7 +130,7 @@ static void free_buffers(bpx_mpi_world *w) {
                        w->gathered,    w->gather_tmp,  w->home};
     for (size_t i = 0; i < sizeof buffers / sizeof buffers[0]; i++)
         free(buffers[i]);
-    rcb_free(&w->tree);
+    bpx_mpi__rcb_free(&w->tree);
 }
 
 static void free_types(bpx_mpi_world *w) {
@@ -200,7 +200,7 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
         w->cursor = malloc(p * sizeof(int));
         w->touched = malloc(p * sizeof(int));
         if (!w->send_counts || !w->send_displs || !w->recv_counts || !w->recv_displs ||
-            !w->cursor || !w->touched || rcb_init(&w->tree, w->size) != 0)
+            !w->cursor || !w->touched || bpx_mpi__rcb_init(&w->tree, w->size) != 0)
             bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1,
                           "no memory for the per-rank tables of %d ranks", w->size);
         else {
@@ -235,8 +235,8 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
     w->record_type[0] = bytes_type(BPX_MPI_RECORD_BYTES);
     w->record_type[1] = bytes_type(BPX_MPI_RECORD_FILTER_BYTES);
     w->pair_type = bytes_type((int)sizeof(bpx_mpi_pair));
-    w->event_type = bytes_type((int)sizeof(event_record));
-    w->sample_type = bytes_type((int)sizeof(rcb_sample));
+    w->event_type = bytes_type((int)sizeof(bpx_mpi_event_record));
+    w->sample_type = bytes_type((int)sizeof(bpx_mpi_rcb_sample));
     *out_world = w;
     return BPX_OK;
 }
@@ -297,8 +297,8 @@ bpx_status bpx_mpi_world_home_ranks(const bpx_mpi_world *w, const bpx_box *boxes
         return BPX_ERR_BAD_STATE;
     for (size_t i = 0; i < count; i++) {
         float c[3];
-        rcb_centre(&boxes[i], c);
-        ranks[i] = rcb_locate(&w->tree, c);
+        bpx_mpi__rcb_centre(&boxes[i], c);
+        ranks[i] = bpx_mpi__rcb_locate(&w->tree, c);
     }
     return BPX_OK;
 }

@@ -10,11 +10,11 @@
 #define BPX_MPI_RECORD_FILTER_BYTES 40
 
 /// A candidate begin or end, sent to the pair's event rank.
-typedef struct event_record {
+typedef struct bpx_mpi_event_record {
     uint64_t a, b;
     uint32_t began; // 1 began, 0 ended
     uint32_t pad;
-} event_record;
+} bpx_mpi_event_record;
 
 struct bpx_mpi_world {
     MPI_Comm comm;
@@ -24,7 +24,7 @@ struct bpx_mpi_world {
     bpx_mpi_error error;
     bpx_mpi_stats stats;
 
-    rcb_tree tree;
+    bpx_mpi_rcb_tree tree;
     bool have_tree;
     bool rebalance_asked; // by bpx_mpi_world_rebalance, for the next collide
     bool rebalance_next;  // the last cycle's imbalance passed the threshold
@@ -38,7 +38,7 @@ struct bpx_mpi_world {
     // Per rank: counts and displacements for all-to-all and gathers; touched ranks scratch.
     int *send_counts, *send_displs, *recv_counts, *recv_displs, *cursor, *touched;
 
-    rcb_sample *samples;
+    bpx_mpi_rcb_sample *samples;
     size_t samples_cap;
     unsigned char *send, *recv; // box records
     size_t send_cap, recv_cap;  // in bytes
@@ -61,7 +61,7 @@ struct bpx_mpi_world {
     bool pairs_valid;
 
     // Events.
-    event_record *ev_send, *ev_recv;
+    bpx_mpi_event_record *ev_send, *ev_recv;
     size_t ev_send_cap, ev_recv_cap;
     bpx_mpi_pair *began, *ended;
     size_t began_count, ended_count, began_cap, ended_cap;
