@@ -1,7 +1,6 @@
 // One distributed cycle: check the input, (re)decompose, route the boxes to the regions they
 // touch, exchange them, find the pairs on each rank and keep those whose corner is here.
 #include <limits.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "mpi_world.h"
@@ -61,17 +60,15 @@ static bpx_status decompose(bpx_mpi_world *w, const bpx_box *boxes, size_t count
 }
 
 static bool reserve_present(bpx_mpi_world *w, size_t n) {
-    size_t cap = w->present_cap, c;
-#define GROW_PRESENT(field)                                                                        \
-    (c = cap, bpx_mpi__grow((void **)&w->field, &c, n, sizeof *w->field) == 0)
-    bool ok = GROW_PRESENT(ids) && GROW_PRESENT(ids_tmp) && GROW_PRESENT(order) &&
-              GROW_PRESENT(order_tmp) && GROW_PRESENT(own_index) && GROW_PRESENT(boxes) &&
-              GROW_PRESENT(category) && GROW_PRESENT(mask) && GROW_PRESENT(inside) &&
-              GROW_PRESENT(source);
-#undef GROW_PRESENT
-    if (ok && n > cap)
-        w->present_cap = c; // every array grew to the same capacity (the same rule each)
-    return ok;
+    void **arrays[] = {(void **)&w->ids,       (void **)&w->ids_tmp,  (void **)&w->order,
+                       (void **)&w->order_tmp, (void **)&w->own_index, (void **)&w->boxes,
+                       (void **)&w->category,  (void **)&w->mask,      (void **)&w->inside,
+                       (void **)&w->source};
+    const size_t sizes[] = {sizeof *w->ids,       sizeof *w->ids_tmp,  sizeof *w->order,
+                            sizeof *w->order_tmp, sizeof *w->own_index, sizeof *w->boxes,
+                            sizeof *w->category,  sizeof *w->mask,      sizeof *w->inside,
+                            sizeof *w->source};
+    return bpx_mpi__reserve(arrays, sizes, 10, &w->present_cap, n) == 0;
 }
 
 // The rank a present box came from: own boxes first, then the records by sender.
@@ -230,9 +227,9 @@ static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_fil
 static void select_pairs(bpx_mpi_world *w) {
     size_t m;
     const bpx_pair *local = bpx_world_pairs(w->local, &m);
-    size_t cap = w->next_cap;
-    if (bpx_mpi__grow((void **)&w->next_ranks, &cap, m, sizeof(bpx_mpi_pair_ranks)) ||
-        bpx_mpi__grow((void **)&w->next, &w->next_cap, m, sizeof(bpx_mpi_pair))) {
+    void **arrays[] = {(void **)&w->next, (void **)&w->next_ranks};
+    const size_t sizes[] = {sizeof *w->next, sizeof *w->next_ranks};
+    if (bpx_mpi__reserve(arrays, sizes, 2, &w->next_cap, m) != 0) {
         bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1, "no memory for %zu pairs", m);
         return;
     }
@@ -261,7 +258,7 @@ static bpx_status failed(bpx_mpi_world *w, bpx_status status) {
 
 bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
                                  const bpx_mpi_filter *filters, size_t count) {
-    uint64_t start = bpx_mpi__now_ns(), cpu_start = bpx_mpi__cpu_ns(), t;
+    uint64_t start = bpx__now_ns(), cpu_start = bpx_mpi__cpu_ns(), t;
     memset(&w->error, 0, sizeof w->error);
     w->error.rank = -1;
     bpx_mpi_stats *st = &w->stats;
@@ -290,9 +287,9 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
 
     // 2. Regions.
     if (all[2]) {
-        t = bpx_mpi__now_ns();
+        t = bpx__now_ns();
         bpx_status s = decompose(w, boxes, count);
-        st->decompose_ns = bpx_mpi__now_ns() - t;
+        st->decompose_ns = bpx__now_ns() - t;
         if (s != BPX_OK)
             return failed(w, s);
         w->rebalance_asked = w->rebalance_next = false;
@@ -300,21 +297,21 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
     }
 
     // 3. Route and exchange.
-    t = bpx_mpi__now_ns();
+    t = bpx__now_ns();
     route_result route;
     bpx_status s = plan_exchange(w, boxes, count, record_bytes, &route);
     if (s != BPX_OK)
         return failed(w, s);
     uint64_t cpu = bpx_mpi__cpu_ns();
     pack(w, ids, boxes, filters, count, record_bytes);
-    uint64_t packed = bpx_mpi__now_ns();
+    uint64_t packed = bpx__now_ns();
     st->compute_cpu_ns += bpx_mpi__cpu_ns() - cpu;
     MPI_Alltoallv(w->send, w->send_counts, w->send_displs, record, w->recv, w->recv_counts,
                   w->recv_displs, record, w->comm);
-    uint64_t exchanged = bpx_mpi__now_ns();
+    uint64_t exchanged = bpx__now_ns();
     cpu = bpx_mpi__cpu_ns();
     unpack(w, route.own_present, route.recv_total, record_bytes);
-    st->route_ns = (packed - t) + (bpx_mpi__now_ns() - exchanged);
+    st->route_ns = (packed - t) + (bpx__now_ns() - exchanged);
     st->exchange_ns = exchanged - packed;
     size_t n = route.own_present + route.recv_total;
     st->present_count = n;
@@ -326,13 +323,13 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
         st->messages_sent += r != w->rank && w->send_counts[r] > 0;
 
     // 4. This rank's pairs.
-    t = bpx_mpi__now_ns();
+    t = bpx__now_ns();
     find_local(w, boxes, filters, n, route.own_present, record_bytes, with_filters);
-    st->local_ns = bpx_mpi__now_ns() - t;
-    t = bpx_mpi__now_ns();
+    st->local_ns = bpx__now_ns() - t;
+    t = bpx__now_ns();
     if (w->error.status == BPX_OK)
         select_pairs(w);
-    st->select_ns = bpx_mpi__now_ns() - t;
+    st->select_ns = bpx__now_ns() - t;
     st->compute_cpu_ns += bpx_mpi__cpu_ns() - cpu; // unpack, sort, local collide, select
     if ((s = bpx_mpi__agree(w)) != BPX_OK)
         return failed(w, s);
@@ -344,9 +341,9 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
 
     // 5. Events, then the cycle's pairs become the world's.
     if (w->def.track_events) {
-        t = bpx_mpi__now_ns();
+        t = bpx__now_ns();
         s = bpx_mpi__events(w);
-        st->events_ns = bpx_mpi__now_ns() - t;
+        st->events_ns = bpx__now_ns() - t;
         if (s != BPX_OK)
             return failed(w, s);
     }
@@ -372,7 +369,7 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
                         st->imbalance > 1.05 * w->settled_imbalance;
     st->pair_count = w->pair_count;
     st->cycle_count++;
-    st->total_ns = bpx_mpi__now_ns() - start;
+    st->total_ns = bpx__now_ns() - start;
     st->cpu_ns = bpx_mpi__cpu_ns() - cpu_start;
     return BPX_OK;
 }

@@ -5,13 +5,15 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mpi_alloc.h"
+
 int bpx_mpi__rcb_init(bpx_mpi_rcb_tree *tree, int ranks) {
     memset(tree, 0, sizeof *tree);
     tree->ranks = ranks;
-    tree->nodes = malloc(sizeof *tree->nodes * (size_t)(2 * ranks - 1));
-    tree->lo = malloc(sizeof *tree->lo * (size_t)ranks);
-    tree->hi = malloc(sizeof *tree->hi * (size_t)ranks);
-    tree->stack = malloc(sizeof *tree->stack * (size_t)(2 * ranks));
+    tree->nodes = bpx_mpi__alloc(sizeof *tree->nodes * (size_t)(2 * ranks - 1));
+    tree->lo = bpx_mpi__alloc(sizeof *tree->lo * (size_t)ranks);
+    tree->hi = bpx_mpi__alloc(sizeof *tree->hi * (size_t)ranks);
+    tree->stack = bpx_mpi__alloc(sizeof *tree->stack * (size_t)(2 * ranks));
     if (!tree->nodes || !tree->lo || !tree->hi || !tree->stack) {
         bpx_mpi__rcb_free(tree);
         return -1;
@@ -20,10 +22,11 @@ int bpx_mpi__rcb_init(bpx_mpi_rcb_tree *tree, int ranks) {
 }
 
 void bpx_mpi__rcb_free(bpx_mpi_rcb_tree *tree) {
-    free(tree->nodes);
-    free(tree->lo);
-    free(tree->hi);
-    free(tree->stack);
+    size_t ranks = tree->ranks > 0 ? (size_t)tree->ranks : 0;
+    bpx_mpi__free(tree->nodes, sizeof *tree->nodes * (ranks > 0 ? 2 * ranks - 1 : 0));
+    bpx_mpi__free(tree->lo, sizeof *tree->lo * ranks);
+    bpx_mpi__free(tree->hi, sizeof *tree->hi * ranks);
+    bpx_mpi__free(tree->stack, sizeof *tree->stack * 2 * ranks);
     memset(tree, 0, sizeof *tree);
 }
 

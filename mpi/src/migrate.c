@@ -1,7 +1,6 @@
 // Moving objects to their home ranks with the caller's data: what a particle code does after
 // each step, so that bpx's own exchange stays down to the copies near borders.
 #include <limits.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "mpi_world.h"

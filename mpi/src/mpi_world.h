@@ -3,7 +3,9 @@
 
 #include <bpx/mpi.h>
 
+#include "core/clock.h" // bpx__now_ns
 #include "decompose.h"
+#include "mpi_alloc.h"
 
 /// One box as it travels: global id and box, then the filter when any rank uses filters.
 #define BPX_MPI_RECORD_BYTES 32
@@ -81,10 +83,6 @@ static inline bool bpx_mpi__pair_less(const bpx_mpi_pair *x, const bpx_mpi_pair 
     return x->a < y->a || (x->a == y->a && x->b < y->b);
 }
 
-/// Grows *memory to hold at least need elements of size bytes (keeping the contents).
-/// 0, or -1 with *memory untouched.
-int bpx_mpi__grow(void **memory, size_t *cap, size_t need, size_t size);
-
 /// Sets the world's error on this rank (printf-style message, prefixed with the rank).
 void bpx_mpi__fail(bpx_mpi_world *w, bpx_status status, uint64_t id, size_t index, int axis,
                    const char *format, ...)
@@ -106,5 +104,5 @@ void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp,
 /// event rank. Collective.
 bpx_status bpx_mpi__events(bpx_mpi_world *w);
 
-uint64_t bpx_mpi__now_ns(void);
+/// The process's CPU time in nanoseconds (the wall clock is the core's bpx__now_ns).
 uint64_t bpx_mpi__cpu_ns(void);

@@ -1,40 +1,16 @@
 // The distributed world: creation, errors, accessors and the gather. The cycle is in cycle.c.
-#define _POSIX_C_SOURCE 200809L
 #include "mpi_world.h"
 
 #include <limits.h>
 #include <stdarg.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 #include <time.h>
-
-uint64_t bpx_mpi__now_ns(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (uint64_t)t.tv_sec * 1000000000u + (uint64_t)t.tv_nsec;
-}
 
 uint64_t bpx_mpi__cpu_ns(void) {
     struct timespec t;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
     return (uint64_t)t.tv_sec * 1000000000u + (uint64_t)t.tv_nsec;
-}
-
-int bpx_mpi__grow(void **memory, size_t *cap, size_t need, size_t size) {
-    if (need <= *cap)
-        return 0;
-    size_t want = *cap + *cap / 2;
-    if (want < need)
-        want = need;
-    if (want > SIZE_MAX / size)
-        return -1;
-    void *grown = realloc(*memory, want * size);
-    if (!grown)
-        return -1;
-    *memory = grown;
-    *cap = want;
-    return 0;
 }
 
 void bpx_mpi__fail(bpx_mpi_world *w, bpx_status status, uint64_t id, size_t index, int axis,
@@ -120,16 +96,36 @@ bpx_mpi_world_def bpx_mpi_default_world_def(void) {
 }
 
 static void free_buffers(bpx_mpi_world *w) {
-    void *buffers[] = {w->send_counts, w->send_displs, w->recv_counts, w->recv_displs,
-                       w->cursor,      w->touched,     w->samples,     w->send,        w->recv,
-                       w->ids,         w->ids_tmp,     w->order,       w->order_tmp,
-                       w->own_index,   w->boxes,
-                       w->category,    w->mask,        w->inside,      w->source,
-                       w->pairs,       w->next,        w->ranks,       w->next_ranks,
-                       w->ev_send,     w->ev_recv,     w->began,       w->ended,
-                       w->gathered,    w->gather_tmp,  w->home};
-    for (size_t i = 0; i < sizeof buffers / sizeof buffers[0]; i++)
-        free(buffers[i]);
+    int *tables[] = {w->send_counts, w->send_displs, w->recv_counts,
+                     w->recv_displs, w->cursor,      w->touched};
+    for (size_t i = 0; i < sizeof tables / sizeof tables[0]; i++)
+        bpx_mpi__free(tables[i], (size_t)w->size * sizeof(int));
+#define FREE_ARRAY(field, cap) bpx_mpi__free(w->field, (cap) * sizeof *w->field)
+    FREE_ARRAY(samples, w->samples_cap);
+    FREE_ARRAY(send, w->send_cap);
+    FREE_ARRAY(recv, w->recv_cap);
+    FREE_ARRAY(ids, w->present_cap);
+    FREE_ARRAY(ids_tmp, w->present_cap);
+    FREE_ARRAY(order, w->present_cap);
+    FREE_ARRAY(order_tmp, w->present_cap);
+    FREE_ARRAY(own_index, w->present_cap);
+    FREE_ARRAY(boxes, w->present_cap);
+    FREE_ARRAY(category, w->present_cap);
+    FREE_ARRAY(mask, w->present_cap);
+    FREE_ARRAY(inside, w->present_cap);
+    FREE_ARRAY(source, w->present_cap);
+    FREE_ARRAY(pairs, w->pairs_cap);
+    FREE_ARRAY(ranks, w->pairs_cap);
+    FREE_ARRAY(next, w->next_cap);
+    FREE_ARRAY(next_ranks, w->next_cap);
+    FREE_ARRAY(ev_send, w->ev_send_cap);
+    FREE_ARRAY(ev_recv, w->ev_recv_cap);
+    FREE_ARRAY(began, w->began_cap);
+    FREE_ARRAY(ended, w->ended_cap);
+    FREE_ARRAY(gathered, w->gathered_cap);
+    FREE_ARRAY(gather_tmp, w->gather_tmp_cap);
+    FREE_ARRAY(home, w->home_cap);
+#undef FREE_ARRAY
     bpx_mpi__rcb_free(&w->tree);
 }
 
@@ -168,7 +164,9 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
                                 bpx_mpi_world **out_world, bpx_mpi_error *err) {
     if (out_world)
         *out_world = NULL;
-    bpx_mpi_world *w = calloc(1, sizeof *w);
+    bpx_mpi_world *w = bpx_mpi__alloc(sizeof *w);
+    if (w)
+        memset(w, 0, sizeof *w);
     bpx_mpi_world scratch; // reports errors when even the world could not be allocated
     memset(&scratch, 0, sizeof scratch);
     bpx_mpi_world *e = w ? w : &scratch;
@@ -193,12 +191,12 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
         }
         w->def.local.track_events = false;
         size_t p = (size_t)w->size;
-        w->send_counts = malloc(p * sizeof(int));
-        w->send_displs = malloc(p * sizeof(int));
-        w->recv_counts = malloc(p * sizeof(int));
-        w->recv_displs = malloc(p * sizeof(int));
-        w->cursor = malloc(p * sizeof(int));
-        w->touched = malloc(p * sizeof(int));
+        w->send_counts = bpx_mpi__alloc(p * sizeof(int));
+        w->send_displs = bpx_mpi__alloc(p * sizeof(int));
+        w->recv_counts = bpx_mpi__alloc(p * sizeof(int));
+        w->recv_displs = bpx_mpi__alloc(p * sizeof(int));
+        w->cursor = bpx_mpi__alloc(p * sizeof(int));
+        w->touched = bpx_mpi__alloc(p * sizeof(int));
         if (!w->send_counts || !w->send_displs || !w->recv_counts || !w->recv_displs ||
             !w->cursor || !w->touched || bpx_mpi__rcb_init(&w->tree, w->size) != 0)
             bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1,
@@ -226,7 +224,7 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
         if (w) {
             bpx_world_destroy(w->local);
             free_buffers(w);
-            free(w);
+            bpx_mpi__free(w, sizeof *w);
         }
         return status;
     }
@@ -248,7 +246,7 @@ void bpx_mpi_world_destroy(bpx_mpi_world *w) {
     MPI_Comm_free(&w->comm);
     bpx_world_destroy(w->local);
     free_buffers(w);
-    free(w);
+    bpx_mpi__free(w, sizeof *w);
 }
 
 const bpx_mpi_error *bpx_mpi_world_error(const bpx_mpi_world *w) { return &w->error; }
@@ -366,7 +364,7 @@ bpx_status bpx_mpi_world_gather_pairs(bpx_mpi_world *w, int root, const bpx_mpi_
     int mine = (int)w->pair_count;
     MPI_Gather(&mine, 1, MPI_INT, w->recv_counts, 1, MPI_INT, root, w->comm);
     size_t total = 0;
-    size_t *starts = NULL;
+    size_t *starts = NULL, starts_bytes = ((size_t)w->size + 1) * sizeof *starts;
     if (w->rank == root) {
         for (int r = 0; r < w->size; r++) {
             w->recv_displs[r] = (int)total;
@@ -377,7 +375,7 @@ bpx_status bpx_mpi_world_gather_pairs(bpx_mpi_world *w, int root, const bpx_mpi_
                 break;
             }
         }
-        starts = malloc(((size_t)w->size + 1) * sizeof *starts);
+        starts = bpx_mpi__alloc(starts_bytes);
         if (w->error.status == BPX_OK &&
             (!starts ||
              bpx_mpi__grow((void **)&w->gathered, &w->gathered_cap, total, sizeof(bpx_mpi_pair)) ||
@@ -388,7 +386,7 @@ bpx_status bpx_mpi_world_gather_pairs(bpx_mpi_world *w, int root, const bpx_mpi_
     }
     status = bpx_mpi__agree(w);
     if (status != BPX_OK) {
-        free(starts);
+        bpx_mpi__free(starts, starts_bytes);
         return status;
     }
     MPI_Gatherv(w->pairs, mine, w->pair_type, w->gathered, w->recv_counts, w->recv_displs,
@@ -405,7 +403,7 @@ bpx_status bpx_mpi_world_gather_pairs(bpx_mpi_world *w, int root, const bpx_mpi_
             w->gathered_cap = w->gather_tmp_cap;
             w->gather_tmp_cap = cap;
         }
-        free(starts);
+        bpx_mpi__free(starts, starts_bytes);
         *pairs = w->gathered;
         *count = total;
     }
