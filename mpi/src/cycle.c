@@ -6,7 +6,8 @@
 #include "mpi_world.h"
 
 static bpx_status check_input(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
-                              size_t count) {
+                              size_t count)
+{
     if (count > 0 && (!ids || !boxes)) {
         bpx_mpi__fail(w, BPX_ERR_NULL_ARGUMENT, 0, SIZE_MAX, -1, "%s is NULL with count %zu",
                       !ids ? "ids" : "boxes", count);
@@ -28,7 +29,8 @@ static bpx_status check_input(bpx_mpi_world *w, const uint64_t *ids, const bpx_b
 }
 
 // Samples of this rank's centres to all ranks, then the same bisection everywhere.
-static bpx_status decompose(bpx_mpi_world *w, const bpx_box *boxes, size_t count) {
+static bpx_status decompose(bpx_mpi_world *w, const bpx_box *boxes, size_t count)
+{
     size_t take = count < w->def.samples_per_rank ? count : w->def.samples_per_rank;
     int mine = (int)take;
     MPI_Allgather(&mine, 1, MPI_INT, w->recv_counts, 1, MPI_INT, w->comm);
@@ -37,8 +39,8 @@ static bpx_status decompose(bpx_mpi_world *w, const bpx_box *boxes, size_t count
         w->recv_displs[r] = (int)total;
         total += (size_t)w->recv_counts[r];
     }
-    if (total > INT_MAX || bpx_mpi__grow((void **)&w->samples, &w->samples_cap, total,
-                                         sizeof(bpx_mpi_rcb_sample)))
+    if (total > INT_MAX ||
+        bpx_mpi__grow((void **)&w->samples, &w->samples_cap, total, sizeof(bpx_mpi_rcb_sample)))
         bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1,
                       "no memory for %zu samples of centres", total);
     bpx_status status = bpx_mpi__agree(w);
@@ -59,12 +61,13 @@ static bpx_status decompose(bpx_mpi_world *w, const bpx_box *boxes, size_t count
     return BPX_OK;
 }
 
-static bool reserve_present(bpx_mpi_world *w, size_t n) {
-    void **arrays[] = {(void **)&w->ids,       (void **)&w->ids_tmp,  (void **)&w->order,
+static bool reserve_present(bpx_mpi_world *w, size_t n)
+{
+    void **arrays[] = {(void **)&w->ids,       (void **)&w->ids_tmp,   (void **)&w->order,
                        (void **)&w->order_tmp, (void **)&w->own_index, (void **)&w->boxes,
                        (void **)&w->category,  (void **)&w->mask,      (void **)&w->inside,
                        (void **)&w->source};
-    const size_t sizes[] = {sizeof *w->ids,       sizeof *w->ids_tmp,  sizeof *w->order,
+    const size_t sizes[] = {sizeof *w->ids,       sizeof *w->ids_tmp,   sizeof *w->order,
                             sizeof *w->order_tmp, sizeof *w->own_index, sizeof *w->boxes,
                             sizeof *w->category,  sizeof *w->mask,      sizeof *w->inside,
                             sizeof *w->source};
@@ -72,7 +75,8 @@ static bool reserve_present(bpx_mpi_world *w, size_t n) {
 }
 
 // The rank a present box came from: own boxes first, then the records by sender.
-static int source_rank(const bpx_mpi_world *w, size_t at, size_t own) {
+static int source_rank(const bpx_mpi_world *w, size_t at, size_t own)
+{
     if (at < own)
         return w->rank;
     int lo = 0, hi = w->size - 1; // the last rank whose first record is at or before `at`
@@ -92,13 +96,15 @@ typedef struct route_result {
 
 // Counts what goes where, exchanges the counts and reserves every buffer of the exchange.
 static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t count,
-                                size_t record_bytes, route_result *out) {
+                                size_t record_bytes, route_result *out)
+{
     memset(w->send_counts, 0, sizeof(int) * (size_t)w->size);
     size_t own = 0, foreign = 0;
     uint64_t sent = 0;
     uint64_t cpu = bpx_mpi__cpu_ns();
     for (size_t i = 0; i < count; i++) {
-        if (bpx_mpi__rcb_inside(&w->tree, w->rank, &boxes[i])) { // most boxes: no copies, no descent
+        if (bpx_mpi__rcb_inside(&w->tree, w->rank,
+                                &boxes[i])) { // most boxes: no copies, no descent
             own++;
             continue;
         }
@@ -134,14 +140,14 @@ static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t c
              bpx_mpi__grow((void **)&w->recv, &w->recv_cap, recv_total * record_bytes, 1) ||
              !reserve_present(w, own + recv_total))
         bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1,
-                      "no memory to exchange %zu and test %zu boxes", send_total,
-                      own + recv_total);
+                      "no memory to exchange %zu and test %zu boxes", send_total, own + recv_total);
     return bpx_mpi__agree(w);
 }
 
 // Packs the records for other ranks and notes this rank's own boxes in its region.
 static void pack(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
-                 const bpx_mpi_filter *filters, size_t count, size_t record_bytes) {
+                 const bpx_mpi_filter *filters, size_t count, size_t record_bytes)
+{
     memcpy(w->cursor, w->send_displs, sizeof(int) * (size_t)w->size);
     size_t own = 0;
     for (size_t i = 0; i < count; i++) {
@@ -169,7 +175,8 @@ static void pack(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
 }
 
 // The ids of the records received, after the own ones; every arrival position in order.
-static void unpack(bpx_mpi_world *w, size_t own, size_t recv_total, size_t record_bytes) {
+static void unpack(bpx_mpi_world *w, size_t own, size_t recv_total, size_t record_bytes)
+{
     for (size_t k = 0; k < recv_total; k++)
         memcpy(&w->ids[own + k], w->recv + k * record_bytes, 8);
     for (size_t k = 0; k < own + recv_total; k++)
@@ -180,7 +187,8 @@ static void unpack(bpx_mpi_world *w, size_t own, size_t recv_total, size_t recor
 // gathers them from the caller's arrays and the records, checks that no id came twice, and runs
 // the rank's own world.
 static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_filter *filters,
-                       size_t n, size_t own, size_t record_bytes, bool with_filters) {
+                       size_t n, size_t own, size_t record_bytes, bool with_filters)
+{
     bpx_mpi__sort_ids(&w->ids, &w->order, &w->ids_tmp, &w->order_tmp, n);
     bool gather_filters = with_filters || w->local_filtered; // defaults when only last had any
     for (size_t k = 0; k < n; k++) {
@@ -224,7 +232,8 @@ static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_fil
 }
 
 // Keeps the pairs whose intersection's minimum corner lies in this rank's region.
-static void select_pairs(bpx_mpi_world *w) {
+static void select_pairs(bpx_mpi_world *w)
+{
     size_t m;
     const bpx_pair *local = bpx_world_pairs(w->local, &m);
     void **arrays[] = {(void **)&w->next, (void **)&w->next_ranks};
@@ -250,14 +259,16 @@ static void select_pairs(bpx_mpi_world *w) {
     w->next_count = kept;
 }
 
-static bpx_status failed(bpx_mpi_world *w, bpx_status status) {
+static bpx_status failed(bpx_mpi_world *w, bpx_status status)
+{
     w->pairs_valid = false;
     w->events_valid = false;
     return status;
 }
 
 bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
-                                 const bpx_mpi_filter *filters, size_t count) {
+                                 const bpx_mpi_filter *filters, size_t count)
+{
     uint64_t start = bpx__now_ns(), cpu_start = bpx_mpi__cpu_ns(), t;
     memset(&w->error, 0, sizeof w->error);
     w->error.rank = -1;
@@ -365,8 +376,8 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
         w->settled_imbalance = st->imbalance;
         w->measure_settled = false;
     }
-    w->rebalance_next = st->imbalance > w->def.rebalance_threshold &&
-                        st->imbalance > 1.05 * w->settled_imbalance;
+    w->rebalance_next =
+        st->imbalance > w->def.rebalance_threshold && st->imbalance > 1.05 * w->settled_imbalance;
     st->pair_count = w->pair_count;
     st->cycle_count++;
     st->total_ns = bpx__now_ns() - start;

@@ -7,7 +7,8 @@
 
 #include "mpi_alloc.h"
 
-int bpx_mpi__rcb_init(bpx_mpi_rcb_tree *tree, int ranks) {
+int bpx_mpi__rcb_init(bpx_mpi_rcb_tree *tree, int ranks)
+{
     memset(tree, 0, sizeof *tree);
     tree->ranks = ranks;
     tree->nodes = bpx_mpi__alloc(sizeof *tree->nodes * (size_t)(2 * ranks - 1));
@@ -21,7 +22,8 @@ int bpx_mpi__rcb_init(bpx_mpi_rcb_tree *tree, int ranks) {
     return 0;
 }
 
-void bpx_mpi__rcb_free(bpx_mpi_rcb_tree *tree) {
+void bpx_mpi__rcb_free(bpx_mpi_rcb_tree *tree)
+{
     size_t ranks = tree->ranks > 0 ? (size_t)tree->ranks : 0;
     bpx_mpi__free(tree->nodes, sizeof *tree->nodes * (ranks > 0 ? 2 * ranks - 1 : 0));
     bpx_mpi__free(tree->lo, sizeof *tree->lo * ranks);
@@ -32,7 +34,8 @@ void bpx_mpi__rcb_free(bpx_mpi_rcb_tree *tree) {
 
 // A total order on samples along one axis (then the other axes, then the weight), so that
 // qsort, which is not stable, gives the same order on every rank.
-static int compare_on(const bpx_mpi_rcb_sample *a, const bpx_mpi_rcb_sample *b, int axis) {
+static int compare_on(const bpx_mpi_rcb_sample *a, const bpx_mpi_rcb_sample *b, int axis)
+{
     for (int k = 0; k < 3; k++) {
         int ax = (axis + k) % 3;
         if (a->centre[ax] != b->centre[ax])
@@ -40,9 +43,18 @@ static int compare_on(const bpx_mpi_rcb_sample *a, const bpx_mpi_rcb_sample *b, 
     }
     return (a->weight > b->weight) - (a->weight < b->weight);
 }
-static int compare_x(const void *a, const void *b) { return compare_on(a, b, 0); }
-static int compare_y(const void *a, const void *b) { return compare_on(a, b, 1); }
-static int compare_z(const void *a, const void *b) { return compare_on(a, b, 2); }
+static int compare_x(const void *a, const void *b)
+{
+    return compare_on(a, b, 0);
+}
+static int compare_y(const void *a, const void *b)
+{
+    return compare_on(a, b, 1);
+}
+static int compare_z(const void *a, const void *b)
+{
+    return compare_on(a, b, 2);
+}
 
 typedef struct build_state {
     bpx_mpi_rcb_tree *tree;
@@ -51,7 +63,8 @@ typedef struct build_state {
 
 // A cut for a part without samples: anywhere works for exactness; between finite bounds keeps
 // regions tidy.
-static float empty_cut(const float lo[3], const float hi[3], int *axis) {
+static float empty_cut(const float lo[3], const float hi[3], int *axis)
+{
     *axis = 0;
     if (isfinite(lo[0]) && isfinite(hi[0]))
         return 0.5f * lo[0] + 0.5f * hi[0];
@@ -65,7 +78,8 @@ static float empty_cut(const float lo[3], const float hi[3], int *axis) {
 // Where to cut sorted samples so that the left side carries about `fraction` of the weight;
 // *split is the number of samples going left. Samples on the cut go right (p < cut is left).
 static float weighted_cut(const bpx_mpi_rcb_sample *s, size_t count, int axis, double fraction,
-                          size_t *split) {
+                          size_t *split)
+{
     double total = 0;
     for (size_t i = 0; i < count; i++)
         total += s[i].weight;
@@ -96,7 +110,8 @@ static float weighted_cut(const bpx_mpi_rcb_sample *s, size_t count, int axis, d
 }
 
 static int build_node(build_state *st, bpx_mpi_rcb_sample *s, size_t count, int r0, int r1,
-                      const float lo[3], const float hi[3]) {
+                      const float lo[3], const float hi[3])
+{
     bpx_mpi_rcb_tree *tree = st->tree;
     int index = st->next_node++;
     bpx_mpi_rcb_node *node = &tree->nodes[index];
@@ -149,20 +164,23 @@ static int build_node(build_state *st, bpx_mpi_rcb_sample *s, size_t count, int 
     return index;
 }
 
-void bpx_mpi__rcb_build(bpx_mpi_rcb_tree *tree, bpx_mpi_rcb_sample *samples, size_t count) {
+void bpx_mpi__rcb_build(bpx_mpi_rcb_tree *tree, bpx_mpi_rcb_sample *samples, size_t count)
+{
     build_state st = {tree, 0};
     float lo[3] = {-INFINITY, -INFINITY, -INFINITY}, hi[3] = {INFINITY, INFINITY, INFINITY};
     build_node(&st, samples, count, 0, tree->ranks, lo, hi);
 }
 
-int bpx_mpi__rcb_locate(const bpx_mpi_rcb_tree *tree, const float p[3]) {
+int bpx_mpi__rcb_locate(const bpx_mpi_rcb_tree *tree, const float p[3])
+{
     const bpx_mpi_rcb_node *node = &tree->nodes[0];
     while (node->rank < 0)
         node = &tree->nodes[p[node->axis] < node->cut ? node->left : node->right];
     return node->rank;
 }
 
-int bpx_mpi__rcb_touching(const bpx_mpi_rcb_tree *tree, const bpx_box *box, int *ranks) {
+int bpx_mpi__rcb_touching(const bpx_mpi_rcb_tree *tree, const bpx_box *box, int *ranks)
+{
     int *stack = tree->stack, top = 0, found = 0;
     stack[top++] = 0;
     while (top > 0) {

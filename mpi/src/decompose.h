@@ -21,10 +21,10 @@ typedef struct bpx_mpi_rcb_node {
 
 typedef struct bpx_mpi_rcb_tree {
     int ranks;
-    bpx_mpi_rcb_node *nodes;  ///< 2 * ranks - 1, the root first
-    float (*lo)[3];   ///< per rank: lo <= p < hi per axis; -inf / +inf at the outside
+    bpx_mpi_rcb_node *nodes; ///< 2 * ranks - 1, the root first
+    float (*lo)[3];          ///< per rank: lo <= p < hi per axis; -inf / +inf at the outside
     float (*hi)[3];
-    int *stack;       ///< scratch for bpx_mpi__rcb_touching, one entry per rank
+    int *stack; ///< scratch for bpx_mpi__rcb_touching, one entry per rank
 } bpx_mpi_rcb_tree;
 
 /// Allocates a tree for ranks ranks (all memory it will ever need). 0, or -1 on no memory.
@@ -44,21 +44,24 @@ int bpx_mpi__rcb_locate(const bpx_mpi_rcb_tree *tree, const float p[3]);
 int bpx_mpi__rcb_touching(const bpx_mpi_rcb_tree *tree, const bpx_box *box, int *ranks);
 
 /// Whether point p lies in the region of rank.
-static inline int bpx_mpi__rcb_holds(const bpx_mpi_rcb_tree *tree, int rank, const float p[3]) {
+static inline int bpx_mpi__rcb_holds(const bpx_mpi_rcb_tree *tree, int rank, const float p[3])
+{
     const float *lo = tree->lo[rank], *hi = tree->hi[rank];
     return lo[0] <= p[0] && p[0] < hi[0] && lo[1] <= p[1] && p[1] < hi[1] && lo[2] <= p[2] &&
            p[2] < hi[2];
 }
 
 /// Whether the closed box lies wholly in the half-open region of rank (then it touches no other).
-static inline int bpx_mpi__rcb_inside(const bpx_mpi_rcb_tree *tree, int rank, const bpx_box *b) {
+static inline int bpx_mpi__rcb_inside(const bpx_mpi_rcb_tree *tree, int rank, const bpx_box *b)
+{
     const float *lo = tree->lo[rank], *hi = tree->hi[rank];
     return lo[0] <= b->min[0] && b->max[0] < hi[0] && lo[1] <= b->min[1] && b->max[1] < hi[1] &&
            lo[2] <= b->min[2] && b->max[2] < hi[2];
 }
 
 /// A box's centre, halved first so that boxes near +-FLT_MAX do not overflow.
-static inline void bpx_mpi__rcb_centre(const bpx_box *box, float out[3]) {
+static inline void bpx_mpi__rcb_centre(const bpx_box *box, float out[3])
+{
     for (int k = 0; k < 3; k++)
         out[k] = 0.5f * box->min[k] + 0.5f * box->max[k];
 }

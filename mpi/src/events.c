@@ -8,7 +8,8 @@
 
 #include "mpi_world.h"
 
-static int compare_records(const void *p, const void *q) {
+static int compare_records(const void *p, const void *q)
+{
     const bpx_mpi_event_record *x = p, *y = q;
     if (x->a != y->a)
         return x->a < y->a ? -1 : 1;
@@ -18,7 +19,8 @@ static int compare_records(const void *p, const void *q) {
 }
 
 // Walks the two sorted lists; with out == NULL it counts per destination, else it writes.
-static void diff(bpx_mpi_world *w, bpx_mpi_event_record *out, bool *overflow) {
+static void diff(bpx_mpi_world *w, bpx_mpi_event_record *out, bool *overflow)
+{
     const bpx_mpi_pair *old = w->pairs, *now = w->next;
     size_t i = 0, j = 0, n_old = w->pair_count, n_now = w->next_count;
     while (i < n_old || j < n_now) {
@@ -42,7 +44,8 @@ static void diff(bpx_mpi_world *w, bpx_mpi_event_record *out, bool *overflow) {
     }
 }
 
-bpx_status bpx_mpi__events(bpx_mpi_world *w) {
+bpx_status bpx_mpi__events(bpx_mpi_world *w)
+{
     memset(w->send_counts, 0, sizeof(int) * (size_t)w->size);
     bool overflow = false;
     diff(w, NULL, &overflow);
@@ -64,8 +67,8 @@ bpx_status bpx_mpi__events(bpx_mpi_world *w) {
                            sizeof(bpx_mpi_event_record)) ||
              bpx_mpi__grow((void **)&w->began, &w->began_cap, recv_total, sizeof(bpx_mpi_pair)) ||
              bpx_mpi__grow((void **)&w->ended, &w->ended_cap, recv_total, sizeof(bpx_mpi_pair)))
-        bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1,
-                      "no memory for %zu + %zu events", send_total, recv_total);
+        bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1, "no memory for %zu + %zu events",
+                      send_total, recv_total);
     bpx_status status = bpx_mpi__agree(w);
     if (status != BPX_OK)
         return status;

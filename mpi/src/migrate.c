@@ -9,7 +9,8 @@
 
 static bpx_status check(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
                         const void *payload, size_t payload_size, size_t capacity,
-                        const size_t *count) {
+                        const size_t *count)
+{
     if (!count) {
         bpx_mpi__fail(w, BPX_ERR_NULL_ARGUMENT, 0, SIZE_MAX, -1, "count is NULL");
     } else if (*count > capacity) {
@@ -17,10 +18,13 @@ static bpx_status check(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *bo
                       "count %zu is over capacity %zu", *count, capacity);
     } else if (capacity > 0 && (!ids || !boxes || (payload_size > 0 && !payload))) {
         bpx_mpi__fail(w, BPX_ERR_NULL_ARGUMENT, 0, SIZE_MAX, -1, "%s is NULL with capacity %zu",
-                      !ids ? "ids" : !boxes ? "boxes" : "payload", capacity);
+                      !ids     ? "ids"
+                      : !boxes ? "boxes"
+                               : "payload",
+                      capacity);
     } else if (payload_size > MIGRATE_MAX_PAYLOAD) {
-        bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, 0, SIZE_MAX, -1,
-                      "payload_size %zu is over 1 MB", payload_size);
+        bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, 0, SIZE_MAX, -1, "payload_size %zu is over 1 MB",
+                      payload_size);
     } else if (!w->have_tree) {
         bpx_mpi__fail(w, BPX_ERR_BAD_STATE, 0, SIZE_MAX, -1,
                       "no regions yet: migrate after the first successful collide");
@@ -41,7 +45,8 @@ static bpx_status check(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *bo
 
 bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes, void *payload,
                                  size_t payload_size, size_t capacity, size_t *count,
-                                 size_t *needed) {
+                                 size_t *needed)
+{
     memset(&w->error, 0, sizeof w->error);
     w->error.rank = -1;
     bpx_status status = check(w, ids, boxes, payload, payload_size, capacity, count);
@@ -60,7 +65,8 @@ bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes
     for (size_t i = 0; i < n; i++) {
         float c[3];
         bpx_mpi__rcb_centre(&boxes[i], c);
-        int home = bpx_mpi__rcb_holds(&w->tree, w->rank, c) ? w->rank : bpx_mpi__rcb_locate(&w->tree, c);
+        int home =
+            bpx_mpi__rcb_holds(&w->tree, w->rank, c) ? w->rank : bpx_mpi__rcb_locate(&w->tree, c);
         w->home[i] = home;
         if (home != w->rank) {
             w->send_counts[home]++;

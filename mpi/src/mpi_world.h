@@ -28,9 +28,9 @@ struct bpx_mpi_world {
 
     bpx_mpi_rcb_tree tree;
     bool have_tree;
-    bool rebalance_asked; // by bpx_mpi_world_rebalance, for the next collide
-    bool rebalance_next;  // the last cycle's imbalance passed the threshold
-    bool local_filtered;  // the local world holds filters from an earlier cycle
+    bool rebalance_asked;     // by bpx_mpi_world_rebalance, for the next collide
+    bool rebalance_next;      // the last cycle's imbalance passed the threshold
+    bool local_filtered;      // the local world holds filters from an earlier cycle
     double settled_imbalance; // the imbalance just after the last decomposition (0: none yet)
     bool measure_settled;     // the next successful cycle sets it
 
@@ -79,7 +79,8 @@ struct bpx_mpi_world {
 };
 
 /// The order of pair lists: by a, then b.
-static inline bool bpx_mpi__pair_less(const bpx_mpi_pair *x, const bpx_mpi_pair *y) {
+static inline bool bpx_mpi__pair_less(const bpx_mpi_pair *x, const bpx_mpi_pair *y)
+{
     return x->a < y->a || (x->a == y->a && x->b < y->b);
 }
 
@@ -97,8 +98,8 @@ bpx_status bpx_mpi__agree(bpx_mpi_world *w);
 
 /// Sorts keys (with their positions in order) ascending; LSD radix over the bytes that differ,
 /// passing between the arrays and their tmp twins (swapped, so the result is in *keys, *order).
-void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp,
-                       uint32_t **order_tmp, size_t n);
+void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp, uint32_t **order_tmp,
+                       size_t n);
 
 /// Events of the cycle: what changed between w->pairs and w->next, settled on each pair's
 /// event rank. Collective.

@@ -7,14 +7,16 @@
 #include <string.h>
 #include <time.h>
 
-uint64_t bpx_mpi__cpu_ns(void) {
+uint64_t bpx_mpi__cpu_ns(void)
+{
     struct timespec t;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
     return (uint64_t)t.tv_sec * 1000000000u + (uint64_t)t.tv_nsec;
 }
 
 void bpx_mpi__fail(bpx_mpi_world *w, bpx_status status, uint64_t id, size_t index, int axis,
-                   const char *format, ...) {
+                   const char *format, ...)
+{
     bpx_mpi_error *e = &w->error;
     e->status = status;
     e->rank = w->rank;
@@ -28,7 +30,8 @@ void bpx_mpi__fail(bpx_mpi_world *w, bpx_status status, uint64_t id, size_t inde
     va_end(args);
 }
 
-bpx_status bpx_mpi__agree(bpx_mpi_world *w) {
+bpx_status bpx_mpi__agree(bpx_mpi_world *w)
+{
     int mine = w->error.status != BPX_OK ? w->rank : w->size, first;
     MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, w->comm);
     if (first == w->size)
@@ -37,8 +40,9 @@ bpx_status bpx_mpi__agree(bpx_mpi_world *w) {
     return w->error.status;
 }
 
-void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp,
-                       uint32_t **order_tmp, size_t n) {
+void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp, uint32_t **order_tmp,
+                       size_t n)
+{
     // 11-bit digits (six passes at most; an 8 KB histogram stays in L1), all histograms from one
     // read of the keys, and digits every key shares are skipped: ids below 2^22 take two passes.
     // Keys already in order (one rank, or callers that keep their arrays sorted) cost one read.
@@ -87,7 +91,8 @@ void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp,
     }
 }
 
-bpx_mpi_world_def bpx_mpi_default_world_def(void) {
+bpx_mpi_world_def bpx_mpi_default_world_def(void)
+{
     bpx_mpi_world_def def;
     memset(&def, 0, sizeof def);
     def.local = bpx_default_world_def();
@@ -95,7 +100,8 @@ bpx_mpi_world_def bpx_mpi_default_world_def(void) {
     return def;
 }
 
-static void free_buffers(bpx_mpi_world *w) {
+static void free_buffers(bpx_mpi_world *w)
+{
     int *tables[] = {w->send_counts, w->send_displs, w->recv_counts,
                      w->recv_displs, w->cursor,      w->touched};
     for (size_t i = 0; i < sizeof tables / sizeof tables[0]; i++)
@@ -129,22 +135,25 @@ static void free_buffers(bpx_mpi_world *w) {
     bpx_mpi__rcb_free(&w->tree);
 }
 
-static void free_types(bpx_mpi_world *w) {
-    MPI_Datatype *types[] = {&w->record_type[0], &w->record_type[1], &w->pair_type,
-                             &w->event_type, &w->sample_type};
+static void free_types(bpx_mpi_world *w)
+{
+    MPI_Datatype *types[] = {&w->record_type[0], &w->record_type[1], &w->pair_type, &w->event_type,
+                             &w->sample_type};
     for (size_t i = 0; i < sizeof types / sizeof types[0]; i++)
         if (*types[i] != MPI_DATATYPE_NULL)
             MPI_Type_free(types[i]);
 }
 
-static MPI_Datatype bytes_type(int bytes) {
+static MPI_Datatype bytes_type(int bytes)
+{
     MPI_Datatype type;
     MPI_Type_contiguous(bytes, MPI_BYTE, &type);
     MPI_Type_commit(&type);
     return type;
 }
 
-static bpx_status check_def(bpx_mpi_world *w, const bpx_mpi_world_def *def) {
+static bpx_status check_def(bpx_mpi_world *w, const bpx_mpi_world_def *def)
+{
     if (!(def->rebalance_threshold == 0 || def->rebalance_threshold >= 1.0)) {
         bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, 0, SIZE_MAX, -1,
                       "rebalance_threshold %g is below 1 (0 means the default)",
@@ -153,15 +162,16 @@ static bpx_status check_def(bpx_mpi_world *w, const bpx_mpi_world_def *def) {
     }
     if ((uint64_t)def->samples_per_rank * (uint64_t)w->size > 1u << 24) {
         bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, 0, SIZE_MAX, -1,
-                      "samples_per_rank %u x %d ranks is over 2^24 samples",
-                      def->samples_per_rank, w->size);
+                      "samples_per_rank %u x %d ranks is over 2^24 samples", def->samples_per_rank,
+                      w->size);
         return w->error.status;
     }
     return BPX_OK;
 }
 
 bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
-                                bpx_mpi_world **out_world, bpx_mpi_error *err) {
+                                bpx_mpi_world **out_world, bpx_mpi_error *err)
+{
     if (out_world)
         *out_world = NULL;
     bpx_mpi_world *w = bpx_mpi__alloc(sizeof *w);
@@ -204,8 +214,7 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
         else {
             bpx_status s = bpx_world_create(&w->def.local, &w->local);
             if (s != BPX_OK)
-                bpx_mpi__fail(w, s, 0, SIZE_MAX, -1, "the rank's world: %s",
-                              bpx_status_string(s));
+                bpx_mpi__fail(w, s, 0, SIZE_MAX, -1, "the rank's world: %s", bpx_status_string(s));
         }
     }
     // Nothing collective before this point: a rank that failed still agrees with the others.
@@ -239,7 +248,8 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
     return BPX_OK;
 }
 
-void bpx_mpi_world_destroy(bpx_mpi_world *w) {
+void bpx_mpi_world_destroy(bpx_mpi_world *w)
+{
     if (!w)
         return;
     free_types(w);
@@ -249,23 +259,32 @@ void bpx_mpi_world_destroy(bpx_mpi_world *w) {
     bpx_mpi__free(w, sizeof *w);
 }
 
-const bpx_mpi_error *bpx_mpi_world_error(const bpx_mpi_world *w) { return &w->error; }
+const bpx_mpi_error *bpx_mpi_world_error(const bpx_mpi_world *w)
+{
+    return &w->error;
+}
 
-bpx_mpi_stats bpx_mpi_world_stats(const bpx_mpi_world *w) { return w->stats; }
+bpx_mpi_stats bpx_mpi_world_stats(const bpx_mpi_world *w)
+{
+    return w->stats;
+}
 
-const bpx_mpi_pair *bpx_mpi_world_pairs(const bpx_mpi_world *w, size_t *count) {
+const bpx_mpi_pair *bpx_mpi_world_pairs(const bpx_mpi_world *w, size_t *count)
+{
     if (count)
         *count = w->pairs_valid ? w->pair_count : 0;
     return w->pairs_valid ? w->pairs : NULL;
 }
 
-const bpx_mpi_pair_ranks *bpx_mpi_world_pair_ranks(const bpx_mpi_world *w, size_t *count) {
+const bpx_mpi_pair_ranks *bpx_mpi_world_pair_ranks(const bpx_mpi_world *w, size_t *count)
+{
     if (count)
         *count = w->pairs_valid ? w->pair_count : 0;
     return w->pairs_valid ? w->ranks : NULL;
 }
 
-bpx_status bpx_mpi_world_pair_events(const bpx_mpi_world *w, bpx_mpi_pair_events *events) {
+bpx_status bpx_mpi_world_pair_events(const bpx_mpi_world *w, bpx_mpi_pair_events *events)
+{
     if (!events)
         return BPX_ERR_NULL_ARGUMENT;
     memset(events, 0, sizeof *events);
@@ -275,7 +294,8 @@ bpx_status bpx_mpi_world_pair_events(const bpx_mpi_world *w, bpx_mpi_pair_events
     return BPX_OK;
 }
 
-bpx_status bpx_mpi_world_region(const bpx_mpi_world *w, int rank, float lo[3], float hi[3]) {
+bpx_status bpx_mpi_world_region(const bpx_mpi_world *w, int rank, float lo[3], float hi[3])
+{
     if (!lo || !hi)
         return BPX_ERR_NULL_ARGUMENT;
     if (rank < 0 || rank >= w->size)
@@ -288,7 +308,8 @@ bpx_status bpx_mpi_world_region(const bpx_mpi_world *w, int rank, float lo[3], f
 }
 
 bpx_status bpx_mpi_world_home_ranks(const bpx_mpi_world *w, const bpx_box *boxes, size_t count,
-                                    int *ranks) {
+                                    int *ranks)
+{
     if (count > 0 && (!boxes || !ranks))
         return BPX_ERR_NULL_ARGUMENT;
     if (!w->have_tree)
@@ -301,9 +322,13 @@ bpx_status bpx_mpi_world_home_ranks(const bpx_mpi_world *w, const bpx_box *boxes
     return BPX_OK;
 }
 
-void bpx_mpi_world_rebalance(bpx_mpi_world *w) { w->rebalance_asked = true; }
+void bpx_mpi_world_rebalance(bpx_mpi_world *w)
+{
+    w->rebalance_asked = true;
+}
 
-int bpx_mpi_event_rank(uint64_t a, uint64_t b, int ranks) {
+int bpx_mpi_event_rank(uint64_t a, uint64_t b, int ranks)
+{
     // splitmix64's finaliser over both ids: pairs spread evenly over the ranks.
     uint64_t x = a * 0x9e3779b97f4a7c15u ^ (b + 0x632be59bd9b4e019u);
     x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9u;
@@ -314,7 +339,8 @@ int bpx_mpi_event_rank(uint64_t a, uint64_t b, int ranks) {
 
 // Merges sorted runs [displs[r], displs[r] + counts[r]) of src into one sorted list, pairwise
 // (log2 ranks passes); the result ends in *a or *b, which is returned.
-static bpx_mpi_pair *merge_runs(bpx_mpi_pair *a, bpx_mpi_pair *b, size_t *starts, size_t runs) {
+static bpx_mpi_pair *merge_runs(bpx_mpi_pair *a, bpx_mpi_pair *b, size_t *starts, size_t runs)
+{
     while (runs > 1) {
         size_t out_runs = 0;
         for (size_t r = 0; r < runs; r += 2) {
@@ -339,7 +365,8 @@ static bpx_mpi_pair *merge_runs(bpx_mpi_pair *a, bpx_mpi_pair *b, size_t *starts
 }
 
 bpx_status bpx_mpi_world_gather_pairs(bpx_mpi_world *w, int root, const bpx_mpi_pair **pairs,
-                                      size_t *count) {
+                                      size_t *count)
+{
     if (pairs)
         *pairs = NULL;
     if (count)

@@ -24,14 +24,16 @@ typedef enum ownership {
 static const char *ownership_names[] = {"round_robin", "random", "rank0", "home", "not_last"};
 
 // Distinct 64-bit ids in scrambled order (splitmix64's finaliser is a bijection).
-static uint64_t object_id(size_t k) {
+static uint64_t object_id(size_t k)
+{
     uint64_t x = (uint64_t)k + 0x9e3779b97f4a7c15u;
     x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9u;
     x = (x ^ (x >> 27)) * 0x94d049bb133111ebu;
     return x ^ (x >> 31);
 }
 
-static int compare_pairs(const void *p, const void *q) {
+static int compare_pairs(const void *p, const void *q)
+{
     const bpx_mpi_pair *x = p, *y = q;
     if (x->a != y->a)
         return x->a < y->a ? -1 : 1;
@@ -39,7 +41,8 @@ static int compare_pairs(const void *p, const void *q) {
 }
 
 // Local pairs (i, j) as global pairs, sorted.
-static bpx_mpi_pair *to_global(const bpx_pair *local, size_t count) {
+static bpx_mpi_pair *to_global(const bpx_pair *local, size_t count)
+{
     bpx_mpi_pair *out = check_alloc(count * sizeof *out);
     for (size_t k = 0; k < count; k++) {
         uint64_t a = object_id(local[k].i), b = object_id(local[k].j);
@@ -49,12 +52,14 @@ static bpx_mpi_pair *to_global(const bpx_pair *local, size_t count) {
     return out;
 }
 
-static bool same_pairs(const bpx_mpi_pair *x, size_t nx, const bpx_mpi_pair *y, size_t ny) {
+static bool same_pairs(const bpx_mpi_pair *x, size_t nx, const bpx_mpi_pair *y, size_t ny)
+{
     return nx == ny && (nx == 0 || memcmp(x, y, nx * sizeof *x) == 0);
 }
 
 // Every rank's list to root, sorted (for events, which the library does not gather).
-static bpx_mpi_pair *gather_list(const bpx_mpi_pair *mine, size_t count, size_t *total) {
+static bpx_mpi_pair *gather_list(const bpx_mpi_pair *mine, size_t count, size_t *total)
+{
     int n = (int)count, *counts = check_alloc(sizeof(int) * (size_t)ranks),
         *displs = check_alloc(sizeof(int) * (size_t)ranks);
     MPI_Allgather(&n, 1, MPI_INT, counts, 1, MPI_INT, MPI_COMM_WORLD);
@@ -81,7 +86,8 @@ typedef struct scene {
     bpx_world *reference;
 } scene;
 
-static void scene_reference(scene *s, bool events) {
+static void scene_reference(scene *s, bool events)
+{
     bpx_world_def def = bpx_default_world_def();
     def.track_events = events;
     def.backend = BPX_BACKEND_AUTO;
@@ -100,7 +106,8 @@ typedef struct run {
     scene_rng rng;
 } run;
 
-static size_t object_of(const run *r, uint64_t id) {
+static size_t object_of(const run *r, uint64_t id)
+{
     size_t lo = 0, hi = r->index_count;
     while (lo < hi) {
         size_t mid = (lo + hi) / 2;
@@ -113,18 +120,29 @@ static size_t object_of(const run *r, uint64_t id) {
 }
 
 // This rank's share of the scene this cycle.
-static size_t take_share(run *r, const scene *s, ownership how) {
+static size_t take_share(run *r, const scene *s, ownership how)
+{
     size_t count = 0;
     if (how == OWN_HOME)
         CHECK_STATUS(bpx_mpi_world_home_ranks(r->world, s->boxes, s->n, r->home), BPX_OK);
     for (size_t k = 0; k < s->n; k++) {
         int owner = 0;
         switch (how) {
-        case OWN_ROUND_ROBIN: owner = (int)(k % (size_t)ranks); break;
-        case OWN_RANDOM: owner = (int)scene_rng_below(&r->rng, (uint32_t)ranks); break;
-        case OWN_RANK0: owner = 0; break;
-        case OWN_HOME: owner = r->home[k]; break;
-        default: owner = ranks == 1 ? 0 : (int)(k % (size_t)(ranks - 1)); break;
+        case OWN_ROUND_ROBIN:
+            owner = (int)(k % (size_t)ranks);
+            break;
+        case OWN_RANDOM:
+            owner = (int)scene_rng_below(&r->rng, (uint32_t)ranks);
+            break;
+        case OWN_RANK0:
+            owner = 0;
+            break;
+        case OWN_HOME:
+            owner = r->home[k];
+            break;
+        default:
+            owner = ranks == 1 ? 0 : (int)(k % (size_t)(ranks - 1));
+            break;
         }
         r->owner[k] = owner;
         if (owner != rank)
@@ -139,13 +157,14 @@ static size_t take_share(run *r, const scene *s, ownership how) {
 }
 
 // One cycle on both sides, then every check of the result.
-static void cycle(run *r, scene *s, ownership how, int root) {
+static void cycle(run *r, scene *s, ownership how, int root)
+{
     size_t count = take_share(r, s, how);
     char context[sizeof check_context];
     memcpy(context, check_context, sizeof context);
     check_set_context("%.200s own=%s", context, ownership_names[how]);
-    bpx_status status = bpx_mpi_world_collide(r->world, r->ids, r->boxes,
-                                              s->filters ? r->filters : NULL, count);
+    bpx_status status =
+        bpx_mpi_world_collide(r->world, r->ids, r->boxes, s->filters ? r->filters : NULL, count);
     CHECK_MSG(status == BPX_OK, "%s: %s", check_status_name(status),
               bpx_mpi_world_error(r->world)->message);
     bpx_world *ref = s->reference;
@@ -218,7 +237,8 @@ static void cycle(run *r, scene *s, ownership how, int root) {
     memcpy(check_context, context, sizeof context);
 }
 
-static run run_open(const scene *s, bpx_mpi_world_def def, uint64_t seed) {
+static run run_open(const scene *s, bpx_mpi_world_def def, uint64_t seed)
+{
     run r;
     memset(&r, 0, sizeof r);
     bpx_mpi_error err;
@@ -238,12 +258,14 @@ static run run_open(const scene *s, bpx_mpi_world_def def, uint64_t seed) {
     return r;
 }
 
-static void run_close(run *r) {
+static void run_close(run *r)
+{
     bpx_mpi_world_destroy(r->world);
     free(r->ids), free(r->boxes), free(r->filters), free(r->home), free(r->owner), free(r->index);
 }
 
-static scene scene_make(size_t n, bool filters, bool events, uint64_t seed) {
+static scene scene_make(size_t n, bool filters, bool events, uint64_t seed)
+{
     scene s = {check_alloc((n + 64) * sizeof(bpx_box)), NULL, n, NULL};
     if (filters) {
         scene_rng rng;
@@ -257,14 +279,16 @@ static scene scene_make(size_t n, bool filters, bool events, uint64_t seed) {
     return s;
 }
 
-static void scene_free(scene *s) {
+static void scene_free(scene *s)
+{
     bpx_world_destroy(s->reference);
     free(s->boxes);
     free(s->filters);
 }
 
 // Every scene kind of the pair tests, each owned four ways in turn, with and without filters.
-static void test_scene_kinds(void) {
+static void test_scene_kinds(void)
+{
     for (int kind = 0; kind < SCENE_KIND_COUNT; kind++) {
         size_t n = kind == SCENE_ALL_OVERLAP || kind == SCENE_DENSE ? 90 : 400;
         for (int filtered = 0; filtered < 2; filtered++) {
@@ -284,7 +308,8 @@ static void test_scene_kinds(void) {
 }
 
 // Moving boxes over many cycles, workers 1 and 2 on each rank, events on.
-static void test_moving(int workers, bool heavy) {
+static void test_moving(int workers, bool heavy)
+{
     size_t n = 3000;
     check_set_context("moving heavy=%d workers=%d ranks=%d", heavy, workers, ranks);
     scene s = scene_make(n, false, true, 7);
@@ -312,7 +337,8 @@ static void test_moving(int workers, bool heavy) {
 }
 
 // All boxes crowd into one rank's region, with rebalancing off; then a rebalance.
-static void test_clustered(void) {
+static void test_clustered(void)
+{
     size_t n = 1500;
     check_set_context("clustered ranks=%d", ranks);
     scene s = scene_make(n, false, true, 11);
@@ -345,7 +371,8 @@ static void test_clustered(void) {
 }
 
 // A box over every region (up to +-FLT_MAX), and boxes lying exactly on the cuts.
-static void test_huge_and_borders(void) {
+static void test_huge_and_borders(void)
+{
     size_t n = 1200;
     check_set_context("huge and borders ranks=%d", ranks);
     scene s = scene_make(n + 40, true, true, 13);
@@ -378,8 +405,7 @@ static void test_huge_and_borders(void) {
             for (int k = 0; k < 3; k++)
                 if (k != a)
                     point.max[k] = point.min[k];
-            s.boxes[m++] = left, s.boxes[m++] = right, s.boxes[m++] = point,
-            s.boxes[m++] = flat;
+            s.boxes[m++] = left, s.boxes[m++] = right, s.boxes[m++] = point, s.boxes[m++] = flat;
         }
     }
     s.n = m;
@@ -390,7 +416,8 @@ static void test_huge_and_borders(void) {
 }
 
 // Empty ranks and an empty world.
-static void test_empty(void) {
+static void test_empty(void)
+{
     check_set_context("empty ranks=%d", ranks);
     scene s = scene_make(0, false, false, 17);
     run r = run_open(&s, bpx_mpi_default_world_def(), 17);
@@ -402,7 +429,8 @@ static void test_empty(void) {
 
 // The same message on every rank, naming the rank that failed.
 static void check_collective(bpx_mpi_world *w, bpx_status got, bpx_status want, int culprit,
-                             uint64_t id) {
+                             uint64_t id)
+{
     CHECK_MSG(got == want, "got %s, want %s", check_status_name(got), check_status_name(want));
     const bpx_mpi_error *e = bpx_mpi_world_error(w);
     char root_message[sizeof e->message];
@@ -418,7 +446,8 @@ static void check_collective(bpx_mpi_world *w, bpx_status got, bpx_status want, 
         CHECK_MSG(strstr(e->message, what) != NULL, "'%.200s' lacks the id", e->message);
 }
 
-static void test_errors(void) {
+static void test_errors(void)
+{
     check_set_context("errors ranks=%d", ranks);
     size_t n = 200;
     scene s = scene_make(n, false, true, 19);
@@ -431,8 +460,8 @@ static void test_errors(void) {
     CHECK_STATUS(bpx_mpi_world_home_ranks(r.world, s.boxes, 1, r.home), BPX_ERR_BAD_STATE);
     const bpx_mpi_pair *g;
     size_t gc;
-    check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc), BPX_ERR_BAD_STATE,
-                     0, 0);
+    check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc), BPX_ERR_BAD_STATE, 0,
+                     0);
     cycle(&r, &s, OWN_ROUND_ROBIN, 0);
     size_t before;
     bpx_mpi_world_pairs(r.world, &before);
@@ -485,8 +514,8 @@ static void test_errors(void) {
     CHECK(bpx_mpi_world_pairs(r.world, &none) == NULL && none == 0);
     bpx_mpi_pair_events ev;
     CHECK_STATUS(bpx_mpi_world_pair_events(r.world, &ev), BPX_ERR_BAD_STATE);
-    check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc), BPX_ERR_BAD_STATE,
-                     0, 0);
+    check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc), BPX_ERR_BAD_STATE, 0,
+                     0);
     // The next good cycle reports events against the last successful one (cycle checks it).
     scene_rng motion;
     scene_rng_seed(&motion, 5);
@@ -509,7 +538,8 @@ static void test_errors(void) {
 
 // bpx_mpi_world_migrate: objects reach their home ranks with their payload, none lost or
 // doubled; CAPACITY moves nothing and names the room needed.
-static void test_migrate(void) {
+static void test_migrate(void)
+{
     size_t n = 2000;
     check_set_context("migrate ranks=%d", ranks);
     scene s = scene_make(n, false, false, 23);
@@ -536,21 +566,20 @@ static void test_migrate(void) {
         at_home += r.home[k] == rank;
     if (ranks > 1) { // the last rank has nothing and no room: nobody moves anything
         size_t room = rank == ranks - 1 ? 0 : n, asked = count, needed = 0;
-        bpx_status got = bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data,
-                                               room, &asked, &needed);
+        bpx_status got = bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, room,
+                                               &asked, &needed);
         check_collective(r.world, got, BPX_ERR_CAPACITY, ranks - 1, 0);
         CHECK(memcmp(ids_before, r.ids, count * sizeof *r.ids) == 0);
         CHECK_EQ_U64(asked, count);
         CHECK_EQ_U64(needed, at_home);
     }
     size_t over = n + 1; // more objects than room: refused everywhere
-    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &over,
-                                       NULL),
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &over, NULL),
                  BPX_ERR_INVALID_ARGUMENT);
     size_t moved = count, needed = 0;
-    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &moved,
-                                       &needed),
-                 BPX_OK);
+    CHECK_STATUS(
+        bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &moved, &needed),
+        BPX_OK);
     CHECK_EQ_U64(moved, at_home);
     CHECK_EQ_U64(needed, at_home);
     // Each object is at home, its payload with it; together they are every object once.
@@ -595,8 +624,7 @@ static void test_migrate(void) {
         r.boxes[0].min[0] = kept_min;
     // No payload at all; everyone already home: nothing travels.
     again = moved;
-    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &again, NULL),
-                 BPX_OK);
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &again, NULL), BPX_OK);
     CHECK(again == moved && bpx_mpi_world_stats(r.world).migrated_sent == 0);
     free(mine), free(all), free(want), free(data), free(ids_before);
     run_close(&r);
@@ -604,7 +632,8 @@ static void test_migrate(void) {
 }
 
 // Filters switched on and off between cycles (the rank's world must drop the old ones).
-static void test_filters_toggle(void) {
+static void test_filters_toggle(void)
+{
     size_t n = 600;
     check_set_context("filters toggled ranks=%d", ranks);
     scene s = scene_make(n, true, true, 29);
@@ -624,7 +653,8 @@ static void test_filters_toggle(void) {
 
 // The regions follow the boxes by themselves once the load drifts past the threshold, and a
 // bisection that cannot help (every centre in one point) is not repeated every cycle.
-static void test_auto_rebalance(void) {
+static void test_auto_rebalance(void)
+{
     size_t n = 1200;
     check_set_context("auto rebalance ranks=%d", ranks);
     scene s = scene_make(n, false, true, 31);
@@ -670,7 +700,8 @@ static void test_auto_rebalance(void) {
 }
 
 // A definition that changes the cycle's collectives must agree over ranks.
-static void test_mismatched_def(void) {
+static void test_mismatched_def(void)
+{
     if (ranks == 1)
         return;
     check_set_context("mismatched def ranks=%d", ranks);
@@ -685,7 +716,8 @@ static void test_mismatched_def(void) {
     CHECK_STATUS(bpx_mpi_world_create(MPI_COMM_WORLD, &def, &w, &err), BPX_ERR_INVALID_ARGUMENT);
 }
 
-int main(int argc, char **argv) {
+int main(int argc, char **argv)
+{
     MPI_Init(&argc, &argv);
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &ranks);
