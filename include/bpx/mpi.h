@@ -67,14 +67,14 @@ typedef struct bpx_mpi_pair {
     uint64_t b;
 } bpx_mpi_pair;
 
-/// Per object collision filter, as bpx_world_set_filters: a and b can pair only if
-/// (category_a & mask_b) && (category_b & mask_a).
 /// The ranks that passed the two objects of a pair (bpx_mpi_world_pair_ranks).
 typedef struct bpx_mpi_pair_ranks {
     int a;
     int b;
 } bpx_mpi_pair_ranks;
 
+/// Per object collision filter, as bpx_world_set_filters: a and b can pair only if
+/// (category_a & mask_b) && (category_b & mask_a).
 typedef struct bpx_mpi_filter {
     uint32_t category;
     uint32_t mask;
