@@ -98,11 +98,13 @@ typedef struct bpx_mpi_world_def {
     uint32_t samples_per_rank;
 } bpx_mpi_world_def;
 
-/// The error of the last call, the same on every rank after a collective call.
+/// The error of the last collective call (create, collide, gather, migrate), the same on every
+/// rank. After a successful one: status BPX_OK, rank -1, id 0, index SIZE_MAX, axis -1 and an
+/// empty message.
 typedef struct bpx_mpi_error {
     bpx_status status;
     int rank;       ///< the rank that found it (-1 for none)
-    uint64_t id;    ///< the object's global id, when one is involved
+    uint64_t id;    ///< the object's global id, when one is involved (else 0)
     size_t index;   ///< its position in that rank's input (SIZE_MAX when none)
     int axis;       ///< 0..2 for a coordinate, else -1
     char message[224];

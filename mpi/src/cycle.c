@@ -270,8 +270,7 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
                                  const bpx_mpi_filter *filters, size_t count)
 {
     uint64_t start = bpx__now_ns(), cpu_start = bpx_mpi__cpu_ns(), t;
-    memset(&w->error, 0, sizeof w->error);
-    w->error.rank = -1;
+    bpx_mpi__clear_error(w);
     bpx_mpi_stats *st = &w->stats;
     bpx_mpi_stats kept = *st; // the counts since creation and the last migrate's figures
     memset(st, 0, sizeof *st);

@@ -47,8 +47,7 @@ bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes
                                  size_t payload_size, size_t capacity, size_t *count,
                                  size_t *needed)
 {
-    memset(&w->error, 0, sizeof w->error);
-    w->error.rank = -1;
+    bpx_mpi__clear_error(w);
     bpx_status status = check(w, ids, boxes, payload, payload_size, capacity, count);
     if ((status = bpx_mpi__agree(w)) != BPX_OK)
         return status;

@@ -92,6 +92,10 @@ void bpx_mpi__fail(bpx_mpi_world *w, bpx_status status, uint64_t id, size_t inde
 #endif
     ;
 
+/// The error of a call that has not failed (yet): status OK, rank -1, id 0, index SIZE_MAX,
+/// axis -1, no message (bpx_mpi_error's "none"). Every call that sets the error starts with it.
+void bpx_mpi__clear_error(bpx_mpi_world *w);
+
 /// Collective: the lowest rank whose error is set gives it to all. Returns its status, or
 /// BPX_OK when no rank failed.
 bpx_status bpx_mpi__agree(bpx_mpi_world *w);

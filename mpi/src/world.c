@@ -30,6 +30,15 @@ void bpx_mpi__fail(bpx_mpi_world *w, bpx_status status, uint64_t id, size_t inde
     va_end(args);
 }
 
+void bpx_mpi__clear_error(bpx_mpi_world *w)
+{
+    memset(&w->error, 0, sizeof w->error);
+    w->error.status = BPX_OK;
+    w->error.rank = -1;
+    w->error.index = SIZE_MAX;
+    w->error.axis = -1;
+}
+
 bpx_status bpx_mpi__agree(bpx_mpi_world *w)
 {
     int mine = w->error.status != BPX_OK ? w->rank : w->size, first;
@@ -183,7 +192,7 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
     e->comm = comm;
     MPI_Comm_rank(comm, &e->rank);
     MPI_Comm_size(comm, &e->size);
-    e->error.rank = -1;
+    bpx_mpi__clear_error(e);
     e->record_type[0] = e->record_type[1] = e->pair_type = e->event_type = e->sample_type =
         MPI_DATATYPE_NULL;
     if (!w)
@@ -371,8 +380,7 @@ bpx_status bpx_mpi_world_gather_pairs(bpx_mpi_world *w, int root, const bpx_mpi_
         *pairs = NULL;
     if (count)
         *count = 0;
-    memset(&w->error, 0, sizeof w->error);
-    w->error.rank = -1;
+    bpx_mpi__clear_error(w);
     if (root < 0 || root >= w->size)
         bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, 0, SIZE_MAX, -1, "root %d is not a rank of %d",
                       root, w->size);

@@ -156,6 +156,17 @@ static size_t take_share(run *r, const scene *s, ownership how)
     return count;
 }
 
+// After a successful call the error reads as none, as bpx_mpi_error documents: status OK, rank
+// -1, id 0, index SIZE_MAX, axis -1, no message.
+static void check_no_error(const bpx_mpi_error *e, const char *call)
+{
+    CHECK_MSG(e->status == BPX_OK && e->rank == -1 && e->id == 0 && e->index == SIZE_MAX &&
+                  e->axis == -1 && e->message[0] == '\0',
+              "after %s: status %s rank %d id %llu index %zu axis %d '%.100s'", call,
+              check_status_name(e->status), e->rank, (unsigned long long)e->id, e->index, e->axis,
+              e->message);
+}
+
 // One cycle on both sides, then every check of the result.
 static void cycle(run *r, scene *s, ownership how, int root)
 {
@@ -167,6 +178,7 @@ static void cycle(run *r, scene *s, ownership how, int root)
         bpx_mpi_world_collide(r->world, r->ids, r->boxes, s->filters ? r->filters : NULL, count);
     CHECK_MSG(status == BPX_OK, "%s: %s", check_status_name(status),
               bpx_mpi_world_error(r->world)->message);
+    check_no_error(bpx_mpi_world_error(r->world), "collide");
     bpx_world *ref = s->reference;
     CHECK_STATUS(bpx_world_set_boxes(ref, s->boxes, (uint32_t)s->n), BPX_OK);
     { // the reference gets the defaults when the scene has no filters (this cycle)
@@ -207,6 +219,7 @@ static void cycle(run *r, scene *s, ownership how, int root)
     const bpx_mpi_pair *all = NULL;
     size_t all_count = 0;
     CHECK_STATUS(bpx_mpi_world_gather_pairs(r->world, root, &all, &all_count), BPX_OK);
+    check_no_error(bpx_mpi_world_error(r->world), "gather");
     if (rank == root)
         CHECK_MSG(same_pairs(all, all_count, want, want_count), "gathered %zu pairs, want %zu",
                   all_count, want_count);
@@ -243,6 +256,8 @@ static run run_open(const scene *s, bpx_mpi_world_def def, uint64_t seed)
     memset(&r, 0, sizeof r);
     bpx_mpi_error err;
     CHECK_STATUS(bpx_mpi_world_create(MPI_COMM_WORLD, &def, &r.world, &err), BPX_OK);
+    check_no_error(&err, "create");
+    check_no_error(bpx_mpi_world_error(r.world), "create");
     size_t cap = s->n + 64;
     r.ids = check_alloc(cap * sizeof *r.ids);
     r.boxes = check_alloc(cap * sizeof *r.boxes);
@@ -580,6 +595,7 @@ static void test_migrate(void)
     CHECK_STATUS(
         bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &moved, &needed),
         BPX_OK);
+    check_no_error(bpx_mpi_world_error(r.world), "migrate after a refused one");
     CHECK_EQ_U64(moved, at_home);
     CHECK_EQ_U64(needed, at_home);
     // Each object is at home, its payload with it; together they are every object once.
@@ -625,6 +641,7 @@ static void test_migrate(void)
     // No payload at all; everyone already home: nothing travels.
     again = moved;
     CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &again, NULL), BPX_OK);
+    check_no_error(bpx_mpi_world_error(r.world), "migrate");
     CHECK(again == moved && bpx_mpi_world_stats(r.world).migrated_sent == 0);
     free(mine), free(all), free(want), free(data), free(ids_before);
     run_close(&r);
