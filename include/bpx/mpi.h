@@ -119,10 +119,12 @@ typedef struct bpx_mpi_stats {
     uint64_t present_count;   ///< boxes this rank tested: own ones in its region + received
     uint64_t copies_sent;     ///< box records sent to other ranks
     uint64_t copies_received; ///< box records received
-    uint64_t bytes_sent;      ///< payload bytes sent: box records (32 bytes, 40 with filters)
-                              ///< and event records (24 bytes); not MPI's own headers
-    uint64_t bytes_received;
+    uint64_t bytes_sent;      ///< payload bytes sent to other ranks (what a rank passes to
+                              ///< itself is not counted): box records (32 bytes, 40 with
+                              ///< filters) and event records (24 bytes); not MPI's own headers
+    uint64_t bytes_received;  ///< the same, received from other ranks
     uint64_t messages_sent;   ///< destinations other than this rank that got data this cycle
+                              ///< (boxes or events)
     uint64_t pair_count;      ///< pairs reported by this rank
     uint64_t total_pair_count;///< pairs reported by all ranks (the whole set's size)
     double imbalance;         ///< most boxes tested by a rank / mean over ranks

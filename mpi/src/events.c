@@ -46,6 +46,9 @@ static void diff(bpx_mpi_world *w, bpx_mpi_event_record *out, bool *overflow)
 
 bpx_status bpx_mpi__events(bpx_mpi_world *w)
 {
+    // What the cycle's exchange of boxes sent each rank, kept in cursor until the packing below:
+    // a rank that got nothing there and gets events here is one more message.
+    memcpy(w->cursor, w->send_counts, sizeof(int) * (size_t)w->size);
     memset(w->send_counts, 0, sizeof(int) * (size_t)w->size);
     bool overflow = false;
     diff(w, NULL, &overflow);
@@ -56,6 +59,7 @@ bpx_status bpx_mpi__events(bpx_mpi_world *w)
         w->recv_displs[r] = (int)recv_total;
         send_total += (size_t)w->send_counts[r];
         recv_total += (size_t)w->recv_counts[r];
+        w->stats.messages_sent += r != w->rank && w->send_counts[r] > 0 && w->cursor[r] == 0;
     }
     if (overflow || send_total > INT_MAX || recv_total > INT_MAX)
         bpx_mpi__fail(w, BPX_ERR_TOO_MANY_PAIRS, 0, SIZE_MAX, -1,
@@ -76,8 +80,11 @@ bpx_status bpx_mpi__events(bpx_mpi_world *w)
     diff(w, w->ev_send, &overflow);
     MPI_Alltoallv(w->ev_send, w->send_counts, w->send_displs, w->event_type, w->ev_recv,
                   w->recv_counts, w->recv_displs, w->event_type, w->comm);
-    w->stats.bytes_sent += send_total * sizeof(bpx_mpi_event_record);
-    w->stats.bytes_received += recv_total * sizeof(bpx_mpi_event_record);
+    // The events of pairs whose event rank is this one travel to itself: not bytes sent.
+    size_t self_sent = (size_t)w->send_counts[w->rank],
+           self_received = (size_t)w->recv_counts[w->rank];
+    w->stats.bytes_sent += (send_total - self_sent) * sizeof(bpx_mpi_event_record);
+    w->stats.bytes_received += (recv_total - self_received) * sizeof(bpx_mpi_event_record);
 
     // Each rank's list holds a pair at most once, so a pair arrives at most twice: as ended by
     // the rank that reported it last cycle and as began by the one that reports it now.

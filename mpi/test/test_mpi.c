@@ -214,6 +214,16 @@ static void cycle(run *r, scene *s, ownership how, int root)
     CHECK_EQ_U64(st.total_pair_count, want_count);
     CHECK_EQ_U64(st.pair_count, mine_count);
     CHECK_EQ_U64(st.own_count, count);
+    // Payload bytes count what reached other ranks only, not what a rank sends itself (events of
+    // pairs whose event rank is its own): the ranks' sums agree, a rank sent bytes exactly when
+    // it sent some other rank a message, and a lone rank sends nothing.
+    uint64_t io[2] = {st.bytes_sent, st.bytes_received}, io_sum[2];
+    MPI_Allreduce(io, io_sum, 2, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+    CHECK_EQ_U64(io_sum[0], io_sum[1]);
+    CHECK_MSG((st.messages_sent == 0) == (st.bytes_sent == 0), "%llu bytes in %llu messages",
+              (unsigned long long)st.bytes_sent, (unsigned long long)st.messages_sent);
+    if (ranks == 1)
+        CHECK(st.bytes_sent == 0 && st.bytes_received == 0 && st.messages_sent == 0);
 
     // The whole set on root.
     const bpx_mpi_pair *all = NULL;
