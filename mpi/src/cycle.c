@@ -91,21 +91,34 @@ static int source_rank(const bpx_mpi_world *w, size_t at, size_t own)
 }
 
 typedef struct route_result {
-    size_t own_present, send_total, recv_total;
+    size_t own_present;       // own boxes in this rank's region
+    size_t copies_sent;       // box records to other ranks
+    size_t copies_received;   // and from them
+    size_t send_total;        // records sent, id slots included (to itself too)
+    size_t recv_total;        // records received, id slots included
+    size_t id_slots_sent;     // records' worth of ids sent to other ranks
+    size_t id_slots_received; // and received from them
+    size_t added, dropped;    // ids this rank's directory receives
 } route_result;
+
+// Records' worth of ids: after a rank's box records, its ids added then dropped, 8 bytes each,
+// in whole records so that one exchange of one record type carries both.
+static size_t id_slots(size_t ids, size_t record_bytes)
+{
+    return (ids * 8 + record_bytes - 1) / record_bytes;
+}
 
 // Counts what goes where, exchanges the counts and reserves every buffer of the exchange.
 static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t count,
                                 size_t record_bytes, route_result *out)
 {
-    memset(w->send_counts, 0, sizeof(int) * (size_t)w->size);
+    memset(w->plan_send, 0, 3 * sizeof(int) * (size_t)w->size);
     size_t own = 0, foreign = 0;
     uint64_t sent = 0;
     uint64_t cpu = bpx_mpi__cpu_ns();
     for (size_t i = 0; i < count; i++) {
-        if (bpx_mpi__rcb_inside(&w->tree, w->rank,
-                                &boxes[i])) { // most boxes: no copies, no descent
-            own++;
+        if (bpx_mpi__rcb_inside(&w->tree, w->rank, &boxes[i])) {
+            own++; // most boxes: no copies, no descent
             continue;
         }
         int touched = bpx_mpi__rcb_touching(&w->tree, &boxes[i], w->touched);
@@ -113,55 +126,77 @@ static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t c
             int r = w->touched[t];
             if (r == w->rank)
                 own++;
-            else if (w->send_counts[r] < INT_MAX)
-                w->send_counts[r]++, sent++;
+            else if (w->plan_send[3 * r] < INT_MAX)
+                w->plan_send[3 * r]++, sent++;
         }
         float c[3];
         bpx_mpi__rcb_centre(&boxes[i], c);
         foreign += !bpx_mpi__rcb_holds(&w->tree, w->rank, c);
     }
+    if (w->size > 1)
+        bpx_mpi__ids_count(w, w->plan_send);
     w->stats.compute_cpu_ns += bpx_mpi__cpu_ns() - cpu;
-    MPI_Alltoall(w->send_counts, 1, MPI_INT, w->recv_counts, 1, MPI_INT, w->comm);
-    size_t send_total = 0, recv_total = 0;
+    MPI_Alltoall(w->plan_send, 3, MPI_INT, w->plan_recv, 3, MPI_INT, w->comm);
+    route_result route = {.own_present = own};
     for (int r = 0; r < w->size; r++) {
-        w->send_displs[r] = (int)(send_total < INT_MAX ? send_total : INT_MAX);
-        w->recv_displs[r] = (int)(recv_total < INT_MAX ? recv_total : INT_MAX);
-        send_total += (size_t)w->send_counts[r];
-        recv_total += (size_t)w->recv_counts[r];
+        const int *o = &w->plan_send[3 * r], *i = &w->plan_recv[3 * r];
+        size_t slots_out = id_slots((size_t)o[1] + (size_t)o[2], record_bytes);
+        size_t slots_in = id_slots((size_t)i[1] + (size_t)i[2], record_bytes);
+        size_t records_out = (size_t)o[0] + slots_out, records_in = (size_t)i[0] + slots_in;
+        w->send_counts[r] = (int)(records_out < INT_MAX ? records_out : INT_MAX);
+        w->recv_counts[r] = (int)(records_in < INT_MAX ? records_in : INT_MAX);
+        w->send_displs[r] = (int)(route.send_total < INT_MAX ? route.send_total : INT_MAX);
+        w->recv_displs[r] = (int)(route.recv_total < INT_MAX ? route.recv_total : INT_MAX);
+        route.send_total += records_out;
+        route.recv_total += records_in;
+        route.copies_sent += (size_t)o[0];
+        route.copies_received += (size_t)i[0];
+        if (r != w->rank) {
+            route.id_slots_sent += slots_out;
+            route.id_slots_received += slots_in;
+        }
+        route.added += (size_t)i[1];
+        route.dropped += (size_t)i[2];
     }
-    *out = (route_result){own, send_total, recv_total};
+    *out = route;
     w->stats.foreign_count = foreign;
-    if (sent > INT_MAX || send_total > INT_MAX || own + recv_total > BPX_MAX_BOXES)
+    size_t present = own + route.copies_received;
+    if (sent > INT_MAX || route.send_total > INT_MAX || route.recv_total > INT_MAX ||
+        present > BPX_MAX_BOXES || route.added > INT_MAX || route.dropped > INT_MAX)
         bpx_mpi__fail(w, BPX_ERR_TOO_MANY_BOXES, 0, SIZE_MAX, -1,
-                      "%llu copies to send and %zu boxes to test are past MPI's int counts or "
-                      "BPX_MAX_BOXES",
-                      (unsigned long long)sent, own + recv_total);
-    else if (bpx_mpi__grow((void **)&w->send, &w->send_cap, send_total * record_bytes, 1) ||
-             bpx_mpi__grow((void **)&w->recv, &w->recv_cap, recv_total * record_bytes, 1) ||
-             !reserve_present(w, own + recv_total))
+                      "%zu records to send and %zu to receive, %zu boxes to test are past MPI's "
+                      "int counts or BPX_MAX_BOXES",
+                      route.send_total, route.recv_total, present);
+    else if (bpx_mpi__grow((void **)&w->send, &w->send_cap, route.send_total * record_bytes, 1) ||
+             bpx_mpi__grow((void **)&w->recv, &w->recv_cap, route.recv_total * record_bytes, 1) ||
+             !reserve_present(w, present) ||
+             (w->size > 1 && bpx_mpi__ids_reserve(w, route.added, route.dropped) != 0))
         bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1,
-                      "no memory to exchange %zu and test %zu boxes", send_total, own + recv_total);
+                      "no memory to exchange %zu and test %zu boxes", route.send_total, present);
     return bpx_mpi__agree(w);
 }
 
-// Packs the records for other ranks and notes this rank's own boxes in its region.
+// Packs the records for other ranks, and the ids for their directories after them, and notes
+// where this rank's own boxes in its region arrive among the boxes it tests (own first).
 static void pack(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
                  const bpx_mpi_filter *filters, size_t count, size_t record_bytes)
 {
     memcpy(w->cursor, w->send_displs, sizeof(int) * (size_t)w->size);
+    uint32_t *arrival = w->own_pos_tmp; // per input box; the sort of the own ids is done with it
     size_t own = 0;
     for (size_t i = 0; i < count; i++) {
         if (bpx_mpi__rcb_inside(&w->tree, w->rank, &boxes[i])) {
-            w->ids[own] = ids[i];
+            arrival[i] = (uint32_t)own;
             w->own_index[own++] = (uint32_t)i;
             continue;
         }
+        arrival[i] = BPX_MPI_NOT_HERE;
         bpx_mpi_filter f = filters ? filters[i] : (bpx_mpi_filter){1, 0xFFFFFFFFu};
         int touched = bpx_mpi__rcb_touching(&w->tree, &boxes[i], w->touched);
         for (int t = 0; t < touched; t++) {
             int r = w->touched[t];
             if (r == w->rank) {
-                w->ids[own] = ids[i];
+                arrival[i] = (uint32_t)own;
                 w->own_index[own++] = (uint32_t)i;
                 continue;
             }
@@ -172,15 +207,83 @@ static void pack(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
                 memcpy(rec + 32, &f, sizeof f);
         }
     }
+    if (w->size == 1)
+        return;
+    for (int r = 0; r < w->size; r++) { // in words (records are 32 or 40 bytes)
+        size_t at = ((size_t)w->send_displs[r] + (size_t)w->plan_send[3 * r]) * record_bytes / 8;
+        w->id_cursor[2 * r] = at;
+        w->id_cursor[2 * r + 1] = at + (size_t)w->plan_send[3 * r + 1];
+    }
+    bpx_mpi__ids_pack(w, w->send, w->id_cursor);
 }
 
-// The ids of the records received, after the own ones; every arrival position in order.
+// Hands the ids received to the directory, then moves the box records down over the room they
+// took, so that the records lie together by source rank, as recv_displs and recv_counts then
+// say.
+static void take_ids(bpx_mpi_world *w, size_t record_bytes)
+{
+    if (w->size == 1)
+        return;
+    for (int r = 0; r < w->size; r++) {
+        const int *i = &w->plan_recv[3 * r];
+        const unsigned char *at =
+            w->recv + ((size_t)w->recv_displs[r] + (size_t)i[0]) * record_bytes;
+        bpx_mpi__ids_receive(w, r, at, (size_t)i[1], (size_t)i[2]);
+    }
+    size_t boxes = 0;
+    for (int r = 0; r < w->size; r++) {
+        size_t here = (size_t)w->plan_recv[3 * r];
+        if (here > 0 && boxes != (size_t)w->recv_displs[r])
+            memmove(w->recv + boxes * record_bytes,
+                    w->recv + (size_t)w->recv_displs[r] * record_bytes, here * record_bytes);
+        w->recv_displs[r] = (int)boxes;
+        w->recv_counts[r] = (int)here;
+        boxes += here;
+    }
+}
+
+// The ids of the records received, with their arrival positions (after the own ones).
 static void unpack(bpx_mpi_world *w, size_t own, size_t recv_total, size_t record_bytes)
 {
-    for (size_t k = 0; k < recv_total; k++)
+    for (size_t k = 0; k < recv_total; k++) {
         memcpy(&w->ids[own + k], w->recv + k * record_bytes, 8);
-    for (size_t k = 0; k < own + recv_total; k++)
-        w->order[k] = (uint32_t)k;
+        w->order[own + k] = (uint32_t)(own + k);
+    }
+}
+
+// The ids of the boxes this rank tests, sorted, with their arrival positions in order: its own,
+// sorted already with the input's (ids.c), less those that went elsewhere only, merged with the
+// records received, sorted here (few, for callers that keep objects at home).
+static void sort_present(bpx_mpi_world *w, size_t n, size_t own)
+{
+    size_t m = n - own;
+    uint64_t *rk = w->ids + own, *rk_tmp = w->ids_tmp + own;
+    uint32_t *ro = w->order + own, *ro_tmp = w->order_tmp + own;
+    bpx_mpi__sort_ids(&rk, &ro, &rk_tmp, &ro_tmp, m);
+    bool into_twins = rk == w->ids + own; // the output goes to the pair they are not in
+    uint64_t *out = into_twins ? w->ids_tmp : w->ids;
+    uint32_t *order = into_twins ? w->order_tmp : w->order;
+    const uint64_t *ok = w->own_ids;
+    const uint32_t *pos = w->own_pos, *arrival = w->own_pos_tmp;
+    size_t i = 0, j = 0, k = 0, n_own = w->own_ids_count;
+    for (; i < n_own; i++) {
+        uint32_t at = arrival[pos[i]];
+        if (at == BPX_MPI_NOT_HERE)
+            continue;
+        while (j < m && rk[j] < ok[i])
+            out[k] = rk[j], order[k++] = ro[j++];
+        out[k] = ok[i], order[k++] = at;
+    }
+    for (; j < m; j++)
+        out[k] = rk[j], order[k++] = ro[j];
+    if (into_twins) { // they share present_cap
+        uint64_t *t = w->ids;
+        w->ids = w->ids_tmp;
+        w->ids_tmp = t;
+        uint32_t *o = w->order;
+        w->order = w->order_tmp;
+        w->order_tmp = o;
+    }
 }
 
 // Sorts the present boxes by id (so local pairs (i, j) come out in global (a, b) order),
@@ -189,7 +292,7 @@ static void unpack(bpx_mpi_world *w, size_t own, size_t recv_total, size_t recor
 static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_filter *filters,
                        size_t n, size_t own, size_t record_bytes, bool with_filters)
 {
-    bpx_mpi__sort_ids(&w->ids, &w->order, &w->ids_tmp, &w->order_tmp, n);
+    sort_present(w, n, own);
     bool gather_filters = with_filters || w->local_filtered; // defaults when only last had any
     for (size_t k = 0; k < n; k++) {
         uint32_t from = w->order[k];
@@ -211,10 +314,11 @@ static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_fil
             w->category[k] = f.category;
             w->mask[k] = f.mask;
         }
-        if (k > 0 && w->ids[k] == w->ids[k - 1]) {
+        if (k > 0 && w->ids[k] == w->ids[k - 1]) { // a guard: the id checks have caught it
+            int a = w->source[k - 1], b = w->source[k];
             bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, w->ids[k], SIZE_MAX, -1,
                           "id %llu is given twice (by ranks %d and %d)",
-                          (unsigned long long)w->ids[k], w->source[k - 1], w->source[k]);
+                          (unsigned long long)w->ids[k], a < b ? a : b, a < b ? b : a);
             return;
         }
     }
@@ -282,7 +386,13 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
     st->own_count = count;
 
     // 1. Input, and what every rank must know of the others before anything moves.
-    check_input(w, ids, boxes, count);
+    if (check_input(w, ids, boxes, count) == BPX_OK) {
+        uint64_t cpu = bpx_mpi__cpu_ns();
+        t = bpx__now_ns();
+        bpx_mpi__ids_check_own(w, ids, count);
+        st->local_ns = bpx__now_ns() - t;
+        st->compute_cpu_ns += bpx_mpi__cpu_ns() - cpu;
+    }
     int mine[3] = {w->error.status != BPX_OK ? -w->rank : -w->size, filters != NULL && count > 0,
                    w->rebalance_asked || w->rebalance_next || !w->have_tree};
     int all[3];
@@ -320,22 +430,26 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
                   w->recv_displs, record, w->comm);
     uint64_t exchanged = bpx__now_ns();
     cpu = bpx_mpi__cpu_ns();
-    unpack(w, route.own_present, route.recv_total, record_bytes);
+    take_ids(w, record_bytes);
+    unpack(w, route.own_present, route.copies_received, record_bytes);
     st->route_ns = (packed - t) + (bpx__now_ns() - exchanged);
     st->exchange_ns = exchanged - packed;
-    size_t n = route.own_present + route.recv_total;
+    size_t n = route.own_present + route.copies_received;
     st->present_count = n;
-    st->copies_sent = route.send_total;
-    st->copies_received = route.recv_total;
-    st->bytes_sent = route.send_total * record_bytes;
-    st->bytes_received = route.recv_total * record_bytes;
+    st->copies_sent = route.copies_sent;
+    st->copies_received = route.copies_received;
+    st->bytes_sent = (route.copies_sent + route.id_slots_sent) * record_bytes;
+    st->bytes_received = (route.copies_received + route.id_slots_received) * record_bytes;
     for (int r = 0; r < w->size; r++)
         st->messages_sent += r != w->rank && w->send_counts[r] > 0;
 
-    // 4. This rank's pairs.
+    // 4. Ids given by two ranks, then this rank's pairs.
     t = bpx__now_ns();
-    find_local(w, boxes, filters, n, route.own_present, record_bytes, with_filters);
-    st->local_ns = bpx__now_ns() - t;
+    if (w->size > 1)
+        bpx_mpi__ids_check(w);
+    if (w->error.status == BPX_OK)
+        find_local(w, boxes, filters, n, route.own_present, record_bytes, with_filters);
+    st->local_ns += bpx__now_ns() - t;
     t = bpx__now_ns();
     if (w->error.status == BPX_OK)
         select_pairs(w);
@@ -357,6 +471,9 @@ bpx_status bpx_mpi_world_collide(bpx_mpi_world *w, const uint64_t *ids, const bp
         if (s != BPX_OK)
             return failed(w, s);
     }
+    cpu = bpx_mpi__cpu_ns();
+    bpx_mpi__ids_commit(w); // every rank succeeded: the ids of this call are the last ones
+    st->compute_cpu_ns += bpx_mpi__cpu_ns() - cpu;
     bpx_mpi_pair *swap = w->pairs;
     bpx_mpi_pair_ranks *swap_ranks = w->ranks;
     size_t swap_cap = w->pairs_cap;

@@ -11,6 +11,9 @@
 #define BPX_MPI_RECORD_BYTES 32
 #define BPX_MPI_RECORD_FILTER_BYTES 40
 
+/// An input box that is not among the boxes this rank tests (own_pos_tmp in a cycle).
+#define BPX_MPI_NOT_HERE UINT32_MAX
+
 /// A candidate begin or end, sent to the pair's event rank.
 typedef struct bpx_mpi_event_record {
     uint64_t a, b;
@@ -69,6 +72,32 @@ struct bpx_mpi_world {
     size_t began_count, ended_count, began_cap, ended_cap;
     bool events_valid;
 
+    // Ids given twice (ids.c). own_ids: this call's input ids, sorted, with their positions in
+    // the input in own_pos (own_ids_tmp and own_pos_tmp: the sort's twins; then own_ids_tmp
+    // holds the ids this rank added since the last successful collide, dropped_out those it
+    // dropped, and in the cycle own_pos_tmp gives each input box's arrival position,
+    // BPX_MPI_NOT_HERE for one that went elsewhere only); last_ids: those of the last successful
+    // collide. With more than one rank, dir_ids
+    // and dir_ranks are this rank's directory, a hash table (linear probing, at most half full)
+    // of the ids whose id rank is this one, each with the rank that gave it in the last
+    // successful collide (plus one; 0 is an empty slot); added and dropped, the changes the
+    // ranks sent in this call, by the rank they came from (added_rank, by arrival).
+    uint64_t *own_ids, *own_ids_tmp, *last_ids, *dropped_out;
+    uint32_t *own_pos, *own_pos_tmp;
+    size_t own_ids_cap, own_ids_tmp_cap, own_pos_cap, own_pos_tmp_cap, last_ids_cap;
+    size_t own_ids_count, last_ids_count, dropped_out_cap, added_out_count, dropped_out_count;
+    uint64_t *dir_ids;
+    int *dir_ranks;
+    size_t dir_cap, dir_count; // slots (a power of two, or 0), ids held
+    uint64_t *added, *added_tmp, *dropped, *dropped_tmp;
+    uint32_t *added_order, *added_order_tmp;
+    int *added_rank;
+    size_t added_count, dropped_count, added_cap, dropped_cap;
+    // Per rank, for the exchange: box records, ids added and ids dropped (3 ints each, sent and
+    // received); where the ids for each rank go in the send buffer (2 words each).
+    int *plan_send, *plan_recv;
+    size_t *id_cursor;
+
     // Migrate: each object's home rank.
     int *home;
     size_t home_cap;
@@ -102,8 +131,47 @@ bpx_status bpx_mpi__agree(bpx_mpi_world *w);
 
 /// Sorts keys (with their positions in order) ascending; LSD radix over the bytes that differ,
 /// passing between the arrays and their tmp twins (swapped, so the result is in *keys, *order).
+/// order and order_tmp may be NULL: the keys alone.
 void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp, uint32_t **order_tmp,
                        size_t n);
+
+/// As bpx_mpi__sort_ids, from src (left as it is), with positions in src as the order: the
+/// result is in *keys and *order.
+void bpx_mpi__sort_ids_from(const uint64_t *src, uint64_t **keys, uint32_t **order,
+                            uint64_t **keys_tmp, uint32_t **order_tmp, size_t n);
+
+/// The rank whose directory holds id among ranks ranks.
+int bpx_mpi__id_rank(uint64_t id, int ranks);
+
+/// Sorts this call's ids into own_ids (their positions into own_pos) and, with more than one
+/// rank, finds the change since the last successful collide; an id twice is an input error
+/// (INVALID_ARGUMENT, naming its two positions). Local.
+bpx_status bpx_mpi__ids_check_own(bpx_mpi_world *w, const uint64_t *ids, size_t count);
+
+/// Counts the ids this rank added and dropped (bpx_mpi__ids_check_own) per id rank r, into
+/// plan[3 r + 1] and plan[3 r + 2].
+void bpx_mpi__ids_count(const bpx_mpi_world *w, int *plan);
+
+/// Writes those ids to out: each 8 bytes at word cursor[2 r] (added) or cursor[2 r + 1]
+/// (dropped) of its id rank r, moving the cursor on.
+void bpx_mpi__ids_pack(const bpx_mpi_world *w, unsigned char *out, size_t *cursor);
+
+/// Room for the ids this rank receives and for the directory with them; forgets the last
+/// call's. 0, or -1 (no memory) with the directory as it was.
+int bpx_mpi__ids_reserve(bpx_mpi_world *w, size_t added, size_t dropped);
+
+/// Takes the ids rank from added (then dropped) from ids, 8 bytes each.
+void bpx_mpi__ids_receive(bpx_mpi_world *w, int from, const unsigned char *ids, size_t added,
+                          size_t dropped);
+
+/// Checks the ids received against each other and the directory: an id that two ranks give
+/// sets the error (INVALID_ARGUMENT, naming both). Changes nothing else.
+void bpx_mpi__ids_check(bpx_mpi_world *w);
+
+/// After a successful collide: its ids become the last ones, and the directory takes the change.
+void bpx_mpi__ids_commit(bpx_mpi_world *w);
+
+void bpx_mpi__ids_free(bpx_mpi_world *w);
 
 /// Events of the cycle: what changed between w->pairs and w->next, settled on each pair's
 /// event rank. Collective.

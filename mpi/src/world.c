@@ -49,55 +49,88 @@ bpx_status bpx_mpi__agree(bpx_mpi_world *w)
     return w->error.status;
 }
 
-void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp, uint32_t **order_tmp,
-                       size_t n)
+// The radix sort of bpx_mpi__sort_ids and bpx_mpi__sort_ids_from: from src (positions 0..n-1
+// as the order) when it is not NULL, else from *keys and *order.
+static void radix_sort(const uint64_t *src, uint64_t **keys, uint32_t **order, uint64_t **keys_tmp,
+                       uint32_t **order_tmp, size_t n)
 {
     // 11-bit digits (six passes at most; an 8 KB histogram stays in L1), all histograms from one
     // read of the keys, and digits every key shares are skipped: ids below 2^22 take two passes.
     // Keys already in order (one rank, or callers that keep their arrays sorted) cost one read.
     enum { BITS = 11, DIGITS = 6, RADIX = 1 << BITS };
-    if (n < 2)
-        return;
-    const uint64_t *k0 = *keys;
-    size_t sorted = 1;
+    const uint64_t *k0 = src ? src : *keys;
+    size_t sorted = n > 0;
     while (sorted < n && k0[sorted - 1] <= k0[sorted])
         sorted++;
-    if (sorted == n)
-        return;
-    uint32_t count[DIGITS][RADIX]; // 48 KB
-    memset(count, 0, sizeof count);
-    for (size_t i = 0; i < n; i++) {
-        uint64_t k = k0[i];
-        for (int d = 0; d < DIGITS; d++)
-            count[d][(k >> (d * BITS)) & (RADIX - 1)]++;
-    }
-    for (int d = 0; d < DIGITS; d++) {
-        uint32_t *c = count[d];
-        if (c[(k0[0] >> (d * BITS)) & (RADIX - 1)] == n)
-            continue; // every key has this digit
-        uint32_t sum = 0;
-        for (int v = 0; v < RADIX; v++) {
-            uint32_t here = c[v];
-            c[v] = sum;
-            sum += here;
-        }
-        const uint64_t *k_in = *keys;
-        const uint32_t *o_in = *order;
-        uint64_t *k_out = *keys_tmp;
-        uint32_t *o_out = *order_tmp;
+    bool moved = false;
+    if (sorted < n) {
+        uint32_t count[DIGITS][RADIX]; // 48 KB
+        memset(count, 0, sizeof count);
         for (size_t i = 0; i < n; i++) {
-            uint32_t to = c[(k_in[i] >> (d * BITS)) & (RADIX - 1)]++;
-            k_out[to] = k_in[i];
-            o_out[to] = o_in[i];
+            uint64_t k = k0[i];
+            for (int d = 0; d < DIGITS; d++)
+                count[d][(k >> (d * BITS)) & (RADIX - 1)]++;
         }
-        uint64_t *kt = *keys;
-        *keys = *keys_tmp;
-        *keys_tmp = kt;
-        uint32_t *ot = *order;
-        *order = *order_tmp;
-        *order_tmp = ot;
-        k0 = *keys;
+        for (int d = 0; d < DIGITS; d++) {
+            uint32_t *c = count[d];
+            if (c[(k0[0] >> (d * BITS)) & (RADIX - 1)] == n)
+                continue; // every key has this digit
+            uint32_t sum = 0;
+            for (int v = 0; v < RADIX; v++) {
+                uint32_t here = c[v];
+                c[v] = sum;
+                sum += here;
+            }
+            const uint64_t *k_in = moved ? *keys : k0;
+            uint64_t *k_out = *keys_tmp;
+            if (order && !moved && src) { // the first pass from src: positions are the order
+                uint32_t *o_out = *order_tmp;
+                for (size_t i = 0; i < n; i++) {
+                    uint32_t to = c[(k_in[i] >> (d * BITS)) & (RADIX - 1)]++;
+                    k_out[to] = k_in[i];
+                    o_out[to] = (uint32_t)i;
+                }
+            } else if (order) {
+                const uint32_t *o_in = *order;
+                uint32_t *o_out = *order_tmp;
+                for (size_t i = 0; i < n; i++) {
+                    uint32_t to = c[(k_in[i] >> (d * BITS)) & (RADIX - 1)]++;
+                    k_out[to] = k_in[i];
+                    o_out[to] = o_in[i];
+                }
+            } else {
+                for (size_t i = 0; i < n; i++)
+                    k_out[c[(k_in[i] >> (d * BITS)) & (RADIX - 1)]++] = k_in[i];
+            }
+            if (order) {
+                uint32_t *ot = *order;
+                *order = *order_tmp;
+                *order_tmp = ot;
+            }
+            uint64_t *kt = *keys;
+            *keys = *keys_tmp;
+            *keys_tmp = kt;
+            moved = true;
+        }
     }
+    if (src && !moved) { // in order already (or all one key): a copy
+        if (n > 0)
+            memcpy(*keys, src, n * sizeof *src);
+        for (size_t i = 0; order && i < n; i++)
+            (*order)[i] = (uint32_t)i;
+    }
+}
+
+void bpx_mpi__sort_ids(uint64_t **keys, uint32_t **order, uint64_t **keys_tmp, uint32_t **order_tmp,
+                       size_t n)
+{
+    radix_sort(NULL, keys, order, keys_tmp, order_tmp, n);
+}
+
+void bpx_mpi__sort_ids_from(const uint64_t *src, uint64_t **keys, uint32_t **order,
+                            uint64_t **keys_tmp, uint32_t **order_tmp, size_t n)
+{
+    radix_sort(src, keys, order, keys_tmp, order_tmp, n);
 }
 
 bpx_mpi_world_def bpx_mpi_default_world_def(void)
@@ -140,7 +173,11 @@ static void free_buffers(bpx_mpi_world *w)
     FREE_ARRAY(gathered, w->gathered_cap);
     FREE_ARRAY(gather_tmp, w->gather_tmp_cap);
     FREE_ARRAY(home, w->home_cap);
+    FREE_ARRAY(plan_send, 3 * (size_t)w->size);
+    FREE_ARRAY(plan_recv, 3 * (size_t)w->size);
+    FREE_ARRAY(id_cursor, 2 * (size_t)w->size);
 #undef FREE_ARRAY
+    bpx_mpi__ids_free(w);
     bpx_mpi__rcb_free(&w->tree);
 }
 
@@ -216,8 +253,12 @@ bpx_status bpx_mpi_world_create(MPI_Comm comm, const bpx_mpi_world_def *def,
         w->recv_displs = bpx_mpi__alloc(p * sizeof(int));
         w->cursor = bpx_mpi__alloc(p * sizeof(int));
         w->touched = bpx_mpi__alloc(p * sizeof(int));
+        w->plan_send = bpx_mpi__alloc(3 * p * sizeof(int));
+        w->plan_recv = bpx_mpi__alloc(3 * p * sizeof(int));
+        w->id_cursor = bpx_mpi__alloc(2 * p * sizeof(size_t));
         if (!w->send_counts || !w->send_displs || !w->recv_counts || !w->recv_displs ||
-            !w->cursor || !w->touched || bpx_mpi__rcb_init(&w->tree, w->size) != 0)
+            !w->cursor || !w->touched || !w->plan_send || !w->plan_recv || !w->id_cursor ||
+            bpx_mpi__rcb_init(&w->tree, w->size) != 0)
             bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1,
                           "no memory for the per-rank tables of %d ranks", w->size);
         else {

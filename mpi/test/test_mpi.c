@@ -104,6 +104,9 @@ typedef struct run {
     bpx_mpi_pair *index; // (id, object) sorted by id, to find an object by its id
     size_t index_count;
     scene_rng rng;
+    // This object goes to rank moved_to whatever the ownership (SIZE_MAX: none).
+    size_t moved_object;
+    int moved_to;
 } run;
 
 static size_t object_of(const run *r, uint64_t id)
@@ -144,6 +147,8 @@ static size_t take_share(run *r, const scene *s, ownership how)
             owner = ranks == 1 ? 0 : (int)(k % (size_t)(ranks - 1));
             break;
         }
+        if (k == r->moved_object)
+            owner = r->moved_to;
         r->owner[k] = owner;
         if (owner != rank)
             continue;
@@ -280,6 +285,7 @@ static run run_open(const scene *s, bpx_mpi_world_def def, uint64_t seed)
         r.index[k] = (bpx_mpi_pair){object_id(k), k};
     qsort(r.index, cap, sizeof *r.index, compare_pairs);
     scene_rng_seed(&r.rng, seed);
+    r.moved_object = SIZE_MAX;
     return r;
 }
 
@@ -521,7 +527,10 @@ static void test_errors(void)
         CHECK(bpx_mpi_world_pairs(r.world, &after) != NULL && after == before);
     }
 
-    // A duplicate id, found after the exchange: the cycle fails everywhere, pairs read as none.
+    // A duplicate id, given by rank 0 (round robin) and again by the last rank. Found after the
+    // exchange: the cycle fails everywhere, pairs read as none. On one rank it is an id twice in
+    // one input: an input error, the world as it was.
+    bool late = ranks > 1;
     count = take_share(&r, &s, OWN_ROUND_ROBIN);
     uint64_t twice = object_id(0); // on rank 0 (round robin); the last rank passes it again
     if (rank == last) {
@@ -535,12 +544,14 @@ static void test_errors(void)
     char what[48];
     snprintf(what, sizeof what, "id %llu is given twice", (unsigned long long)twice);
     CHECK_MSG(strstr(e->message, what) != NULL, "'%s'", e->message);
-    size_t none;
-    CHECK(bpx_mpi_world_pairs(r.world, &none) == NULL && none == 0);
+    size_t left;
+    const bpx_mpi_pair *pairs_left = bpx_mpi_world_pairs(r.world, &left);
+    CHECK(late ? pairs_left == NULL && left == 0 : pairs_left != NULL && left == before);
     bpx_mpi_pair_events ev;
-    CHECK_STATUS(bpx_mpi_world_pair_events(r.world, &ev), BPX_ERR_BAD_STATE);
-    check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc), BPX_ERR_BAD_STATE, 0,
-                     0);
+    CHECK_STATUS(bpx_mpi_world_pair_events(r.world, &ev), late ? BPX_ERR_BAD_STATE : BPX_OK);
+    if (late)
+        check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc),
+                         BPX_ERR_BAD_STATE, 0, 0);
     // The next good cycle reports events against the last successful one (cycle checks it).
     scene_rng motion;
     scene_rng_seed(&motion, 5);
@@ -559,6 +570,144 @@ static void test_errors(void)
     bpx_mpi_error err;
     CHECK_STATUS(bpx_mpi_world_create(MPI_COMM_WORLD, &bad, &w, &err), BPX_ERR_INVALID_ARGUMENT);
     CHECK(w == NULL && err.rank == last && strstr(err.message, "rebalance_threshold"));
+}
+
+// A point in rank q's region, far from every box of the scenes (rank 0's region reaches -inf on
+// every axis, the last rank's +inf: they are the outermost leaves of the bisection).
+static bpx_box far_point(bpx_mpi_world *w, int q, float at)
+{
+    float lo[3], hi[3];
+    CHECK_STATUS(bpx_mpi_world_region(w, q, lo, hi), BPX_OK);
+    bpx_box b = {{at, at, at}, {at, at, at}};
+    for (int k = 0; k < 3; k++)
+        CHECK_MSG(lo[k] <= at && at < hi[k], "%g not in [%g, %g) of rank %d", at, lo[k], hi[k], q);
+    return b;
+}
+
+// A failure of the cycle on every rank alike: the status, the same message everywhere, the id and
+// the ranks that gave it.
+static void check_duplicate(bpx_mpi_world *w, bpx_status got, uint64_t id, int a, int b)
+{
+    CHECK_MSG(got == BPX_ERR_INVALID_ARGUMENT, "got %s", check_status_name(got));
+    const bpx_mpi_error *e = bpx_mpi_world_error(w);
+    char root_message[sizeof e->message];
+    memcpy(root_message, e->message, sizeof root_message);
+    MPI_Bcast(root_message, (int)sizeof root_message, MPI_CHAR, 0, MPI_COMM_WORLD);
+    CHECK_MSG(strcmp(root_message, e->message) == 0, "rank %d says '%.100s'", rank, e->message);
+    CHECK(e->status == BPX_ERR_INVALID_ARGUMENT && e->id == id && e->rank >= 0);
+    char what[96];
+    snprintf(what, sizeof what, "id %llu is given twice (by ranks %d and %d)",
+             (unsigned long long)id, a, b);
+    CHECK_MSG(strstr(e->message, what) != NULL, "'%.150s' lacks '%.90s'", e->message, what);
+    size_t none;
+    CHECK(bpx_mpi_world_pairs(w, &none) == NULL && none == 0);
+}
+
+// Ids given twice where the two copies never reach one rank: in regions far apart, by one rank or
+// by two, new ids or one a rank has given all along. Every rank fails alike; an id twice in one
+// rank's input is an input error (the world as it was), one given by two ranks fails the cycle;
+// neither leaves a trace in the next cycles, where an object may change ranks as before.
+static void test_duplicate_ids(void)
+{
+    check_set_context("duplicate ids ranks=%d", ranks);
+    size_t n = 400;
+    scene s = scene_make(n, false, true, 37);
+    scene_uniform_density((uint32_t)n, 1.0f, 37, s.boxes);
+    bpx_mpi_world_def def = bpx_mpi_default_world_def();
+    def.track_events = true;
+    def.rebalance_threshold = 1e9; // the regions stay where the first cycle put them
+    run r = run_open(&s, def, 37);
+    cycle(&r, &s, OWN_ROUND_ROBIN, 0);
+    int last = ranks - 1;
+    bpx_box in_first = far_point(r.world, 0, -1e6f), in_last = far_point(r.world, last, 1e6f);
+    s.boxes[0] = in_first; // object 0: at home on rank 0, alone in its region's far corner
+    cycle(&r, &s, OWN_HOME, 0);
+    uint64_t extra = object_id(n + 1), zero = object_id(0); // extra: no object of the scene
+    size_t before, after;
+    bpx_mpi_world_pairs(r.world, &before);
+
+    // 1. The last rank gives a new id twice, in the first region and in its own.
+    size_t count = take_share(&r, &s, OWN_HOME);
+    if (rank == last) {
+        r.ids[count] = extra, r.boxes[count++] = in_first;
+        r.ids[count] = extra, r.boxes[count++] = in_last;
+    }
+    uint64_t second = count - 1; // where the repeat is in the last rank's input
+    MPI_Bcast(&second, 1, MPI_UINT64_T, last, MPI_COMM_WORLD);
+    bpx_status got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+    check_collective(r.world, got, BPX_ERR_INVALID_ARGUMENT, last, extra);
+    CHECK_EQ_U64(bpx_mpi_world_error(r.world)->index, second);
+    CHECK(bpx_mpi_world_pairs(r.world, &after) != NULL && after == before);
+    bpx_mpi_pair_events ev;
+    CHECK_STATUS(bpx_mpi_world_pair_events(r.world, &ev), BPX_OK);
+    cycle(&r, &s, OWN_HOME, 0);
+
+    if (ranks > 1) {
+        // 2. Rank 0 and the last rank give one new id in the same cycle, each in its region.
+        count = take_share(&r, &s, OWN_HOME);
+        if (rank == 0)
+            r.ids[count] = extra, r.boxes[count++] = in_first;
+        if (rank == last)
+            r.ids[count] = extra, r.boxes[count++] = in_last;
+        got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+        check_duplicate(r.world, got, extra, 0, last);
+        CHECK_STATUS(bpx_mpi_world_pair_events(r.world, &ev), BPX_ERR_BAD_STATE);
+        // The failed cycle registered nobody's id: the last rank alone may give it now (far
+        // from every box, so the pairs stay the scene's), and drop it again.
+        count = take_share(&r, &s, OWN_HOME);
+        if (rank == last)
+            r.ids[count] = extra, r.boxes[count++] = in_last;
+        got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+        CHECK_MSG(got == BPX_OK, "%s: %s", check_status_name(got),
+                  bpx_mpi_world_error(r.world)->message);
+        cycle(&r, &s, OWN_HOME, 0);
+
+        // 3. The last rank gives, far off in its region, the id of object 0, which rank 0 has
+        //    given all along.
+        count = take_share(&r, &s, OWN_HOME);
+        CHECK(rank != 0 || (count > 0 && r.ids[0] == zero));
+        if (rank == last)
+            r.ids[count] = zero, r.boxes[count++] = in_last;
+        got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+        check_duplicate(r.world, got, zero, 0, last);
+
+        // 4. Object 0 moves to the last rank and back (rank 0 stops giving it as the last rank
+        //    starts): no duplicate.
+        r.moved_object = 0;
+        r.moved_to = last;
+        cycle(&r, &s, OWN_HOME, 0);
+        r.moved_object = SIZE_MAX;
+        cycle(&r, &s, OWN_HOME, 0);
+
+        // 5. After cycles where every object changes ranks at random, the last rank gives again
+        //    the id of an object some other rank gives in the same call, wholly in rank 0's
+        //    region (so the two copies never meet), while all the others move on.
+        for (int c = 0; c < 4; c++)
+            cycle(&r, &s, OWN_RANDOM, 0);
+        float lo[3], hi[3];
+        CHECK_STATUS(bpx_mpi_world_region(r.world, 0, lo, hi), BPX_OK);
+        int tried = 0;
+        for (size_t k = 1; k < n && tried < 3; k++) {
+            const bpx_box *b = &s.boxes[k];
+            bool inside = true;
+            for (int a = 0; a < 3; a++)
+                inside = inside && lo[a] <= b->min[a] && b->max[a] < hi[a];
+            if (!inside)
+                continue;
+            count = take_share(&r, &s, OWN_RANDOM); // the same draws on every rank
+            if (r.owner[k] == last)
+                continue;
+            if (rank == last)
+                r.ids[count] = object_id(k), r.boxes[count++] = in_last;
+            got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+            check_duplicate(r.world, got, object_id(k), r.owner[k], last);
+            tried++;
+        }
+        CHECK(tried == 3);
+        cycle(&r, &s, OWN_RANDOM, 0);
+    }
+    run_close(&r);
+    scene_free(&s);
 }
 
 // bpx_mpi_world_migrate: objects reach their home ranks with their payload, none lost or
@@ -749,6 +898,7 @@ int main(int argc, char **argv)
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &ranks);
     test_errors();
+    test_duplicate_ids();
     test_empty();
     test_scene_kinds();
     test_moving(1, false);
