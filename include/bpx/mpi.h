@@ -27,25 +27,29 @@
 //   lies in the rank's own region cost only the copies near borders; an application that keeps
 //   its objects on the rank bpx_mpi_world_home_ranks names (moving the few that crossed a border,
 //   as particle codes do) sends the least. A box passed elsewhere is sent whole every cycle.
-// - Ids must be unique over all ranks. Two boxes with the same id that reach one rank (always
-//   so when they overlap, or lie in one region) give BPX_ERR_INVALID_ARGUMENT; copies far apart
-//   in different regions are not seen together and go unnoticed.
+// - Ids must be unique over all ranks, wherever the boxes lie: an id twice in one rank's input
+//   is an input error (BPX_ERR_INVALID_ARGUMENT, naming both positions); an id two ranks give
+//   fails the cycle (BPX_ERR_INVALID_ARGUMENT, naming both ranks). For the second, each id has
+//   a directory rank (a hash of the id) that knows who gives it; a cycle sends it only the ids a
+//   rank began or stopped giving since the last successful collide (8 bytes each, with the box
+//   records), so steady cycles send a few and a rank's first sends all of its own.
 // - Where the data is: a pair is often reported on a rank that passed neither object (its
 //   corner's rank). bpx_mpi_world_pair_ranks tells, per pair, the ranks that passed a and b;
 //   fetching what the narrow phase needs from them is the application's job.
 // - Errors are collective: every rank returns the same status, and bpx_mpi_world_error gives
 //   every rank the same message, naming the rank (and id, and position in its input) that found
 //   it; when several ranks fail, the lowest one's error is reported. An input error (NULL
-//   arrays, NaN or infinite coordinate, min > max, count > BPX_MAX_BOXES) leaves the world as it
-//   was. An error found later in the cycle (duplicate id, memory) leaves pairs and events
-//   reading as none (BAD_STATE for events) until a collide succeeds; that one reports events
-//   against the last successful collide. An error of MPI itself aborts: the world's duplicate
-//   communicator has MPI_ERRORS_ARE_FATAL, since a rank that failed a collective could not
-//   keep step with the others.
+//   arrays, NaN or infinite coordinate, min > max, count > BPX_MAX_BOXES, an id twice) leaves
+//   the world as it was. An error found later in the cycle (an id two ranks give, memory) leaves
+//   pairs and events reading as none (BAD_STATE for events) until a collide succeeds; that one
+//   reports events against the last successful collide. An error of MPI itself aborts: the
+//   world's duplicate communicator has MPI_ERRORS_ARE_FATAL, since a rank that failed a
+//   collective could not keep step with the others.
 // - Threads: MPI is called only from the thread that calls bpx_mpi (MPI_THREAD_FUNNELED is
 //   enough); the rank's bpx world may run worker threads of its own (def.local.worker_count).
 // - Memory: a rank holds the records it sends and receives, about 70 bytes per box it tests
-//   (ids, order, boxes, filters, source ranks), its bpx_world (with every pair the rank finds,
+//   (ids, order, boxes, filters, source ranks), 40 per box it passes and 24 to 48 per id its
+//   directory holds (the id checks), its bpx_world (with every pair the rank finds,
 //   those the corner rule drops included), and 24 bytes per pair it reports, twice (this cycle's
 //   and the last); the root of a gather holds 32 bytes per pair of the whole set. Buffers grow
 //   and are kept, so steady cycles do not allocate.
@@ -67,14 +71,14 @@ typedef struct bpx_mpi_pair {
     uint64_t b;
 } bpx_mpi_pair;
 
-/// Per object collision filter, as bpx_world_set_filters: a and b can pair only if
-/// (category_a & mask_b) && (category_b & mask_a).
 /// The ranks that passed the two objects of a pair (bpx_mpi_world_pair_ranks).
 typedef struct bpx_mpi_pair_ranks {
     int a;
     int b;
 } bpx_mpi_pair_ranks;
 
+/// Per object collision filter, as bpx_world_set_filters: a and b can pair only if
+/// (category_a & mask_b) && (category_b & mask_a).
 typedef struct bpx_mpi_filter {
     uint32_t category;
     uint32_t mask;
@@ -98,11 +102,13 @@ typedef struct bpx_mpi_world_def {
     uint32_t samples_per_rank;
 } bpx_mpi_world_def;
 
-/// The error of the last call, the same on every rank after a collective call.
+/// The error of the last collective call (create, collide, gather, migrate), the same on every
+/// rank. After a successful one: status BPX_OK, rank -1, id 0, index SIZE_MAX, axis -1 and an
+/// empty message.
 typedef struct bpx_mpi_error {
     bpx_status status;
     int rank;       ///< the rank that found it (-1 for none)
-    uint64_t id;    ///< the object's global id, when one is involved
+    uint64_t id;    ///< the object's global id, when one is involved (else 0)
     size_t index;   ///< its position in that rank's input (SIZE_MAX when none)
     int axis;       ///< 0..2 for a coordinate, else -1
     char message[224];
@@ -117,10 +123,14 @@ typedef struct bpx_mpi_stats {
     uint64_t present_count;   ///< boxes this rank tested: own ones in its region + received
     uint64_t copies_sent;     ///< box records sent to other ranks
     uint64_t copies_received; ///< box records received
-    uint64_t bytes_sent;      ///< payload bytes sent: box records (32 bytes, 40 with filters)
-                              ///< and event records (24 bytes); not MPI's own headers
-    uint64_t bytes_received;
+    uint64_t bytes_sent;      ///< payload bytes sent to other ranks (what a rank passes to
+                              ///< itself is not counted): box records (32 bytes, 40 with
+                              ///< filters), ids for the directories (8 bytes each, in whole
+                              ///< records per rank) and event records (24 bytes); not MPI's
+                              ///< own headers
+    uint64_t bytes_received;  ///< the same, received from other ranks
     uint64_t messages_sent;   ///< destinations other than this rank that got data this cycle
+                              ///< (boxes, ids or events)
     uint64_t pair_count;      ///< pairs reported by this rank
     uint64_t total_pair_count;///< pairs reported by all ranks (the whole set's size)
     double imbalance;         ///< most boxes tested by a rank / mean over ranks
@@ -168,8 +178,8 @@ BPX_API void bpx_mpi_world_destroy(bpx_mpi_world *world);
 /// the pairs, events and regions are as they were (the stats describe the failed call).
 /// Errors: NULL_ARGUMENT, TOO_MANY_BOXES (count, or the boxes a rank tests, past BPX_MAX_BOXES;
 /// copies to send past MPI's int counts), NOT_FINITE, MIN_GREATER_THAN_MAX, INVALID_ARGUMENT
-/// (an id twice), OUT_OF_MEMORY, TOO_MANY_PAIRS (events past MPI's int counts), and those of
-/// the rank's bpx_world_collide.
+/// (an id twice in this rank's input, or given by two ranks), OUT_OF_MEMORY, TOO_MANY_PAIRS
+/// (events past MPI's int counts), and those of the rank's bpx_world_collide.
 BPX_API bpx_status bpx_mpi_world_collide(bpx_mpi_world *world, const uint64_t *ids,
                                          const bpx_box *boxes, const bpx_mpi_filter *filters,
                                          size_t count);

@@ -23,18 +23,21 @@ typedef struct velocity {
 
 static int rank, ranks;
 
-static double cpu_ms(void) {
+static double cpu_ms(void)
+{
     struct timespec t;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
     return t.tv_sec * 1e3 + t.tv_nsec * 1e-6;
 }
 
-static void die(const char *what, bpx_status s) {
+static void die(const char *what, bpx_status s)
+{
     fprintf(stderr, "rank %d: %s: %s\n", rank, what, bpx_status_name(s));
     MPI_Abort(MPI_COMM_WORLD, 1);
 }
 
-int main(int argc, char **argv) {
+int main(int argc, char **argv)
+{
     MPI_Init(&argc, &argv);
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &ranks);
@@ -157,9 +160,9 @@ int main(int argc, char **argv) {
     bpx_world_destroy(single);
 
     // Per rank means per cycle, then mean and max over ranks on rank 0.
-    double mine[8] = {wall / measured,     cpu / measured,      compute / measured,
-                      single_cpu / measured, bytes / measured, messages / measured,
-                      moved_sum / measured, own_sum / measured};
+    double mine[8] = {wall / measured,       cpu / measured,    compute / measured,
+                      single_cpu / measured, bytes / measured,  messages / measured,
+                      moved_sum / measured,  own_sum / measured};
     double sum[8], most[8];
     MPI_Reduce(mine, sum, 8, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     MPI_Reduce(mine, most, 8, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);

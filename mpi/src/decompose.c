@@ -5,31 +5,37 @@
 #include <stdlib.h>
 #include <string.h>
 
-int rcb_init(rcb_tree *tree, int ranks) {
+#include "mpi_alloc.h"
+
+int bpx_mpi__rcb_init(bpx_mpi_rcb_tree *tree, int ranks)
+{
     memset(tree, 0, sizeof *tree);
     tree->ranks = ranks;
-    tree->nodes = malloc(sizeof *tree->nodes * (size_t)(2 * ranks - 1));
-    tree->lo = malloc(sizeof *tree->lo * (size_t)ranks);
-    tree->hi = malloc(sizeof *tree->hi * (size_t)ranks);
-    tree->stack = malloc(sizeof *tree->stack * (size_t)(2 * ranks));
+    tree->nodes = bpx_mpi__alloc(sizeof *tree->nodes * (size_t)(2 * ranks - 1));
+    tree->lo = bpx_mpi__alloc(sizeof *tree->lo * (size_t)ranks);
+    tree->hi = bpx_mpi__alloc(sizeof *tree->hi * (size_t)ranks);
+    tree->stack = bpx_mpi__alloc(sizeof *tree->stack * (size_t)(2 * ranks));
     if (!tree->nodes || !tree->lo || !tree->hi || !tree->stack) {
-        rcb_free(tree);
+        bpx_mpi__rcb_free(tree);
         return -1;
     }
     return 0;
 }
 
-void rcb_free(rcb_tree *tree) {
-    free(tree->nodes);
-    free(tree->lo);
-    free(tree->hi);
-    free(tree->stack);
+void bpx_mpi__rcb_free(bpx_mpi_rcb_tree *tree)
+{
+    size_t ranks = tree->ranks > 0 ? (size_t)tree->ranks : 0;
+    bpx_mpi__free(tree->nodes, sizeof *tree->nodes * (ranks > 0 ? 2 * ranks - 1 : 0));
+    bpx_mpi__free(tree->lo, sizeof *tree->lo * ranks);
+    bpx_mpi__free(tree->hi, sizeof *tree->hi * ranks);
+    bpx_mpi__free(tree->stack, sizeof *tree->stack * 2 * ranks);
     memset(tree, 0, sizeof *tree);
 }
 
 // A total order on samples along one axis (then the other axes, then the weight), so that
 // qsort, which is not stable, gives the same order on every rank.
-static int compare_on(const rcb_sample *a, const rcb_sample *b, int axis) {
+static int compare_on(const bpx_mpi_rcb_sample *a, const bpx_mpi_rcb_sample *b, int axis)
+{
     for (int k = 0; k < 3; k++) {
         int ax = (axis + k) % 3;
         if (a->centre[ax] != b->centre[ax])
@@ -37,18 +43,28 @@ static int compare_on(const rcb_sample *a, const rcb_sample *b, int axis) {
     }
     return (a->weight > b->weight) - (a->weight < b->weight);
 }
-static int compare_x(const void *a, const void *b) { return compare_on(a, b, 0); }
-static int compare_y(const void *a, const void *b) { return compare_on(a, b, 1); }
-static int compare_z(const void *a, const void *b) { return compare_on(a, b, 2); }
+static int compare_x(const void *a, const void *b)
+{
+    return compare_on(a, b, 0);
+}
+static int compare_y(const void *a, const void *b)
+{
+    return compare_on(a, b, 1);
+}
+static int compare_z(const void *a, const void *b)
+{
+    return compare_on(a, b, 2);
+}
 
 typedef struct build_state {
-    rcb_tree *tree;
+    bpx_mpi_rcb_tree *tree;
     int next_node;
 } build_state;
 
 // A cut for a part without samples: anywhere works for exactness; between finite bounds keeps
 // regions tidy.
-static float empty_cut(const float lo[3], const float hi[3], int *axis) {
+static float empty_cut(const float lo[3], const float hi[3], int *axis)
+{
     *axis = 0;
     if (isfinite(lo[0]) && isfinite(hi[0]))
         return 0.5f * lo[0] + 0.5f * hi[0];
@@ -61,8 +77,9 @@ static float empty_cut(const float lo[3], const float hi[3], int *axis) {
 
 // Where to cut sorted samples so that the left side carries about `fraction` of the weight;
 // *split is the number of samples going left. Samples on the cut go right (p < cut is left).
-static float weighted_cut(const rcb_sample *s, size_t count, int axis, double fraction,
-                          size_t *split) {
+static float weighted_cut(const bpx_mpi_rcb_sample *s, size_t count, int axis, double fraction,
+                          size_t *split)
+{
     double total = 0;
     for (size_t i = 0; i < count; i++)
         total += s[i].weight;
@@ -92,13 +109,14 @@ static float weighted_cut(const rcb_sample *s, size_t count, int axis, double fr
     return (mid > a && mid <= b) ? mid : b;
 }
 
-static int build_node(build_state *st, rcb_sample *s, size_t count, int r0, int r1,
-                      const float lo[3], const float hi[3]) {
-    rcb_tree *tree = st->tree;
+static int build_node(build_state *st, bpx_mpi_rcb_sample *s, size_t count, int r0, int r1,
+                      const float lo[3], const float hi[3])
+{
+    bpx_mpi_rcb_tree *tree = st->tree;
     int index = st->next_node++;
-    rcb_node *node = &tree->nodes[index];
+    bpx_mpi_rcb_node *node = &tree->nodes[index];
     if (r1 - r0 == 1) {
-        *node = (rcb_node){.axis = -1, .cut = 0, .left = -1, .right = -1, .rank = r0};
+        *node = (bpx_mpi_rcb_node){.axis = -1, .cut = 0, .left = -1, .right = -1, .rank = r0};
         memcpy(tree->lo[r0], lo, sizeof(float[3]));
         memcpy(tree->hi[r0], hi, sizeof(float[3]));
         return index;
@@ -146,24 +164,27 @@ static int build_node(build_state *st, rcb_sample *s, size_t count, int r0, int 
     return index;
 }
 
-void rcb_build(rcb_tree *tree, rcb_sample *samples, size_t count) {
+void bpx_mpi__rcb_build(bpx_mpi_rcb_tree *tree, bpx_mpi_rcb_sample *samples, size_t count)
+{
     build_state st = {tree, 0};
     float lo[3] = {-INFINITY, -INFINITY, -INFINITY}, hi[3] = {INFINITY, INFINITY, INFINITY};
     build_node(&st, samples, count, 0, tree->ranks, lo, hi);
 }
 
-int rcb_locate(const rcb_tree *tree, const float p[3]) {
-    const rcb_node *node = &tree->nodes[0];
+int bpx_mpi__rcb_locate(const bpx_mpi_rcb_tree *tree, const float p[3])
+{
+    const bpx_mpi_rcb_node *node = &tree->nodes[0];
     while (node->rank < 0)
         node = &tree->nodes[p[node->axis] < node->cut ? node->left : node->right];
     return node->rank;
 }
 
-int rcb_touching(const rcb_tree *tree, const bpx_box *box, int *ranks) {
+int bpx_mpi__rcb_touching(const bpx_mpi_rcb_tree *tree, const bpx_box *box, int *ranks)
+{
     int *stack = tree->stack, top = 0, found = 0;
     stack[top++] = 0;
     while (top > 0) {
-        const rcb_node *node = &tree->nodes[stack[--top]];
+        const bpx_mpi_rcb_node *node = &tree->nodes[stack[--top]];
         if (node->rank >= 0) {
             ranks[found++] = node->rank;
             continue;

@@ -6,10 +6,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "world.h"
+#include "mpi_world.h"
 
-static int compare_records(const void *p, const void *q) {
-    const event_record *x = p, *y = q;
+static int compare_records(const void *p, const void *q)
+{
+    const bpx_mpi_event_record *x = p, *y = q;
     if (x->a != y->a)
         return x->a < y->a ? -1 : 1;
     if (x->b != y->b)
@@ -18,7 +19,8 @@ static int compare_records(const void *p, const void *q) {
 }
 
 // Walks the two sorted lists; with out == NULL it counts per destination, else it writes.
-static void diff(bpx_mpi_world *w, event_record *out, bool *overflow) {
+static void diff(bpx_mpi_world *w, bpx_mpi_event_record *out, bool *overflow)
+{
     const bpx_mpi_pair *old = w->pairs, *now = w->next;
     size_t i = 0, j = 0, n_old = w->pair_count, n_now = w->next_count;
     while (i < n_old || j < n_now) {
@@ -34,7 +36,7 @@ static void diff(bpx_mpi_world *w, event_record *out, bool *overflow) {
         }
         int to = bpx_mpi_event_rank(p->a, p->b, w->size);
         if (out)
-            out[w->cursor[to]++] = (event_record){p->a, p->b, began, 0};
+            out[w->cursor[to]++] = (bpx_mpi_event_record){p->a, p->b, began, 0};
         else if (w->send_counts[to] < INT_MAX)
             w->send_counts[to]++;
         else
@@ -42,7 +44,11 @@ static void diff(bpx_mpi_world *w, event_record *out, bool *overflow) {
     }
 }
 
-bpx_status bpx_mpi__events(bpx_mpi_world *w) {
+bpx_status bpx_mpi__events(bpx_mpi_world *w)
+{
+    // What the cycle's exchange of boxes sent each rank, kept in cursor until the packing below:
+    // a rank that got nothing there and gets events here is one more message.
+    memcpy(w->cursor, w->send_counts, sizeof(int) * (size_t)w->size);
     memset(w->send_counts, 0, sizeof(int) * (size_t)w->size);
     bool overflow = false;
     diff(w, NULL, &overflow);
@@ -53,19 +59,20 @@ bpx_status bpx_mpi__events(bpx_mpi_world *w) {
         w->recv_displs[r] = (int)recv_total;
         send_total += (size_t)w->send_counts[r];
         recv_total += (size_t)w->recv_counts[r];
+        w->stats.messages_sent += r != w->rank && w->send_counts[r] > 0 && w->cursor[r] == 0;
     }
     if (overflow || send_total > INT_MAX || recv_total > INT_MAX)
         bpx_mpi__fail(w, BPX_ERR_TOO_MANY_PAIRS, 0, SIZE_MAX, -1,
                       "%zu events to send, %zu to receive: past MPI's int counts", send_total,
                       recv_total);
     else if (bpx_mpi__grow((void **)&w->ev_send, &w->ev_send_cap, send_total,
-                           sizeof(event_record)) ||
+                           sizeof(bpx_mpi_event_record)) ||
              bpx_mpi__grow((void **)&w->ev_recv, &w->ev_recv_cap, recv_total,
-                           sizeof(event_record)) ||
+                           sizeof(bpx_mpi_event_record)) ||
              bpx_mpi__grow((void **)&w->began, &w->began_cap, recv_total, sizeof(bpx_mpi_pair)) ||
              bpx_mpi__grow((void **)&w->ended, &w->ended_cap, recv_total, sizeof(bpx_mpi_pair)))
-        bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1,
-                      "no memory for %zu + %zu events", send_total, recv_total);
+        bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1, "no memory for %zu + %zu events",
+                      send_total, recv_total);
     bpx_status status = bpx_mpi__agree(w);
     if (status != BPX_OK)
         return status;
@@ -73,16 +80,19 @@ bpx_status bpx_mpi__events(bpx_mpi_world *w) {
     diff(w, w->ev_send, &overflow);
     MPI_Alltoallv(w->ev_send, w->send_counts, w->send_displs, w->event_type, w->ev_recv,
                   w->recv_counts, w->recv_displs, w->event_type, w->comm);
-    w->stats.bytes_sent += send_total * sizeof(event_record);
-    w->stats.bytes_received += recv_total * sizeof(event_record);
+    // The events of pairs whose event rank is this one travel to itself: not bytes sent.
+    size_t self_sent = (size_t)w->send_counts[w->rank],
+           self_received = (size_t)w->recv_counts[w->rank];
+    w->stats.bytes_sent += (send_total - self_sent) * sizeof(bpx_mpi_event_record);
+    w->stats.bytes_received += (recv_total - self_received) * sizeof(bpx_mpi_event_record);
 
     // Each rank's list holds a pair at most once, so a pair arrives at most twice: as ended by
     // the rank that reported it last cycle and as began by the one that reports it now.
     if (recv_total > 1)
-        qsort(w->ev_recv, recv_total, sizeof(event_record), compare_records);
+        qsort(w->ev_recv, recv_total, sizeof(bpx_mpi_event_record), compare_records);
     w->began_count = w->ended_count = 0;
     for (size_t k = 0; k < recv_total; k++) {
-        const event_record *e = &w->ev_recv[k];
+        const bpx_mpi_event_record *e = &w->ev_recv[k];
         if (k + 1 < recv_total && e[1].a == e->a && e[1].b == e->b) {
             k++; // moved between regions: still overlapping
             continue;

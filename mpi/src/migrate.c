@@ -1,16 +1,16 @@
 // Moving objects to their home ranks with the caller's data: what a particle code does after
 // each step, so that bpx's own exchange stays down to the copies near borders.
 #include <limits.h>
-#include <stdlib.h>
 #include <string.h>
 
-#include "world.h"
+#include "mpi_world.h"
 
 #define MIGRATE_MAX_PAYLOAD (1u << 20)
 
 static bpx_status check(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
                         const void *payload, size_t payload_size, size_t capacity,
-                        const size_t *count) {
+                        const size_t *count)
+{
     if (!count) {
         bpx_mpi__fail(w, BPX_ERR_NULL_ARGUMENT, 0, SIZE_MAX, -1, "count is NULL");
     } else if (*count > capacity) {
@@ -18,10 +18,13 @@ static bpx_status check(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *bo
                       "count %zu is over capacity %zu", *count, capacity);
     } else if (capacity > 0 && (!ids || !boxes || (payload_size > 0 && !payload))) {
         bpx_mpi__fail(w, BPX_ERR_NULL_ARGUMENT, 0, SIZE_MAX, -1, "%s is NULL with capacity %zu",
-                      !ids ? "ids" : !boxes ? "boxes" : "payload", capacity);
+                      !ids     ? "ids"
+                      : !boxes ? "boxes"
+                               : "payload",
+                      capacity);
     } else if (payload_size > MIGRATE_MAX_PAYLOAD) {
-        bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, 0, SIZE_MAX, -1,
-                      "payload_size %zu is over 1 MB", payload_size);
+        bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, 0, SIZE_MAX, -1, "payload_size %zu is over 1 MB",
+                      payload_size);
     } else if (!w->have_tree) {
         bpx_mpi__fail(w, BPX_ERR_BAD_STATE, 0, SIZE_MAX, -1,
                       "no regions yet: migrate after the first successful collide");
@@ -42,9 +45,9 @@ static bpx_status check(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *bo
 
 bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes, void *payload,
                                  size_t payload_size, size_t capacity, size_t *count,
-                                 size_t *needed) {
-    memset(&w->error, 0, sizeof w->error);
-    w->error.rank = -1;
+                                 size_t *needed)
+{
+    bpx_mpi__clear_error(w);
     bpx_status status = check(w, ids, boxes, payload, payload_size, capacity, count);
     if ((status = bpx_mpi__agree(w)) != BPX_OK)
         return status;
@@ -60,8 +63,9 @@ bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes
     size_t leaving = 0;
     for (size_t i = 0; i < n; i++) {
         float c[3];
-        rcb_centre(&boxes[i], c);
-        int home = rcb_holds(&w->tree, w->rank, c) ? w->rank : rcb_locate(&w->tree, c);
+        bpx_mpi__rcb_centre(&boxes[i], c);
+        int home =
+            bpx_mpi__rcb_holds(&w->tree, w->rank, c) ? w->rank : bpx_mpi__rcb_locate(&w->tree, c);
         w->home[i] = home;
         if (home != w->rank) {
             w->send_counts[home]++;

@@ -24,14 +24,16 @@ typedef enum ownership {
 static const char *ownership_names[] = {"round_robin", "random", "rank0", "home", "not_last"};
 
 // Distinct 64-bit ids in scrambled order (splitmix64's finaliser is a bijection).
-static uint64_t object_id(size_t k) {
+static uint64_t object_id(size_t k)
+{
     uint64_t x = (uint64_t)k + 0x9e3779b97f4a7c15u;
     x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9u;
     x = (x ^ (x >> 27)) * 0x94d049bb133111ebu;
     return x ^ (x >> 31);
 }
 
-static int compare_pairs(const void *p, const void *q) {
+static int compare_pairs(const void *p, const void *q)
+{
     const bpx_mpi_pair *x = p, *y = q;
     if (x->a != y->a)
         return x->a < y->a ? -1 : 1;
@@ -39,7 +41,8 @@ static int compare_pairs(const void *p, const void *q) {
 }
 
 // Local pairs (i, j) as global pairs, sorted.
-static bpx_mpi_pair *to_global(const bpx_pair *local, size_t count) {
+static bpx_mpi_pair *to_global(const bpx_pair *local, size_t count)
+{
     bpx_mpi_pair *out = check_alloc(count * sizeof *out);
     for (size_t k = 0; k < count; k++) {
         uint64_t a = object_id(local[k].i), b = object_id(local[k].j);
@@ -49,12 +52,14 @@ static bpx_mpi_pair *to_global(const bpx_pair *local, size_t count) {
     return out;
 }
 
-static bool same_pairs(const bpx_mpi_pair *x, size_t nx, const bpx_mpi_pair *y, size_t ny) {
+static bool same_pairs(const bpx_mpi_pair *x, size_t nx, const bpx_mpi_pair *y, size_t ny)
+{
     return nx == ny && (nx == 0 || memcmp(x, y, nx * sizeof *x) == 0);
 }
 
 // Every rank's list to root, sorted (for events, which the library does not gather).
-static bpx_mpi_pair *gather_list(const bpx_mpi_pair *mine, size_t count, size_t *total) {
+static bpx_mpi_pair *gather_list(const bpx_mpi_pair *mine, size_t count, size_t *total)
+{
     int n = (int)count, *counts = check_alloc(sizeof(int) * (size_t)ranks),
         *displs = check_alloc(sizeof(int) * (size_t)ranks);
     MPI_Allgather(&n, 1, MPI_INT, counts, 1, MPI_INT, MPI_COMM_WORLD);
@@ -81,7 +86,8 @@ typedef struct scene {
     bpx_world *reference;
 } scene;
 
-static void scene_reference(scene *s, bool events) {
+static void scene_reference(scene *s, bool events)
+{
     bpx_world_def def = bpx_default_world_def();
     def.track_events = events;
     def.backend = BPX_BACKEND_AUTO;
@@ -98,9 +104,13 @@ typedef struct run {
     bpx_mpi_pair *index; // (id, object) sorted by id, to find an object by its id
     size_t index_count;
     scene_rng rng;
+    // This object goes to rank moved_to whatever the ownership (SIZE_MAX: none).
+    size_t moved_object;
+    int moved_to;
 } run;
 
-static size_t object_of(const run *r, uint64_t id) {
+static size_t object_of(const run *r, uint64_t id)
+{
     size_t lo = 0, hi = r->index_count;
     while (lo < hi) {
         size_t mid = (lo + hi) / 2;
@@ -113,19 +123,32 @@ static size_t object_of(const run *r, uint64_t id) {
 }
 
 // This rank's share of the scene this cycle.
-static size_t take_share(run *r, const scene *s, ownership how) {
+static size_t take_share(run *r, const scene *s, ownership how)
+{
     size_t count = 0;
     if (how == OWN_HOME)
         CHECK_STATUS(bpx_mpi_world_home_ranks(r->world, s->boxes, s->n, r->home), BPX_OK);
     for (size_t k = 0; k < s->n; k++) {
         int owner = 0;
         switch (how) {
-        case OWN_ROUND_ROBIN: owner = (int)(k % (size_t)ranks); break;
-        case OWN_RANDOM: owner = (int)scene_rng_below(&r->rng, (uint32_t)ranks); break;
-        case OWN_RANK0: owner = 0; break;
-        case OWN_HOME: owner = r->home[k]; break;
-        default: owner = ranks == 1 ? 0 : (int)(k % (size_t)(ranks - 1)); break;
+        case OWN_ROUND_ROBIN:
+            owner = (int)(k % (size_t)ranks);
+            break;
+        case OWN_RANDOM:
+            owner = (int)scene_rng_below(&r->rng, (uint32_t)ranks);
+            break;
+        case OWN_RANK0:
+            owner = 0;
+            break;
+        case OWN_HOME:
+            owner = r->home[k];
+            break;
+        default:
+            owner = ranks == 1 ? 0 : (int)(k % (size_t)(ranks - 1));
+            break;
         }
+        if (k == r->moved_object)
+            owner = r->moved_to;
         r->owner[k] = owner;
         if (owner != rank)
             continue;
@@ -138,16 +161,29 @@ static size_t take_share(run *r, const scene *s, ownership how) {
     return count;
 }
 
+// After a successful call the error reads as none, as bpx_mpi_error documents: status OK, rank
+// -1, id 0, index SIZE_MAX, axis -1, no message.
+static void check_no_error(const bpx_mpi_error *e, const char *call)
+{
+    CHECK_MSG(e->status == BPX_OK && e->rank == -1 && e->id == 0 && e->index == SIZE_MAX &&
+                  e->axis == -1 && e->message[0] == '\0',
+              "after %s: status %s rank %d id %llu index %zu axis %d '%.100s'", call,
+              check_status_name(e->status), e->rank, (unsigned long long)e->id, e->index, e->axis,
+              e->message);
+}
+
 // One cycle on both sides, then every check of the result.
-static void cycle(run *r, scene *s, ownership how, int root) {
+static void cycle(run *r, scene *s, ownership how, int root)
+{
     size_t count = take_share(r, s, how);
     char context[sizeof check_context];
     memcpy(context, check_context, sizeof context);
     check_set_context("%.200s own=%s", context, ownership_names[how]);
-    bpx_status status = bpx_mpi_world_collide(r->world, r->ids, r->boxes,
-                                              s->filters ? r->filters : NULL, count);
+    bpx_status status =
+        bpx_mpi_world_collide(r->world, r->ids, r->boxes, s->filters ? r->filters : NULL, count);
     CHECK_MSG(status == BPX_OK, "%s: %s", check_status_name(status),
               bpx_mpi_world_error(r->world)->message);
+    check_no_error(bpx_mpi_world_error(r->world), "collide");
     bpx_world *ref = s->reference;
     CHECK_STATUS(bpx_world_set_boxes(ref, s->boxes, (uint32_t)s->n), BPX_OK);
     { // the reference gets the defaults when the scene has no filters (this cycle)
@@ -183,11 +219,22 @@ static void cycle(run *r, scene *s, ownership how, int root) {
     CHECK_EQ_U64(st.total_pair_count, want_count);
     CHECK_EQ_U64(st.pair_count, mine_count);
     CHECK_EQ_U64(st.own_count, count);
+    // Payload bytes count what reached other ranks only, not what a rank sends itself (events of
+    // pairs whose event rank is its own): the ranks' sums agree, a rank sent bytes exactly when
+    // it sent some other rank a message, and a lone rank sends nothing.
+    uint64_t io[2] = {st.bytes_sent, st.bytes_received}, io_sum[2];
+    MPI_Allreduce(io, io_sum, 2, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+    CHECK_EQ_U64(io_sum[0], io_sum[1]);
+    CHECK_MSG((st.messages_sent == 0) == (st.bytes_sent == 0), "%llu bytes in %llu messages",
+              (unsigned long long)st.bytes_sent, (unsigned long long)st.messages_sent);
+    if (ranks == 1)
+        CHECK(st.bytes_sent == 0 && st.bytes_received == 0 && st.messages_sent == 0);
 
     // The whole set on root.
     const bpx_mpi_pair *all = NULL;
     size_t all_count = 0;
     CHECK_STATUS(bpx_mpi_world_gather_pairs(r->world, root, &all, &all_count), BPX_OK);
+    check_no_error(bpx_mpi_world_error(r->world), "gather");
     if (rank == root)
         CHECK_MSG(same_pairs(all, all_count, want, want_count), "gathered %zu pairs, want %zu",
                   all_count, want_count);
@@ -218,11 +265,14 @@ static void cycle(run *r, scene *s, ownership how, int root) {
     memcpy(check_context, context, sizeof context);
 }
 
-static run run_open(const scene *s, bpx_mpi_world_def def, uint64_t seed) {
+static run run_open(const scene *s, bpx_mpi_world_def def, uint64_t seed)
+{
     run r;
     memset(&r, 0, sizeof r);
     bpx_mpi_error err;
     CHECK_STATUS(bpx_mpi_world_create(MPI_COMM_WORLD, &def, &r.world, &err), BPX_OK);
+    check_no_error(&err, "create");
+    check_no_error(bpx_mpi_world_error(r.world), "create");
     size_t cap = s->n + 64;
     r.ids = check_alloc(cap * sizeof *r.ids);
     r.boxes = check_alloc(cap * sizeof *r.boxes);
@@ -235,15 +285,18 @@ static run run_open(const scene *s, bpx_mpi_world_def def, uint64_t seed) {
         r.index[k] = (bpx_mpi_pair){object_id(k), k};
     qsort(r.index, cap, sizeof *r.index, compare_pairs);
     scene_rng_seed(&r.rng, seed);
+    r.moved_object = SIZE_MAX;
     return r;
 }
 
-static void run_close(run *r) {
+static void run_close(run *r)
+{
     bpx_mpi_world_destroy(r->world);
     free(r->ids), free(r->boxes), free(r->filters), free(r->home), free(r->owner), free(r->index);
 }
 
-static scene scene_make(size_t n, bool filters, bool events, uint64_t seed) {
+static scene scene_make(size_t n, bool filters, bool events, uint64_t seed)
+{
     scene s = {check_alloc((n + 64) * sizeof(bpx_box)), NULL, n, NULL};
     if (filters) {
         scene_rng rng;
@@ -257,14 +310,16 @@ static scene scene_make(size_t n, bool filters, bool events, uint64_t seed) {
     return s;
 }
 
-static void scene_free(scene *s) {
+static void scene_free(scene *s)
+{
     bpx_world_destroy(s->reference);
     free(s->boxes);
     free(s->filters);
 }
 
 // Every scene kind of the pair tests, each owned four ways in turn, with and without filters.
-static void test_scene_kinds(void) {
+static void test_scene_kinds(void)
+{
     for (int kind = 0; kind < SCENE_KIND_COUNT; kind++) {
         size_t n = kind == SCENE_ALL_OVERLAP || kind == SCENE_DENSE ? 90 : 400;
         for (int filtered = 0; filtered < 2; filtered++) {
@@ -284,7 +339,8 @@ static void test_scene_kinds(void) {
 }
 
 // Moving boxes over many cycles, workers 1 and 2 on each rank, events on.
-static void test_moving(int workers, bool heavy) {
+static void test_moving(int workers, bool heavy)
+{
     size_t n = 3000;
     check_set_context("moving heavy=%d workers=%d ranks=%d", heavy, workers, ranks);
     scene s = scene_make(n, false, true, 7);
@@ -312,7 +368,8 @@ static void test_moving(int workers, bool heavy) {
 }
 
 // All boxes crowd into one rank's region, with rebalancing off; then a rebalance.
-static void test_clustered(void) {
+static void test_clustered(void)
+{
     size_t n = 1500;
     check_set_context("clustered ranks=%d", ranks);
     scene s = scene_make(n, false, true, 11);
@@ -345,7 +402,8 @@ static void test_clustered(void) {
 }
 
 // A box over every region (up to +-FLT_MAX), and boxes lying exactly on the cuts.
-static void test_huge_and_borders(void) {
+static void test_huge_and_borders(void)
+{
     size_t n = 1200;
     check_set_context("huge and borders ranks=%d", ranks);
     scene s = scene_make(n + 40, true, true, 13);
@@ -378,8 +436,7 @@ static void test_huge_and_borders(void) {
             for (int k = 0; k < 3; k++)
                 if (k != a)
                     point.max[k] = point.min[k];
-            s.boxes[m++] = left, s.boxes[m++] = right, s.boxes[m++] = point,
-            s.boxes[m++] = flat;
+            s.boxes[m++] = left, s.boxes[m++] = right, s.boxes[m++] = point, s.boxes[m++] = flat;
         }
     }
     s.n = m;
@@ -390,7 +447,8 @@ static void test_huge_and_borders(void) {
 }
 
 // Empty ranks and an empty world.
-static void test_empty(void) {
+static void test_empty(void)
+{
     check_set_context("empty ranks=%d", ranks);
     scene s = scene_make(0, false, false, 17);
     run r = run_open(&s, bpx_mpi_default_world_def(), 17);
@@ -402,7 +460,8 @@ static void test_empty(void) {
 
 // The same message on every rank, naming the rank that failed.
 static void check_collective(bpx_mpi_world *w, bpx_status got, bpx_status want, int culprit,
-                             uint64_t id) {
+                             uint64_t id)
+{
     CHECK_MSG(got == want, "got %s, want %s", check_status_name(got), check_status_name(want));
     const bpx_mpi_error *e = bpx_mpi_world_error(w);
     char root_message[sizeof e->message];
@@ -418,7 +477,8 @@ static void check_collective(bpx_mpi_world *w, bpx_status got, bpx_status want, 
         CHECK_MSG(strstr(e->message, what) != NULL, "'%.200s' lacks the id", e->message);
 }
 
-static void test_errors(void) {
+static void test_errors(void)
+{
     check_set_context("errors ranks=%d", ranks);
     size_t n = 200;
     scene s = scene_make(n, false, true, 19);
@@ -431,8 +491,8 @@ static void test_errors(void) {
     CHECK_STATUS(bpx_mpi_world_home_ranks(r.world, s.boxes, 1, r.home), BPX_ERR_BAD_STATE);
     const bpx_mpi_pair *g;
     size_t gc;
-    check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc), BPX_ERR_BAD_STATE,
-                     0, 0);
+    check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc), BPX_ERR_BAD_STATE, 0,
+                     0);
     cycle(&r, &s, OWN_ROUND_ROBIN, 0);
     size_t before;
     bpx_mpi_world_pairs(r.world, &before);
@@ -467,7 +527,10 @@ static void test_errors(void) {
         CHECK(bpx_mpi_world_pairs(r.world, &after) != NULL && after == before);
     }
 
-    // A duplicate id, found after the exchange: the cycle fails everywhere, pairs read as none.
+    // A duplicate id, given by rank 0 (round robin) and again by the last rank. Found after the
+    // exchange: the cycle fails everywhere, pairs read as none. On one rank it is an id twice in
+    // one input: an input error, the world as it was.
+    bool late = ranks > 1;
     count = take_share(&r, &s, OWN_ROUND_ROBIN);
     uint64_t twice = object_id(0); // on rank 0 (round robin); the last rank passes it again
     if (rank == last) {
@@ -481,12 +544,14 @@ static void test_errors(void) {
     char what[48];
     snprintf(what, sizeof what, "id %llu is given twice", (unsigned long long)twice);
     CHECK_MSG(strstr(e->message, what) != NULL, "'%s'", e->message);
-    size_t none;
-    CHECK(bpx_mpi_world_pairs(r.world, &none) == NULL && none == 0);
+    size_t left;
+    const bpx_mpi_pair *pairs_left = bpx_mpi_world_pairs(r.world, &left);
+    CHECK(late ? pairs_left == NULL && left == 0 : pairs_left != NULL && left == before);
     bpx_mpi_pair_events ev;
-    CHECK_STATUS(bpx_mpi_world_pair_events(r.world, &ev), BPX_ERR_BAD_STATE);
-    check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc), BPX_ERR_BAD_STATE,
-                     0, 0);
+    CHECK_STATUS(bpx_mpi_world_pair_events(r.world, &ev), late ? BPX_ERR_BAD_STATE : BPX_OK);
+    if (late)
+        check_collective(r.world, bpx_mpi_world_gather_pairs(r.world, 0, &g, &gc),
+                         BPX_ERR_BAD_STATE, 0, 0);
     // The next good cycle reports events against the last successful one (cycle checks it).
     scene_rng motion;
     scene_rng_seed(&motion, 5);
@@ -507,9 +572,148 @@ static void test_errors(void) {
     CHECK(w == NULL && err.rank == last && strstr(err.message, "rebalance_threshold"));
 }
 
+// A point in rank q's region, far from every box of the scenes (rank 0's region reaches -inf on
+// every axis, the last rank's +inf: they are the outermost leaves of the bisection).
+static bpx_box far_point(bpx_mpi_world *w, int q, float at)
+{
+    float lo[3], hi[3];
+    CHECK_STATUS(bpx_mpi_world_region(w, q, lo, hi), BPX_OK);
+    bpx_box b = {{at, at, at}, {at, at, at}};
+    for (int k = 0; k < 3; k++)
+        CHECK_MSG(lo[k] <= at && at < hi[k], "%g not in [%g, %g) of rank %d", at, lo[k], hi[k], q);
+    return b;
+}
+
+// A failure of the cycle on every rank alike: the status, the same message everywhere, the id and
+// the ranks that gave it.
+static void check_duplicate(bpx_mpi_world *w, bpx_status got, uint64_t id, int a, int b)
+{
+    CHECK_MSG(got == BPX_ERR_INVALID_ARGUMENT, "got %s", check_status_name(got));
+    const bpx_mpi_error *e = bpx_mpi_world_error(w);
+    char root_message[sizeof e->message];
+    memcpy(root_message, e->message, sizeof root_message);
+    MPI_Bcast(root_message, (int)sizeof root_message, MPI_CHAR, 0, MPI_COMM_WORLD);
+    CHECK_MSG(strcmp(root_message, e->message) == 0, "rank %d says '%.100s'", rank, e->message);
+    CHECK(e->status == BPX_ERR_INVALID_ARGUMENT && e->id == id && e->rank >= 0);
+    char what[96];
+    snprintf(what, sizeof what, "id %llu is given twice (by ranks %d and %d)",
+             (unsigned long long)id, a, b);
+    CHECK_MSG(strstr(e->message, what) != NULL, "'%.150s' lacks '%.90s'", e->message, what);
+    size_t none;
+    CHECK(bpx_mpi_world_pairs(w, &none) == NULL && none == 0);
+}
+
+// Ids given twice where the two copies never reach one rank: in regions far apart, by one rank or
+// by two, new ids or one a rank has given all along. Every rank fails alike; an id twice in one
+// rank's input is an input error (the world as it was), one given by two ranks fails the cycle;
+// neither leaves a trace in the next cycles, where an object may change ranks as before.
+static void test_duplicate_ids(void)
+{
+    check_set_context("duplicate ids ranks=%d", ranks);
+    size_t n = 400;
+    scene s = scene_make(n, false, true, 37);
+    scene_uniform_density((uint32_t)n, 1.0f, 37, s.boxes);
+    bpx_mpi_world_def def = bpx_mpi_default_world_def();
+    def.track_events = true;
+    def.rebalance_threshold = 1e9; // the regions stay where the first cycle put them
+    run r = run_open(&s, def, 37);
+    cycle(&r, &s, OWN_ROUND_ROBIN, 0);
+    int last = ranks - 1;
+    bpx_box in_first = far_point(r.world, 0, -1e6f), in_last = far_point(r.world, last, 1e6f);
+    s.boxes[0] = in_first; // object 0: at home on rank 0, alone in its region's far corner
+    cycle(&r, &s, OWN_HOME, 0);
+    uint64_t extra = object_id(n + 1), zero = object_id(0); // extra: no object of the scene
+    size_t before, after;
+    bpx_mpi_world_pairs(r.world, &before);
+
+    // 1. The last rank gives a new id twice, in the first region and in its own.
+    size_t count = take_share(&r, &s, OWN_HOME);
+    if (rank == last) {
+        r.ids[count] = extra, r.boxes[count++] = in_first;
+        r.ids[count] = extra, r.boxes[count++] = in_last;
+    }
+    uint64_t second = count - 1; // where the repeat is in the last rank's input
+    MPI_Bcast(&second, 1, MPI_UINT64_T, last, MPI_COMM_WORLD);
+    bpx_status got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+    check_collective(r.world, got, BPX_ERR_INVALID_ARGUMENT, last, extra);
+    CHECK_EQ_U64(bpx_mpi_world_error(r.world)->index, second);
+    CHECK(bpx_mpi_world_pairs(r.world, &after) != NULL && after == before);
+    bpx_mpi_pair_events ev;
+    CHECK_STATUS(bpx_mpi_world_pair_events(r.world, &ev), BPX_OK);
+    cycle(&r, &s, OWN_HOME, 0);
+
+    if (ranks > 1) {
+        // 2. Rank 0 and the last rank give one new id in the same cycle, each in its region.
+        count = take_share(&r, &s, OWN_HOME);
+        if (rank == 0)
+            r.ids[count] = extra, r.boxes[count++] = in_first;
+        if (rank == last)
+            r.ids[count] = extra, r.boxes[count++] = in_last;
+        got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+        check_duplicate(r.world, got, extra, 0, last);
+        CHECK_STATUS(bpx_mpi_world_pair_events(r.world, &ev), BPX_ERR_BAD_STATE);
+        // The failed cycle registered nobody's id: the last rank alone may give it now (far
+        // from every box, so the pairs stay the scene's), and drop it again.
+        count = take_share(&r, &s, OWN_HOME);
+        if (rank == last)
+            r.ids[count] = extra, r.boxes[count++] = in_last;
+        got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+        CHECK_MSG(got == BPX_OK, "%s: %s", check_status_name(got),
+                  bpx_mpi_world_error(r.world)->message);
+        cycle(&r, &s, OWN_HOME, 0);
+
+        // 3. The last rank gives, far off in its region, the id of object 0, which rank 0 has
+        //    given all along.
+        count = take_share(&r, &s, OWN_HOME);
+        CHECK(rank != 0 || (count > 0 && r.ids[0] == zero));
+        if (rank == last)
+            r.ids[count] = zero, r.boxes[count++] = in_last;
+        got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+        check_duplicate(r.world, got, zero, 0, last);
+
+        // 4. Object 0 moves to the last rank and back (rank 0 stops giving it as the last rank
+        //    starts): no duplicate.
+        r.moved_object = 0;
+        r.moved_to = last;
+        cycle(&r, &s, OWN_HOME, 0);
+        r.moved_object = SIZE_MAX;
+        cycle(&r, &s, OWN_HOME, 0);
+
+        // 5. After cycles where every object changes ranks at random, the last rank gives again
+        //    the id of an object some other rank gives in the same call, wholly in rank 0's
+        //    region (so the two copies never meet), while all the others move on.
+        for (int c = 0; c < 4; c++)
+            cycle(&r, &s, OWN_RANDOM, 0);
+        float lo[3], hi[3];
+        CHECK_STATUS(bpx_mpi_world_region(r.world, 0, lo, hi), BPX_OK);
+        int tried = 0;
+        for (size_t k = 1; k < n && tried < 3; k++) {
+            const bpx_box *b = &s.boxes[k];
+            bool inside = true;
+            for (int a = 0; a < 3; a++)
+                inside = inside && lo[a] <= b->min[a] && b->max[a] < hi[a];
+            if (!inside)
+                continue;
+            count = take_share(&r, &s, OWN_RANDOM); // the same draws on every rank
+            if (r.owner[k] == last)
+                continue;
+            if (rank == last)
+                r.ids[count] = object_id(k), r.boxes[count++] = in_last;
+            got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+            check_duplicate(r.world, got, object_id(k), r.owner[k], last);
+            tried++;
+        }
+        CHECK(tried == 3);
+        cycle(&r, &s, OWN_RANDOM, 0);
+    }
+    run_close(&r);
+    scene_free(&s);
+}
+
 // bpx_mpi_world_migrate: objects reach their home ranks with their payload, none lost or
 // doubled; CAPACITY moves nothing and names the room needed.
-static void test_migrate(void) {
+static void test_migrate(void)
+{
     size_t n = 2000;
     check_set_context("migrate ranks=%d", ranks);
     scene s = scene_make(n, false, false, 23);
@@ -536,21 +740,21 @@ static void test_migrate(void) {
         at_home += r.home[k] == rank;
     if (ranks > 1) { // the last rank has nothing and no room: nobody moves anything
         size_t room = rank == ranks - 1 ? 0 : n, asked = count, needed = 0;
-        bpx_status got = bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data,
-                                               room, &asked, &needed);
+        bpx_status got = bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, room,
+                                               &asked, &needed);
         check_collective(r.world, got, BPX_ERR_CAPACITY, ranks - 1, 0);
         CHECK(memcmp(ids_before, r.ids, count * sizeof *r.ids) == 0);
         CHECK_EQ_U64(asked, count);
         CHECK_EQ_U64(needed, at_home);
     }
     size_t over = n + 1; // more objects than room: refused everywhere
-    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &over,
-                                       NULL),
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &over, NULL),
                  BPX_ERR_INVALID_ARGUMENT);
     size_t moved = count, needed = 0;
-    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &moved,
-                                       &needed),
-                 BPX_OK);
+    CHECK_STATUS(
+        bpx_mpi_world_migrate(r.world, r.ids, r.boxes, data, sizeof *data, n, &moved, &needed),
+        BPX_OK);
+    check_no_error(bpx_mpi_world_error(r.world), "migrate after a refused one");
     CHECK_EQ_U64(moved, at_home);
     CHECK_EQ_U64(needed, at_home);
     // Each object is at home, its payload with it; together they are every object once.
@@ -595,8 +799,8 @@ static void test_migrate(void) {
         r.boxes[0].min[0] = kept_min;
     // No payload at all; everyone already home: nothing travels.
     again = moved;
-    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &again, NULL),
-                 BPX_OK);
+    CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &again, NULL), BPX_OK);
+    check_no_error(bpx_mpi_world_error(r.world), "migrate");
     CHECK(again == moved && bpx_mpi_world_stats(r.world).migrated_sent == 0);
     free(mine), free(all), free(want), free(data), free(ids_before);
     run_close(&r);
@@ -604,7 +808,8 @@ static void test_migrate(void) {
 }
 
 // Filters switched on and off between cycles (the rank's world must drop the old ones).
-static void test_filters_toggle(void) {
+static void test_filters_toggle(void)
+{
     size_t n = 600;
     check_set_context("filters toggled ranks=%d", ranks);
     scene s = scene_make(n, true, true, 29);
@@ -624,7 +829,8 @@ static void test_filters_toggle(void) {
 
 // The regions follow the boxes by themselves once the load drifts past the threshold, and a
 // bisection that cannot help (every centre in one point) is not repeated every cycle.
-static void test_auto_rebalance(void) {
+static void test_auto_rebalance(void)
+{
     size_t n = 1200;
     check_set_context("auto rebalance ranks=%d", ranks);
     scene s = scene_make(n, false, true, 31);
@@ -670,7 +876,8 @@ static void test_auto_rebalance(void) {
 }
 
 // A definition that changes the cycle's collectives must agree over ranks.
-static void test_mismatched_def(void) {
+static void test_mismatched_def(void)
+{
     if (ranks == 1)
         return;
     check_set_context("mismatched def ranks=%d", ranks);
@@ -685,11 +892,13 @@ static void test_mismatched_def(void) {
     CHECK_STATUS(bpx_mpi_world_create(MPI_COMM_WORLD, &def, &w, &err), BPX_ERR_INVALID_ARGUMENT);
 }
 
-int main(int argc, char **argv) {
+int main(int argc, char **argv)
+{
     MPI_Init(&argc, &argv);
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &ranks);
     test_errors();
+    test_duplicate_ids();
     test_empty();
     test_scene_kinds();
     test_moving(1, false);
