@@ -1,26 +1,18 @@
-// libbpx_mpi's memory (mpi_alloc.h says why it is not the core's bpx__alloc).
+// libbpx_mpi's memory: the core's allocator (mpi_alloc.h).
 #include "mpi_alloc.h"
 
 #include <stdint.h>
-#include <stdlib.h>
 
-#define BPX_MPI_ALIGN 64
+#include "core/alloc.h"
 
 void *bpx_mpi__alloc(size_t size)
 {
-    if (size == 0)
-        return NULL;
-    // aligned_alloc wants a multiple of the alignment.
-    size_t rounded = (size + BPX_MPI_ALIGN - 1) & ~(size_t)(BPX_MPI_ALIGN - 1);
-    if (rounded < size)
-        return NULL;
-    return aligned_alloc(BPX_MPI_ALIGN, rounded);
+    return bpx__alloc(size);
 }
 
 void bpx_mpi__free(void *memory, size_t size)
 {
-    (void)size; // for the core's bpx__free, which counts the bytes
-    free(memory);
+    bpx__free(memory, size);
 }
 
 int bpx_mpi__reserve(void **const arrays[], const size_t sizes[], int count, size_t *cap,

@@ -1,13 +1,6 @@
-// libbpx_mpi's memory, in the manner of the core's (src/core/alloc.h): 64-byte aligned, freed with
-// the size it was allocated with. Every allocation of libbpx_mpi goes through these.
-//
-// They are not the core's bpx__alloc/bpx__free, so bpx_set_allocator's hooks and
-// bpx_allocated_bytes do not see them: libbpx_mpi links libbpx.so, which is built with hidden
-// visibility and exports only BPX_API, so bpx__alloc is local to it (nm: 't'). The header is
-// reachable; the symbols are not. Linking the static core into libbpx_mpi instead would give it a
-// second copy of the allocator's state, and bpx_set_allocator would set one of the two. Once
-// libbpx exports its allocator to the project's own libraries, these forward to it unchanged
-// (same arguments, sizes included).
+// libbpx_mpi's memory: the core's (src/core/alloc.h, exported from libbpx for the project's own
+// libraries), so bpx_set_allocator's hooks and bpx_allocated_bytes see it: 64-byte aligned, freed
+// with the size it was allocated with. Every allocation of libbpx_mpi goes through these.
 #pragma once
 
 #include <stddef.h>
