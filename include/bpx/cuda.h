@@ -83,7 +83,8 @@ BPX_API bpx_status bpx_cuda_device_pairs(bpx_world *world, void **pairs, void **
 /// Waits for the last bpx_cuda_collide_device and tells how it went: OK with *count (may be
 /// NULL) pairs; CAPACITY with *count the pairs found (the buffer was too small; run the cycle
 /// again); NOT_FINITE or MIN_GREATER_THAN_MAX when a device box was invalid (the world's error
-/// names it); DEVICE when the device failed. OK at once when no device cycle is pending.
+/// names it); DEVICE when the device failed. OK at once when no device cycle is pending. Sets
+/// bpx_world_stats' pair_count (0 unless OK).
 BPX_API bpx_status bpx_cuda_finish(bpx_world *world, size_t *count);
 
 /// The world's CUDA stream (a cudaStream_t), for the caller's kernels that feed or read it.

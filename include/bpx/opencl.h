@@ -134,7 +134,8 @@ BPX_API bpx_status bpx_opencl_device_pairs(bpx_world *world, void **pairs, void 
 /// the next cycle: OK with *count (may be NULL) pairs; CAPACITY with *count the pairs found
 /// (the room was short; run the cycle again: it has room); TOO_MANY_PAIRS (2^32 pairs or more);
 /// DEVICE (the device failed). Also sets bpx_world_stats (pair_count, the transfer and device
-/// times, bytes in and out; pair_tests for brute force only).
+/// times, bytes in and out; pair_tests for brute force only): the stats show a device-resident
+/// cycle once this call has waited for it (a refused call leaves them as they were).
 /// Errors: NULL_ARGUMENT, BACKEND_UNAVAILABLE, BAD_STATE (no device-resident cycle, as above).
 BPX_API bpx_status bpx_opencl_finish(bpx_world *world, size_t *count);
 

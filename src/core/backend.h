@@ -96,6 +96,8 @@ typedef struct bpx_emitter {
 /// What a cycle did beyond its pairs, for bpx_cycle_stats; zero unless the backend says.
 typedef struct bpx_backend_report {
     bool rebuilt;   // state kept between cycles was rebuilt from scratch
+    bool resident;  // finish: a device-resident cycle's outcome (its pair count) is reported
+    bool timed;     // finish: and its tests, times and bytes below
     uint64_t tests; // a device-resident cycle's pair tests (a host cycle's are the blocks')
     uint64_t transfer_in_ns, transfer_out_ns, device_ns;
     uint64_t bytes_in, bytes_out;
@@ -150,10 +152,12 @@ typedef struct bpx_device_ops {
     bpx_status (*use_input)(void **state, bpx_cycle *cycle, void *input, uint32_t n, bool centres);
     /// Enqueues a whole cycle on `stream` (NULL: the backend's own) and returns.
     bpx_status (*collide)(void **state, bpx_cycle *cycle, void *stream);
-    /// The last device cycle's pairs, count and room (BAD_STATE when there is none).
+    /// The last device cycle's pairs, count and room (opencl: BAD_STATE when there is none;
+    /// cuda: NULL pointers then).
     bpx_status (*pairs)(void **state, bpx_cycle *cycle, void **pairs, void **count,
                         size_t *capacity);
-    /// Waits for the last device cycle: *found pairs, its report in cycle->report.
+    /// Waits for the last device cycle: *found pairs, its report in cycle->report (resident set
+    /// when there was a cycle to report).
     bpx_status (*finish)(void **state, bpx_cycle *cycle, uint64_t *found);
     /// The device's handles: context and device (opencl; NULL on cuda), the queue or stream.
     bpx_status (*handles)(void **state, bpx_cycle *cycle, void **context, void **queue,

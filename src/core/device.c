@@ -64,6 +64,8 @@ static bpx_status set_input(bpx_world *w, bpx_backend backend, const char *call,
             return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                               "no memory for %u boxes", n);
         }
+        // As bpx_world_set_boxes: the boxes no longer come from the loaded extents.
+        w->extents_loaded = false;
     }
     cycle = bpx__world_cycle(w);
     if ((status = ops->use_input(&w->backend_state, &cycle, input, n, centres)) != BPX_OK)
@@ -86,13 +88,13 @@ static bpx_status collide(bpx_world *w, bpx_backend backend, void *stream)
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
                           "collide_device: filters and events need the host's pairs "
                           "(bpx_world_collide applies them)");
+    bpx_cycle cycle = bpx__world_cycle(w);
+    if ((status = ops->collide(&w->backend_state, &cycle, stream)) != BPX_OK)
+        return status; // a refused cycle leaves the host's last result as it was
     // The world's host pairs are no longer the last cycle's.
     w->result_valid = false;
     w->merged = false;
     w->events_valid = false;
-    bpx_cycle cycle = bpx__world_cycle(w);
-    if ((status = ops->collide(&w->backend_state, &cycle, stream)) != BPX_OK)
-        return status;
     w->stats.cycle_count++;
     // Ids removed before this cycle were inert in it: they may be reused (no events to report).
     bpx__objects_after_collide(w, NULL, 0);
@@ -127,14 +129,19 @@ static bpx_status finish(bpx_world *w, bpx_backend backend, size_t *count)
     status = ops->finish(&w->backend_state, &cycle, &found);
     if (count)
         *count = (size_t)found;
+    // The stats show a device-resident cycle once finish has waited for it; a refused finish
+    // (no such cycle) leaves them as they were.
     const bpx_backend_report *r = &cycle.report;
-    w->stats.pair_count = status == BPX_OK ? found : 0;
-    w->stats.pair_tests = r->tests;
-    w->stats.transfer_in_ns = r->transfer_in_ns;
-    w->stats.transfer_out_ns = r->transfer_out_ns;
-    w->stats.device_ns = r->device_ns;
-    w->stats.bytes_in = r->bytes_in;
-    w->stats.bytes_out = r->bytes_out;
+    if (r->resident)
+        w->stats.pair_count = status == BPX_OK ? found : 0;
+    if (r->timed) {
+        w->stats.pair_tests = r->tests;
+        w->stats.transfer_in_ns = r->transfer_in_ns;
+        w->stats.transfer_out_ns = r->transfer_out_ns;
+        w->stats.device_ns = r->device_ns;
+        w->stats.bytes_in = r->bytes_in;
+        w->stats.bytes_out = r->bytes_out;
+    }
     return status;
 }
 

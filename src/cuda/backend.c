@@ -244,6 +244,7 @@ static bpx_status cuda_finish(void **state, bpx_cycle *cycle, uint64_t *found)
     if (s != BPX_OK)
         return s;
     s = bpx__cuda_finish(cu, found);
+    cycle->report.resident = true; // its count; the device-resident cycle's times are not kept
     if (s == BPX_ERR_NOT_FINITE)
         return report_bad_input(cycle, cu);
     if (s == BPX_ERR_CAPACITY)

@@ -432,6 +432,9 @@ static bpx_status hybrid_compare(void **state, bpx_cycle *c)
 {
     hybrid *h = *state;
     bpx_status s = BPX_OK;
+    if (!h && !device_impl(device_backend()))
+        return bpx__error(c->error, BPX_ERR_BACKEND_UNAVAILABLE, UINT32_MAX, -1,
+                          "hybrid: neither the cuda nor the opencl backend is usable here");
     if (!h && (s = make_state(c->def, &h)) != BPX_OK)
         return bpx__error(c->error, s, UINT32_MAX, -1, "hybrid: could not start: %s",
                           bpx_status_string(s));

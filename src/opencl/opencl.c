@@ -306,6 +306,8 @@ static bpx_status device_state(void **state, bpx_cycle *cycle, bpx_cl_state **st
 static bpx_status opencl_check_input(void **state, bpx_cycle *cycle, void *input, uint32_t n,
                                      bool centres)
 {
+    if (!input) // a cl_mem, even for no boxes
+        return bpx__error(cycle->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "buffer is NULL");
     bpx_cl_state *st = NULL;
     TRY(device_state(state, cycle, &st));
     bpx__cl_resident_settle(st); // the checks flush the queue's events

@@ -183,6 +183,7 @@ bpx_status bpx__cl_finish(void **state, bpx_cycle *cycle, uint64_t *found)
     TRY(resident_result(cycle, st, "finish"));
     bpx__cl_resident_settle(st);
     *found = st->resident_found;
+    cycle->report.resident = cycle->report.timed = true;
     cycle->report.tests = st->tests;
     cycle->report.transfer_in_ns = st->ns[EV_IN];
     cycle->report.transfer_out_ns = st->ns[EV_OUT];
