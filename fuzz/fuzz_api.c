@@ -1,13 +1,14 @@
 // Fuzzes the API: the input is a world's definition and a sequence of operations on it.
 // SPDX-License-Identifier: MIT
 //
-// A model of the world (boxes, live and removed ids, the ids waiting for reuse, filters, the
-// last cycle's pairs) runs beside it. Every call's status is predicted from the model and
-// checked; every collide is checked against Algorithm 1 (brute force over the model's live
-// boxes, filters applied), and with track_events its began and ended lists against the model's
-// last pairs; every error is checked to leave the world as it was (box count, last pairs, and
-// the next collide against the unchanged model). An operation can make one allocation of the
-// next call fail (bpx_set_allocator), so out-of-memory paths are walked too.
+// A model of the world (boxes, live and removed ids, the ids waiting for reuse, filters: the
+// oracle that test_soak.c uses too, test/oracle.h; and the last cycle's pairs) runs beside it.
+// Every call's status is predicted from the model and checked; every collide is checked against
+// Algorithm 1 (brute force over the model's live boxes, filters applied), and with track_events
+// its began and ended lists against the model's last pairs; every error is checked to leave the
+// world as it was (box count, last pairs, and the next collide against the unchanged model). An
+// operation can make one allocation of the next call fail (bpx_set_allocator), so out-of-memory
+// paths are walked too.
 //
 // Input: byte 0 the backend (every CPU one), byte 1 the options (workers, events, SIMD), then
 // operations, an opcode byte and its arguments each. Running out of bytes ends the sequence;
@@ -22,7 +23,7 @@
 #include <bpx/bpx.h>
 
 #include "fuzz_check.h"
-#include "world_oracle.h" // test/
+#include "oracle.h" // test/
 
 enum {
     MAX_N = 640,  // boxes in a world: past auto's brute limit (128), small enough to check
@@ -150,12 +151,7 @@ static void fuzz_free(void *memory, void *user)
 // The model
 
 typedef struct model {
-    uint32_t n;
-    bpx_box boxes[MAX_N];
-    bool dead[MAX_N];
-    uint32_t category[MAX_N], mask[MAX_N];
-    uint32_t pending[MAX_N], pending_count; // removed since the last collide
-    uint32_t freed[MAX_N], free_count;      // reusable; add_boxes takes from the end
+    oracle_model o; // the world's ids, boxes and filters (test/oracle.h)
     bool two_phase;
     float minima[MAX_N][3];
     // The last collide: its pairs when it succeeded, and what events should say.
@@ -168,80 +164,6 @@ typedef struct model {
     bool events_valid;
     bool track_events;
 } model;
-
-static void model_unfilter(model *m, uint32_t id)
-{
-    m->category[id] = 1;
-    m->mask[id] = UINT32_MAX;
-}
-
-// set_boxes and load_extents: ids 0 .. n-1 live; a filter stays on an id live below both counts.
-static void model_reset(model *m, uint32_t n)
-{
-    uint32_t kept = n < m->n ? n : m->n;
-    for (uint32_t id = 0; id < MAX_N; id++) {
-        if (id >= kept || m->dead[id])
-            model_unfilter(m, id);
-        m->dead[id] = false;
-    }
-    m->pending_count = m->free_count = 0;
-    m->n = n;
-}
-
-static bool box_valid(const bpx_box *b)
-{
-    for (int a = 0; a < 3; a++)
-        if (!(-FLT_MAX <= b->min[a] && b->min[a] <= b->max[a] && b->max[a] <= FLT_MAX))
-            return false;
-    return true;
-}
-
-// The status and axis the library names for an invalid box: a non-finite coordinate first.
-static bpx_status box_problem(const bpx_box *b, int *axis)
-{
-    for (int a = 0; a < 3; a++)
-        if (!isfinite(b->min[a]) || !isfinite(b->max[a]))
-            return *axis = a, BPX_ERR_NOT_FINITE;
-    for (int a = 0; a < 3; a++)
-        if (!(b->min[a] <= b->max[a]))
-            return *axis = a, BPX_ERR_MIN_GREATER_THAN_MAX;
-    return *axis = -1, BPX_OK;
-}
-
-// First invalid box of an array: its status, index and axis.
-static bpx_status boxes_problem(const bpx_box *boxes, uint32_t n, uint32_t *index, int *axis)
-{
-    for (uint32_t i = 0; i < n; i++)
-        if (!box_valid(&boxes[i])) {
-            *index = i;
-            return box_problem(&boxes[i], axis);
-        }
-    return BPX_OK;
-}
-
-// Algorithm 1 over the model's live boxes, with the filters; sorted by (i, j) as it is made.
-static size_t reference_pairs(const model *m, bpx_pair **out)
-{
-    size_t count = 0, capacity = 64;
-    bpx_pair *pairs = malloc(capacity * sizeof *pairs);
-    FUZZ_CHECK(pairs != NULL, "out of memory");
-    for (uint32_t i = 0; i < m->n; i++) {
-        if (m->dead[i])
-            continue;
-        for (uint32_t j = i + 1; j < m->n; j++) {
-            if (m->dead[j] || !oracle_pair(m->boxes, m->category, m->mask, i, j))
-                continue;
-            if (count == capacity) {
-                capacity *= 2;
-                pairs = realloc(pairs, capacity * sizeof *pairs);
-                FUZZ_CHECK(pairs != NULL, "out of memory");
-            }
-            pairs[count++] = (bpx_pair){i, j};
-        }
-    }
-    *out = pairs;
-    return count;
-}
 
 static void check_same_pairs(const char *what, const bpx_pair *got, size_t got_count,
                              const bpx_pair *want, size_t want_count)
@@ -280,7 +202,7 @@ typedef struct snapshot {
 static snapshot take_snapshot(run *r)
 {
     snapshot s = {.n = bpx_world_box_count(r->world)};
-    FUZZ_CHECK(s.n == r->m.n, "box count %u, the model's %u", s.n, r->m.n);
+    FUZZ_CHECK(s.n == r->m.o.n, "box count %u, the model's %u", s.n, r->m.o.n);
     size_t count = 0;
     const bpx_pair *pairs = bpx_world_pairs(r->world, &count);
     s.pairs_valid = pairs != NULL || count > 0;
@@ -339,13 +261,13 @@ static void op_set_boxes(run *r)
         boxes[i] = box(&r->in);
     uint32_t index = UINT32_MAX;
     int axis = -1;
-    bpx_status want = boxes_problem(boxes, n, &index, &axis);
+    bpx_status want = oracle_boxes_problem(boxes, n, &index, &axis);
     long before = atomic_load(&failures);
     bpx_status got = bpx_world_set_boxes(r->world, boxes, n);
     disarm();
     if (accept(r, "set_boxes", got, want, before)) {
-        model_reset(&r->m, n);
-        memcpy(r->m.boxes, boxes, n * sizeof *boxes);
+        oracle_reset(&r->m.o, n);
+        memcpy(r->m.o.boxes, boxes, n * sizeof *boxes);
         r->m.two_phase = false;
     } else if (got == want) {
         check_box_error(r, "set_boxes", index, axis);
@@ -375,13 +297,13 @@ static void op_load_extents(run *r)
     bpx_status got = bpx_world_load_extents(r->world, minima, n);
     disarm();
     if (accept(r, "load_extents", got, want, before)) {
-        model_reset(&r->m, n);
+        oracle_reset(&r->m.o, n);
         for (uint32_t i = 0; i < n; i++)
             for (int a = 0; a < 3; a++) {
                 float v = minima[3 * i + a];
                 r->m.minima[i][a] = v;
-                r->m.boxes[i].min[a] = v;
-                r->m.boxes[i].max[a] = -v;
+                r->m.o.boxes[i].min[a] = v;
+                r->m.o.boxes[i].max[a] = -v;
             }
         r->m.two_phase = true;
     } else if (got == want) {
@@ -392,7 +314,7 @@ static void op_load_extents(run *r)
 
 static void op_update_centres(run *r)
 {
-    uint32_t n = r->m.n;
+    uint32_t n = r->m.o.n;
     float *centres = malloc((n ? n : 1) * 3 * sizeof *centres);
     FUZZ_CHECK(centres != NULL, "out of memory");
     bpx_status want = r->m.two_phase ? BPX_OK : BPX_ERR_BAD_STATE;
@@ -415,8 +337,8 @@ static void op_update_centres(run *r)
     if (accept(r, "update_centres", got, want, before)) {
         for (uint32_t i = 0; i < n; i++)
             for (int a = 0; a < 3; a++) {
-                r->m.boxes[i].min[a] = centres[3 * i + a] + r->m.minima[i][a];
-                r->m.boxes[i].max[a] = centres[3 * i + a] - r->m.minima[i][a];
+                r->m.o.boxes[i].min[a] = centres[3 * i + a] + r->m.minima[i][a];
+                r->m.o.boxes[i].max[a] = centres[3 * i + a] - r->m.minima[i][a];
             }
     } else if (got == want && want == BPX_ERR_NOT_FINITE) {
         check_box_error(r, "update_centres", index, axis);
@@ -436,10 +358,8 @@ static void op_add_boxes(run *r)
     if (r->m.two_phase)
         want = BPX_ERR_BAD_STATE;
     else
-        want = boxes_problem(boxes, count, &index, &axis);
-    uint32_t reused = count < r->m.free_count ? count : r->m.free_count;
-    uint32_t new_n = r->m.n + (count - reused);
-    if (want == BPX_OK && new_n > MAX_N)
+        want = oracle_boxes_problem(boxes, count, &index, &axis);
+    if (want == BPX_OK && oracle_count_after_add(&r->m.o, count) > MAX_N)
         return; // past what the model holds: not tried
     uint32_t ids[MAX_BATCH + 1];
     memset(ids, 0xAB, sizeof ids);
@@ -447,33 +367,14 @@ static void op_add_boxes(run *r)
     bpx_status got = bpx_world_add_boxes(r->world, boxes, count, ids);
     disarm();
     if (accept(r, "add_boxes", got, want, before)) {
-        model *m = &r->m;
         for (uint32_t k = 0; k < count; k++) {
-            uint32_t want_id = k < reused ? m->freed[--m->free_count] : m->n + (k - reused);
+            uint32_t want_id = oracle_add(&r->m.o, &boxes[k]);
             FUZZ_CHECK(ids[k] == want_id, "add_boxes: id %u, expected %u", ids[k], want_id);
-            m->dead[want_id] = false;
-            model_unfilter(m, want_id);
-            m->boxes[want_id] = boxes[k];
         }
-        m->n = new_n;
         FUZZ_CHECK(ids[count] == 0xABABABABu, "add_boxes wrote past its count");
     } else if (got == want && want != BPX_ERR_BAD_STATE) {
         check_box_error(r, "add_boxes", index, axis);
     }
-}
-
-// Ids for remove / move: in use and once each, else INVALID_ARGUMENT naming the position.
-static bpx_status ids_problem(const model *m, const uint32_t *ids, uint32_t count,
-                              uint32_t *index)
-{
-    for (uint32_t k = 0; k < count; k++) {
-        if (ids[k] >= m->n || m->dead[ids[k]])
-            return *index = k, BPX_ERR_INVALID_ARGUMENT;
-        for (uint32_t e = 0; e < k; e++)
-            if (ids[e] == ids[k])
-                return *index = k, BPX_ERR_INVALID_ARGUMENT;
-    }
-    return BPX_OK;
 }
 
 static void op_remove_boxes(run *r)
@@ -481,17 +382,15 @@ static void op_remove_boxes(run *r)
     uint32_t count = byte(&r->in) % (MAX_BATCH + 1);
     uint32_t ids[MAX_BATCH];
     for (uint32_t k = 0; k < count; k++)
-        ids[k] = some_id(&r->in, r->m.n);
+        ids[k] = some_id(&r->in, r->m.o.n);
     uint32_t index = UINT32_MAX;
-    bpx_status want = ids_problem(&r->m, ids, count, &index);
+    bpx_status want = oracle_ids_problem(&r->m.o, ids, count, &index);
     long before = atomic_load(&failures);
     bpx_status got = bpx_world_remove_boxes(r->world, ids, count);
     disarm();
     if (accept(r, "remove_boxes", got, want, before)) {
-        for (uint32_t k = 0; k < count; k++) {
-            r->m.dead[ids[k]] = true;
-            r->m.pending[r->m.pending_count++] = ids[k];
-        }
+        for (uint32_t k = 0; k < count; k++)
+            oracle_remove(&r->m.o, ids[k]);
     } else if (got == want) {
         check_box_error(r, "remove_boxes", index, -1);
     }
@@ -503,20 +402,20 @@ static void op_move_boxes(run *r)
     uint32_t ids[MAX_BATCH];
     bpx_box boxes[MAX_BATCH];
     for (uint32_t k = 0; k < count; k++) {
-        ids[k] = some_id(&r->in, r->m.n);
+        ids[k] = some_id(&r->in, r->m.o.n);
         boxes[k] = box(&r->in);
     }
     uint32_t index = UINT32_MAX;
     int axis = -1;
-    bpx_status want = boxes_problem(boxes, count, &index, &axis);
+    bpx_status want = oracle_boxes_problem(boxes, count, &index, &axis);
     if (want == BPX_OK)
-        want = ids_problem(&r->m, ids, count, &index);
+        want = oracle_ids_problem(&r->m.o, ids, count, &index);
     long before = atomic_load(&failures);
     bpx_status got = bpx_world_move_boxes(r->world, ids, boxes, count);
     disarm();
     if (accept(r, "move_boxes", got, want, before)) {
         for (uint32_t k = 0; k < count; k++)
-            r->m.boxes[ids[k]] = boxes[k];
+            oracle_move(&r->m.o, ids[k], &boxes[k]);
     } else if (got == want) {
         check_box_error(r, "move_boxes", index, want == BPX_ERR_INVALID_ARGUMENT ? -1 : axis);
     }
@@ -529,7 +428,7 @@ static void op_set_filters(run *r)
     bool by_position = how & 0x80; // ids NULL: ids 0 .. count-1
     uint32_t ids[MAX_BATCH], categories[MAX_BATCH], masks[MAX_BATCH];
     for (uint32_t k = 0; k < count; k++) {
-        ids[k] = by_position ? k : some_id(&r->in, r->m.n);
+        ids[k] = by_position ? k : some_id(&r->in, r->m.o.n);
         uint8_t bits = byte(&r->in);
         categories[k] = bits & 0x0F ? (uint32_t)(bits & 0x0F) : 0;
         masks[k] = bits & 0x80 ? UINT32_MAX : (uint32_t)(bits >> 4);
@@ -537,7 +436,7 @@ static void op_set_filters(run *r)
     uint32_t index = UINT32_MAX;
     bpx_status want = BPX_OK;
     for (uint32_t k = 0; k < count && want == BPX_OK; k++)
-        if (ids[k] >= r->m.n || r->m.dead[ids[k]])
+        if (!oracle_is_live(&r->m.o, ids[k]))
             want = BPX_ERR_INVALID_ARGUMENT, index = k;
     long before = atomic_load(&failures);
     bpx_status got = bpx_world_set_filters(r->world, by_position ? NULL : ids, categories, masks,
@@ -545,7 +444,7 @@ static void op_set_filters(run *r)
     disarm();
     if (accept(r, "set_filters", got, want, before)) {
         for (uint32_t k = 0; k < count; k++)
-            r->m.category[ids[k]] = categories[k], r->m.mask[ids[k]] = masks[k];
+            oracle_set_filter(&r->m.o, ids[k], categories[k], masks[k]);
     } else if (got == want) {
         check_box_error(r, "set_filters", index, -1);
     }
@@ -579,13 +478,11 @@ static void model_collided(run *r, bpx_pair *want, size_t want_count)
     m->pairs = want;
     m->pair_count = want_count;
     m->result_valid = true;
-    for (uint32_t k = 0; k < m->pending_count; k++)
-        m->freed[m->free_count++] = m->pending[k];
-    m->pending_count = 0;
+    oracle_collided(&m->o);
     bpx_cycle_stats stats = bpx_world_stats(r->world);
-    FUZZ_CHECK(stats.pair_count == want_count && stats.box_count == m->n,
+    FUZZ_CHECK(stats.pair_count == want_count && stats.box_count == m->o.n,
                "stats: %llu pairs of %u boxes, expected %zu of %u",
-               (unsigned long long)stats.pair_count, stats.box_count, want_count, m->n);
+               (unsigned long long)stats.pair_count, stats.box_count, want_count, m->o.n);
     FUZZ_CHECK(bpx_world_backend(r->world) != BPX_BACKEND_AUTO, "backend auto after a cycle");
 }
 
@@ -608,7 +505,7 @@ static void model_collide_failed(run *r, bpx_pair *want)
 static void op_collide(run *r)
 {
     bpx_pair *want;
-    size_t want_count = reference_pairs(&r->m, &want);
+    size_t want_count = oracle_pairs_alloc(&r->m.o, &want);
     long before = atomic_load(&failures);
     bpx_status got = bpx_world_collide(r->world);
     disarm();
@@ -625,7 +522,7 @@ static void op_collide(run *r)
 static void op_collide_into(run *r)
 {
     bpx_pair *want;
-    size_t want_count = reference_pairs(&r->m, &want);
+    size_t want_count = oracle_pairs_alloc(&r->m.o, &want);
     uint8_t how = byte(&r->in);
     size_t capacity = how < 0x80 ? how % 8 : how < 0xC0 ? want_count : want_count + how % 5;
     if (how >= 0x80 && how < 0xC0 && capacity > 0 && (how & 1))
@@ -687,16 +584,14 @@ static void op_copy_pairs(run *r)
 // filters, so its pairs are checked only when no filter is set.
 static void op_find_pairs(run *r, bpx_backend backend)
 {
-    model *m = &r->m;
+    const oracle_model *m = &r->m.o;
     bpx_box *live = malloc((m->n ? m->n : 1) * sizeof *live);
     FUZZ_CHECK(live != NULL, "out of memory");
     uint32_t live_count = 0;
-    bool filtered = false;
-    for (uint32_t i = 0; i < m->n; i++) {
-        if (!m->dead[i])
+    for (uint32_t i = 0; i < m->n; i++)
+        if (m->live[i])
             live[live_count++] = m->boxes[i];
-        filtered |= m->category[i] != 1 || m->mask[i] != UINT32_MAX;
-    }
+    bool filtered = oracle_filtered(m);
     size_t capacity = byte(&r->in) % 4, count = 0;
     bpx_pair out[4];
     bpx_error err;
@@ -759,13 +654,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     def.spin_us = -1; // workers sleep at once: many short worlds on a shared machine
     bpx_simd simd = (bpx_simd)((options >> 2) % BPX_SIMD_COUNT);
     def.simd = bpx_simd_supported(simd) ? simd : BPX_SIMD_AUTO;
-    for (uint32_t id = 0; id < MAX_N; id++)
-        model_unfilter(&r.m, id);
     r.m.track_events = def.track_events;
     bpx_status created = bpx_world_create(&def, &r.world);
     if (created == BPX_ERR_BACKEND_UNAVAILABLE)
         return 0;
     FUZZ_CHECK(created == BPX_OK, "create: %s", bpx_status_string(created));
+    oracle_init(&r.m.o, MAX_N);
     long arm = NO_FAILURE;
     while (more(&r.in)) {
         uint8_t code = byte(&r.in);
@@ -802,5 +696,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     bpx_world_destroy(r.world);
     free(r.m.pairs);
     free(r.m.previous);
+    oracle_free(&r.m.o);
     return 0;
 }

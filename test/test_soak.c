@@ -8,9 +8,10 @@
 // box's size another (period 20,000 cycles, its own phase); boxes wander and bounce off the
 // walls of a cube sized for about one overlap per box. Each cycle moves every live box, adds or
 // removes a few (and swaps one out and in), and collides; every 100 cycles ten filters change.
-// Every cycle checks that the events add up (began - ended = this count - last count); every K
-// cycles the pairs are checked against brute force over the test's own model of the world
-// (live boxes, filters) and the events against the previous cycle's pairs.
+// Every cycle checks that the events add up (began - ended = this count - last count) and each
+// added box's id; every K cycles the pairs are checked against brute force over the model of
+// the world (live boxes, filters: the oracle that fuzz/fuzz_api.c uses too, oracle.h) and the
+// events against the previous cycle's pairs.
 //
 // Memory: the first 10% of the cycles (two population periods at the default) are warm-up. After
 // it, the resident set must stay within 2 MB of its warm-up peak, and the bytes the library
@@ -28,7 +29,7 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "world_oracle.h"
+#include "oracle.h"
 
 enum {
     MAX_IDS = 4096,
@@ -45,11 +46,9 @@ static const float WALL = 24.0f; // the cube [0, WALL]^3: about one overlap per 
 typedef struct soak {
     bpx_world *world;
     uint64_t rng;
-    // The model: per id.
-    bool live[MAX_IDS];
+    oracle_model model; // what the world holds: boxes, live ids, filters
+    // Each id's motion, and the live ids to pick from.
     float centre[MAX_IDS][3], velocity[MAX_IDS][3], base[MAX_IDS], phase[MAX_IDS];
-    bpx_box box[MAX_IDS];
-    uint32_t category[MAX_IDS], mask[MAX_IDS];
     uint32_t live_ids[MAX_IDS], live_count;
     // Scratch, allocated once.
     uint32_t *ids;
@@ -119,18 +118,12 @@ static void add_objects(soak *s, uint32_t count, uint64_t cycle)
     uint32_t ids[8];
     CHECK_STATUS(bpx_world_add_boxes(s->world, boxes, count, ids), BPX_OK);
     for (uint32_t k = 0; k < count; k++) {
-        uint32_t id = ids[k];
-        CHECK_MSG(id < MAX_IDS && !s->live[id], "add_boxes gave id %u", id);
-        if (id >= MAX_IDS)
-            continue;
-        s->live[id] = true;
+        uint32_t id = oracle_add(&s->model, &boxes[k]); // live, unfiltered
+        CHECK_MSG(ids[k] == id, "add_boxes gave id %u, the model %u", ids[k], id);
         memcpy(s->centre[id], centre[k], sizeof s->centre[id]);
         memcpy(s->velocity[id], velocity[k], sizeof s->velocity[id]);
         s->base[id] = base[k];
         s->phase[id] = phase[k];
-        s->box[id] = boxes[k];
-        s->category[id] = 1; // a reused id starts unfiltered
-        s->mask[id] = UINT32_MAX;
         s->live_ids[s->live_count++] = id;
     }
 }
@@ -144,7 +137,7 @@ static void remove_objects(soak *s, uint32_t count)
         uint32_t at = (uint32_t)(next(s) % s->live_count);
         ids[k] = s->live_ids[at];
         s->live_ids[at] = s->live_ids[--s->live_count];
-        s->live[ids[k]] = false;
+        oracle_remove(&s->model, ids[k]);
     }
     CHECK_STATUS(bpx_world_remove_boxes(s->world, ids, count), BPX_OK);
 }
@@ -162,9 +155,9 @@ static void move_all(soak *s, uint64_t cycle)
             }
             s->centre[id][a] = c;
         }
-        s->box[id] = box_of(s, id, cycle);
         s->ids[k] = id;
-        s->boxes[k] = s->box[id];
+        s->boxes[k] = box_of(s, id, cycle);
+        oracle_move(&s->model, id, &s->boxes[k]);
     }
     CHECK_STATUS(bpx_world_move_boxes(s->world, s->ids, s->boxes, s->live_count), BPX_OK);
 }
@@ -178,32 +171,9 @@ static void change_filters(soak *s)
         uint64_t r = next(s);
         categories[count] = 1u << (r % 3);
         masks[count] = (r >> 8) % 4 == 0 ? UINT32_MAX & ~(1u << ((r >> 16) % 3)) : UINT32_MAX;
-        s->category[id] = categories[count];
-        s->mask[id] = masks[count];
+        oracle_set_filter(&s->model, id, categories[count], masks[count]);
     }
     CHECK_STATUS(bpx_world_set_filters(s->world, ids, categories, masks, count), BPX_OK);
-}
-
-// Algorithm 1 over the model's live ids, filters applied, in (i, j) order.
-static size_t reference(const soak *s, uint32_t n)
-{
-    size_t count = 0;
-    for (uint32_t i = 0; i < n; i++) {
-        if (!s->live[i])
-            continue;
-        for (uint32_t j = i + 1; j < n; j++)
-            if (s->live[j] && oracle_pair(s->box, s->category, s->mask, i, j)) {
-                if (count < MAX_PAIRS)
-                    s->want[count] = (bpx_pair){i, j};
-                count++;
-            }
-    }
-    return count;
-}
-
-static bool same(const bpx_pair *a, size_t na, const bpx_pair *b, size_t nb)
-{
-    return na == nb && (na == 0 || memcmp(a, b, na * sizeof *a) == 0);
 }
 
 int main(int argc, char **argv)
@@ -220,6 +190,7 @@ int main(int argc, char **argv)
         k = 1;
     static soak s;
     s.rng = 0x50A4C0FFEEull;
+    oracle_init(&s.model, MAX_IDS);
     check_set_seed(s.rng);
     s.ids = malloc(MAX_IDS * sizeof *s.ids);
     s.boxes = malloc(MAX_IDS * sizeof *s.boxes);
@@ -265,6 +236,7 @@ int main(int argc, char **argv)
         if (c % FILTER_EVERY == 0)
             change_filters(&s);
         CHECK_STATUS(bpx_world_collide(s.world), BPX_OK);
+        oracle_collided(&s.model);
         size_t count = 0;
         const bpx_pair *pairs = bpx_world_pairs(s.world, &count);
         bpx_pair_events ev;
@@ -273,22 +245,24 @@ int main(int argc, char **argv)
                   "cycle %llu: %zu began, %zu ended, %zu -> %zu pairs", (unsigned long long)c,
                   ev.began_count, ev.ended_count, last_count, count);
         uint32_t n = bpx_world_box_count(s.world);
+        CHECK_MSG(n == s.model.n, "cycle %llu: %u boxes, the model %u", (unsigned long long)c, n,
+                  s.model.n);
         backend_cycles[bpx_world_backend(s.world)]++;
         max_n = n > max_n ? n : max_n;
         max_pairs = count > max_pairs ? count : max_pairs;
         if ((c + 1) % k == 0 || c + 1 == cycles) { // the full check
             checks++;
-            size_t want = reference(&s, n);
+            size_t want = oracle_pairs(&s.model, s.want, MAX_PAIRS);
             CHECK_MSG(want <= MAX_PAIRS, "%zu pairs: more than the test holds", want);
-            CHECK_MSG(same(pairs, count, s.want, want),
+            CHECK_MSG(oracle_same_pairs(pairs, count, s.want, want),
                       "cycle %llu: %zu pairs, the reference %zu", (unsigned long long)c, count,
                       want);
             if (s.have_previous) {
                 size_t began = oracle_difference(s.want, want, s.previous, s.previous_count, s.diff);
-                CHECK_MSG(same(ev.began, ev.began_count, s.diff, began),
+                CHECK_MSG(oracle_same_pairs(ev.began, ev.began_count, s.diff, began),
                           "cycle %llu: began differs", (unsigned long long)c);
                 size_t ended = oracle_difference(s.previous, s.previous_count, s.want, want, s.diff);
-                CHECK_MSG(same(ev.ended, ev.ended_count, s.diff, ended),
+                CHECK_MSG(oracle_same_pairs(ev.ended, ev.ended_count, s.diff, ended),
                           "cycle %llu: ended differs", (unsigned long long)c);
             }
             long rss = resident_kb();
@@ -348,5 +322,6 @@ int main(int argc, char **argv)
     free(s.want);
     free(s.previous);
     free(s.diff);
+    oracle_free(&s.model);
     return check_finish("test_soak", 1);
 }

@@ -26,9 +26,9 @@ set -u
 cd "$(dirname "$0")/../.." || exit 1
 self=$(pwd)/bench/gpu/run.sh
 build=build/gpu
-targets="bpx_cli bpx_gpubench bpx_clscale test_cuda test_cuda_twin test_differential
-         test_determinism test_hybrid test_errors test_out_of_memory test_opencl test_opencl_tree
-         test_opencl_resident test_opencl_faults"
+targets="bpx_cli bpx_gpubench bpx_clscale test_cuda test_cuda_device test_cuda_twin
+         test_differential test_determinism test_hybrid test_errors test_out_of_memory test_opencl
+         test_opencl_tree test_opencl_resident test_opencl_faults"
 
 # The phases' work, run under timeout through this script itself (`run.sh --do NAME ARGS`), in
 # the environment the main run exports (out, log).
@@ -52,18 +52,20 @@ suite() {
     tail -n +$((before + 1)) "$out/tests.log" | grep -E "Test +#|tests passed|tests failed" >>"$log"
     return "$rc"
 }
-# sanitize: compute-sanitizer's memcheck, racecheck and synccheck over test_cuda --quick (every
-# path on small sets), in turn, as long as the phase's time lasts.
+# sanitize: compute-sanitizer's memcheck, racecheck and synccheck over test_cuda --quick and
+# test_cuda_device --quick (every path on small sets), in turn, as long as the phase's time lasts.
 sanitize() {
     cs=$(command -v compute-sanitizer ||
         find /usr/local/cuda/bin /usr/local/cuda/compute-sanitizer /opt/nvidia -maxdepth 2 \
             -name compute-sanitizer -type f 2>/dev/null | head -1)
     [ -n "$cs" ] || { echo "no compute-sanitizer" >>"$log"; return 77; }
     for tool in memcheck racecheck synccheck; do
-        echo "== compute-sanitizer --tool $tool test_cuda --quick" >>"$out/tests.log"
-        "$cs" --tool "$tool" --error-exitcode 1 "$build/test/test_cuda" --quick \
-            >>"$out/tests.log" 2>&1
-        echo "compute-sanitizer $tool: exit $?" >>"$log"
+        for test in test_cuda test_cuda_device; do
+            echo "== compute-sanitizer --tool $tool $test --quick" >>"$out/tests.log"
+            "$cs" --tool "$tool" --error-exitcode 1 "$build/test/$test" --quick \
+                >>"$out/tests.log" 2>&1
+            echo "compute-sanitizer $tool $test: exit $?" >>"$log"
+        done
     done
 }
 if [ "${1:-}" = "--do" ]; then
@@ -146,7 +148,7 @@ fi
 } >>"$log" 2>&1
 
 # The cuda backend's own test first: it has never run before the first GPU run.
-phase cuda_test 120 "$self" --do suite 110 2 '^test_cuda(_twin)?$'
+phase cuda_test 120 "$self" --do suite 110 2 '^test_cuda(_device|_twin)?$'
 phase gpubench 150 sh -c "'$build/bench/gpu/bpx_gpubench' --sizes 500,2000,10000,100000,1000000,10000000 \
     --seconds 0.5 --csv '$out/gpubench.csv' >'$out/gpubench.md' 2>&1"
 phase table2 70 sh -c "'$build/bpx' bench --table2 --backend sap,cuda,opencl --cycles 2000 \

@@ -1,9 +1,10 @@
 // The tree comparator's per-item steps, for one box, one node or one walk: __host__ __device__,
-// so the kernels (kernels.cu) and the host twin in test/test_cuda_twin.cu run the same code; the
-// twin proves the algorithm on machines without a GPU. The Morton code and the node build are
-// src/kernels/lbvh_build.h's, which the opencl backend's program and its twin run too; the refit
-// and the walk here work on float bounds, the opencl backend's (src/opencl/kernels/lbvh.h) on
-// the boxes' integer keys, with the same rules (the walk from each leaf up).
+// so the kernels (kernels.cu), the fake device's (test/fake_cuda/kernels.cu) and the host twin
+// in test/test_cuda_twin.cu run the same code; the twin proves the algorithm on machines without
+// a GPU. The Morton code and the node build are src/kernels/lbvh_build.h's, the walk
+// src/kernels/lbvh_walk.h's, which the opencl backend's program and its twin run too; here the
+// refit and the walk work on float bounds, the opencl backend's (src/opencl/kernels/lbvh.h) on
+// the boxes' integer keys, with the same rules.
 // SPDX-License-Identifier: MIT
 #pragma once
 
@@ -114,6 +115,8 @@ BPX_HD void refit_leaf(uint32_t t, const float4 *leaf_lo, const float4 *leaf_hi,
     }
 }
 
+static_assert(BPX_CUDA_LEAF == BPX_LBVH_LEAF, "one child-code flag for the refit and the walk");
+
 /// A walk's hit: box `me` and the box at Morton position `at`, emitted as (i, j), i < j.
 #pragma nv_exec_check_disable
 template <class Emit>
@@ -123,81 +126,49 @@ BPX_HD void emit_hit(uint32_t me, uint32_t at, const float4 *leaf_lo, Emit &emit
     emit(me < other ? me : other, me < other ? other : me);
 }
 
-/// The walk of the box at Morton position t (t + 1 < n) over the positions after t only, from its
-/// leaf up (the opencl backend's walk, src/opencl/kernels/lbvh.h): at each ancestor whose left
-/// child holds t, the right child (positions after t only) is tested and, when it overlaps,
-/// walked down; the walk ends at the root. Every pair is emitted by exactly one walk, the one
-/// from its lower Morton position, at the two leaves' lowest common ancestor. Starting at the
-/// root instead tests both children of every node on t's own path, none of them finding a pair:
-/// from the leaf the tests per box grow by half a test per level rather than by 1.5.
-/// emit(i, j), i < j, for each overlapping pair.
-#pragma nv_exec_check_disable
-template <class Emit>
-BPX_HD void walk(uint32_t t, const bpx_cuda_node *nodes, const float4 *leaf_lo,
-                 const float4 *leaf_hi, const uint32_t *leaf_parent, const uint32_t *node_parent,
-                 Emit emit)
+/// A child slot as the walk reads it: node p's bounds of child `side`, its code in lo.w.
+struct slot {
+    float4 lo, hi;
+};
+
+BPX_HD slot read_slot(const bpx_cuda_node *nodes, uint32_t p, uint32_t side)
 {
-    enum { stack_depth = 64 }; // the tree's depth is at most 30 Morton bits + 32 index bits
-    float4 alo = leaf_lo[t], ahi = leaf_hi[t];
-    if (!live(alo.x, ahi.x))
-        return;
-    const uint32_t me = bits_of(alo.w);
-    uint32_t stack[stack_depth];
-    uint32_t up = leaf_parent[t];
-    for (;;) {
-        uint32_t p = up >> 1;
-        if ((up & 1u) == 0u) { // t is in p's left child: its right child comes after t
 #ifdef __CUDA_ARCH__
-            float4 rl = __ldg(&nodes[p].lo[1]), rh = __ldg(&nodes[p].hi[1]);
+    return slot{__ldg(&nodes[p].lo[side]), __ldg(&nodes[p].hi[side])};
 #else
-            float4 rl = nodes[p].lo[1], rh = nodes[p].hi[1];
+    return slot{nodes[p].lo[side], nodes[p].hi[side]};
 #endif
-            uint32_t child = bits_of(rl.w);
-            if (!overlap(alo, ahi, rl, rh)) {
-            } else if (child & BPX_CUDA_LEAF) {
-                emit_hit(me, child & ~BPX_CUDA_LEAF, leaf_lo, emit);
-            } else { // down the right child's subtree: every position in it comes after t
-                int top = 0;
-                uint32_t node = child;
-                for (;;) {
-                    const bpx_cuda_node *nd = nodes + node;
-#ifdef __CUDA_ARCH__
-                    float4 l0 = __ldg(&nd->lo[0]), h0 = __ldg(&nd->hi[0]);
-                    float4 l1 = __ldg(&nd->lo[1]), h1 = __ldg(&nd->hi[1]);
-#else
-                    float4 l0 = nd->lo[0], h0 = nd->hi[0], l1 = nd->lo[1], h1 = nd->hi[1];
-#endif
-                    uint32_t left = bits_of(l0.w), right = bits_of(l1.w);
-                    bool go_left = overlap(alo, ahi, l0, h0);
-                    bool go_right = overlap(alo, ahi, l1, h1);
-                    if (go_left && (left & BPX_CUDA_LEAF)) {
-                        emit_hit(me, left & ~BPX_CUDA_LEAF, leaf_lo, emit);
-                        go_left = false;
-                    }
-                    if (go_right && (right & BPX_CUDA_LEAF)) {
-                        emit_hit(me, right & ~BPX_CUDA_LEAF, leaf_lo, emit);
-                        go_right = false;
-                    }
-                    if (go_left && go_right) {
-                        stack[top++] = right;
-                        node = left;
-                    } else if (go_left) {
-                        node = left;
-                    } else if (go_right) {
-                        node = right;
-                    } else {
-                        if (top == 0)
-                            break;
-                        node = stack[--top];
-                    }
-                }
-            }
-        }
-        if (p == 0u)
-            break; // the root
-        up = node_parent[p];
-    }
 }
+
+struct walk_box {
+    float4 lo, hi;
+};
+
+/// The walk of the box at Morton position t (t + 1 < n) over the positions after t only, from its
+/// leaf up: src/kernels/lbvh_walk.h's, the opencl backend's walk, here on float bounds. Every
+/// pair is emitted by exactly one walk, the one from its lower Morton position, at the two
+/// leaves' lowest common ancestor. emit(i, j), i < j, for each overlapping pair. Returns the
+/// bounds tests made.
+/// template <class Emit> uint32_t walk(uint32_t t, nodes, leaf_lo, leaf_hi, leaf_parent,
+///                                     node_parent, Emit emit)
+// The host twin passes host-only functors: the check belongs to each instantiation's caller.
+#define BPX_WALK_PREFIX _Pragma("nv_exec_check_disable") template <class Emit> BPX_HD
+#define BPX_WALK_NAME walk
+#define BPX_WALK_PARAMS                                                                            \
+    const bpx_cuda_node *nodes, const float4 *leaf_lo, const float4 *leaf_hi,                      \
+        const uint32_t *leaf_parent, const uint32_t *node_parent, Emit emit
+#define BPX_WALK_BOX walk_box
+#define BPX_WALK_SLOT slot
+#define BPX_WALK_LOAD(box, t) ((box) = walk_box{leaf_lo[(t)], leaf_hi[(t)]})
+#define BPX_WALK_LIVE(box) live((box).lo.x, (box).hi.x)
+#define BPX_WALK_ID(box, t) bits_of((box).lo.w)
+#define BPX_WALK_READ(p, side) read_slot(nodes, (p), (side))
+#define BPX_WALK_OVERLAP(box, s) overlap((box).lo, (box).hi, (s).lo, (s).hi)
+#define BPX_WALK_CODE(s) bits_of((s).lo.w)
+#define BPX_WALK_BEGIN
+#define BPX_WALK_HIT(me, at) emit_hit((me), (at), leaf_lo, emit)
+#define BPX_WALK_END
+#include "../kernels/lbvh_walk.h"
 
 /// Bits of a pair key's j: the fewest (at least 1) that hold every id below n.
 BPX_HD int key_bits(uint32_t n)

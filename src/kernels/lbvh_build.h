@@ -49,6 +49,14 @@ BPX_FN float bpx_lb_float_(bpx_u32 u)
 #define BPX_LB_FLOAT(u) bpx_lb_float_(u)
 #endif
 
+/// A child code's flag (a node's children, in the refits and the walk, lbvh_walk.h): the child
+/// is a leaf (a Morton position), else an internal node.
+#define BPX_LBVH_LEAF 0x80000000u
+/// Depth bound of a walk's stack: the tree splits on at most 32 code bits (30 Morton bits and
+/// the inert code's), then on at most 32 position bits among equal codes, and a walk holds at
+/// most one pending node per level.
+#define BPX_LBVH_STACK 64
+
 /// The float of an order key (twin.h's bpx_key, inverted; -0.0 comes back as +0.0).
 BPX_FN float bpx_lbvh_key_value(bpx_u32 key)
 {

@@ -18,6 +18,7 @@ if(BPX_OPENCL)
         ${BPX_OPENCL_DIR}/kernels/twin.h
         ${BPX_OPENCL_DIR}/../kernels/lbvh_build.h
         ${BPX_OPENCL_DIR}/kernels/lbvh.h
+        ${BPX_OPENCL_DIR}/../kernels/lbvh_walk.h
         ${BPX_OPENCL_DIR}/kernels/update.cl
         ${BPX_OPENCL_DIR}/kernels/brute.cl
         ${BPX_OPENCL_DIR}/kernels/scan.cl

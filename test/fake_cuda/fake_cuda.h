@@ -1,4 +1,5 @@
-// The fake device's own calls (runtime.c), for its kernels (kernels.cu) and its tests.
+// The fake device's own calls (memory.c, stream_order.c), for its kernels (kernels.cu) and its
+// tests.
 // SPDX-License-Identifier: MIT
 #pragma once
 
@@ -12,7 +13,7 @@ extern "C" {
 
 /// A fake kernel's access on `stream` to [p, p + bytes) (bytes 0: none): aborts, naming `what`,
 /// unless it lies inside one live device allocation, or when it races an access in flight on a
-/// stream it is not ordered with (runtime.c); then it stays in flight until the host
+/// stream it is not ordered with (stream_order.c); then it stays in flight until the host
 /// synchronises with the stream. Every fake kernel declares each array it reads or writes so.
 void bpx_fake_cuda_access(cudaStream_t stream, const void *p, size_t bytes, int write,
                           const char *what);

@@ -3,9 +3,9 @@
 // loops, and std::stable_sort where CUB's radix sort runs (both stable, by the same bits).
 // SPDX-License-Identifier: MIT
 //
-// With runtime.c in place of the CUDA runtime, the cuda backend's host code (cycle.cu,
-// backend.c) runs unchanged on machines without a GPU: its buffer sizes, copies, regrowth,
-// device-resident protocol and error paths are tested in CI. Strict, to find the host code's
+// With runtime.c (and its files) in place of the CUDA runtime, the cuda backend's host code
+// (cycle.cu, backend.c) runs unchanged on machines without a GPU: its buffer sizes, copies,
+// regrowth, device-resident protocol and error paths are tested in CI. Strict, to find the host code's
 // mistakes: each array a kernel touches must lie in one device allocation (else abort), the
 // scratch and flags the host must have cleared are checked, each sort leaves its result in the
 // other buffer than the last one did and a pattern in its other buffer (a caller that ignored
@@ -30,7 +30,8 @@
 
 namespace {
 
-// An access by a kernel on `stream`: in device memory, aligned, and in stream order (runtime.c).
+// An access by a kernel on `stream`: in device memory, aligned, and in stream order
+// (stream_order.c).
 template <class T>
 void need(cudaStream_t stream, const T *p, unsigned long long count, bool write, const char *what)
 {

@@ -3,11 +3,13 @@
 // SPDX-License-Identifier: MIT
 //
 // Valid OpenCL C 1.2 and C11; it comes after twin.h (keys, bpx_u32, BPX_G) and
-// src/kernels/lbvh_build.h (Morton codes and the node build, which the cuda backend shares).
-// Each step is one item's work: the centre of one box, the refit from one leaf, the walk of one
-// box. The device runs the items in parallel, the twin in loops, so the twin's pairs are the
-// device's pairs and a test proves the algorithm on the host. The cuda backend
-// (src/cuda/tree.cuh) refits and walks the same way on float bounds.
+// src/kernels/lbvh_build.h (Morton codes and the node build, which the cuda backend shares), and
+// before src/kernels/lbvh_walk.h (the walk, which the cuda backend shares too: this file says
+// how the walk reads the tree's keys and emits its hits). Each step is one item's work: the
+// centre of one box, the refit from one leaf, the walk of one box. The device runs the items in
+// parallel, the twin in loops, so the twin's pairs are the device's pairs and a test proves the
+// algorithm on the host. The cuda backend (src/cuda/tree.cuh) refits the same way on float
+// bounds.
 //
 // Exactness: every decision about a pair compares the caller's own coordinates as order keys
 // (twin.h), and a node's bounds are minima and maxima of those keys, so culling never rounds.
@@ -52,14 +54,8 @@ static inline bpx_u32 bpx_lbvh_post_inc_(bpx_u32 *p, bpx_u32 k)
 #define BPX_LBVH_SLOTS
 #endif
 
-/// A child code's flag: the child is a leaf (a Morton position), else an internal node.
-#define BPX_LBVH_LEAF 0x80000000u
 /// The Morton code of a box with no centre (inert: removed ids, min > max): after every other.
 #define BPX_LBVH_NO_CODE 0xFFFFFFFFu
-/// Depth bound of a walk's stack: the tree splits on at most 32 code bits (30 Morton bits and
-/// the inert code's), then on at most 32 position bits among equal codes, and a walk holds at
-/// most one pending node per level.
-#define BPX_LBVH_STACK 64
 /// Hits one walk keeps before reserving their places with one atomic.
 #define BPX_LBVH_BATCH 8
 
@@ -160,86 +156,43 @@ BPX_FN void bpx_lbvh_hit(bpx_u32 me, bpx_u32 other, bpx_u32 bits, bpx_u64 *batch
 }
 
 /// The walk of the box at Morton position t (t + 1 < n) over the positions after t only, from its
-/// leaf up: at each ancestor whose left child holds t, the right child (positions after t only)
-/// is tested and, when it overlaps, walked down; the walk ends at the root. Each pair is found
-/// once, by the walk from its lower position, at the two leaves' lowest common ancestor. Walking
-/// down from the root instead tests both children of every node on t's own path (about 1.5
-/// tests per level, none of them finding a pair), so starting at the leaf saves about one test
-/// per level: the tests per box grow by half a test per level of depth rather than by 1.5.
-/// leaf_parent and node_parent are the build's (lbvh_build.h: 2p + side), boxes in Morton order
-/// (lo / hi position t), ids[t] the box number at position t. Returns the bounds tests made.
-BPX_FN bpx_u32 bpx_lbvh_walk(bpx_u32 t, const BPX_G bpx_u32 *lo, const BPX_G bpx_u32 *hi,
-                             const BPX_G bpx_u32 *ids, const BPX_G bpx_u32 *leaf_parent,
-                             const BPX_G bpx_u32 *node_parent, const BPX_G bpx_u32 *nodes,
-                             bpx_u32 bits, BPX_G bpx_u64 *out, bpx_u64 capacity,
-                             BPX_G bpx_u32 *counter)
-{
-    bpx_u64 box = (bpx_u64)t * BPX_KEY_LANES;
-    bpx_u32 alo[3], ahi[3];
-    for (int a = 0; a < 3; a++) {
-        alo[a] = lo[box + (bpx_u32)a];
-        ahi[a] = hi[box + (bpx_u32)a];
+/// leaf up (src/kernels/lbvh_walk.h), on keys: leaf_parent and node_parent are the build's
+/// (lbvh_build.h: 2p + side), boxes in Morton order (lo / hi position t), ids[t] the box number
+/// at position t; hits leave through bpx_lbvh_hit's batches. Returns the bounds tests made.
+/// bpx_u32 bpx_lbvh_walk(bpx_u32 t, lo, hi, ids, leaf_parent, node_parent, nodes, bits, out,
+///                       capacity, counter)
+typedef struct {
+    bpx_u32 lo[3], hi[3];
+} bpx_lbvh_box;
+#define BPX_WALK_PREFIX BPX_FN
+#define BPX_WALK_NAME bpx_lbvh_walk
+#define BPX_WALK_PARAMS                                                                            \
+    const BPX_G bpx_u32 *lo, const BPX_G bpx_u32 *hi, const BPX_G bpx_u32 *ids,                    \
+        const BPX_G bpx_u32 *leaf_parent, const BPX_G bpx_u32 *node_parent,                        \
+        const BPX_G bpx_u32 *nodes, bpx_u32 bits, BPX_G bpx_u64 *out, bpx_u64 capacity,            \
+        BPX_G bpx_u32 *counter
+#define BPX_WALK_BOX bpx_lbvh_box
+#define BPX_WALK_SLOT const BPX_G bpx_u32 *
+#define BPX_WALK_LOAD(box, t)                                                                      \
+    for (int a = 0; a < 3; a++) {                                                                  \
+        (box).lo[a] = lo[(bpx_u64)(t) * BPX_KEY_LANES + (bpx_u32)a];                               \
+        (box).hi[a] = hi[(bpx_u64)(t) * BPX_KEY_LANES + (bpx_u32)a];                               \
     }
-    if (alo[0] > ahi[0])
-        return 0u; // inert: overlaps nothing
-    bpx_u32 me = ids[t];
-    bpx_u32 stack[BPX_LBVH_STACK];
-    bpx_u64 batch[BPX_LBVH_BATCH];
-    bpx_u32 batched = 0u, tests = 0u;
-    bpx_u32 up = leaf_parent[t];
-    for (;;) {
-        bpx_u32 p = up >> 1;
-        if ((up & 1u) == 0u) { // t is in p's left child: its right child comes after t
-            const BPX_G bpx_u32 *right = nodes + (bpx_u64)(up | 1u) * BPX_LBVH_SLOT;
-            tests++;
-            if (bpx_lbvh_overlap(alo, ahi, right)) {
-                bpx_u32 child = right[3];
-                if (child & BPX_LBVH_LEAF)
-                    bpx_lbvh_hit(me, ids[child & ~BPX_LBVH_LEAF], bits, batch, &batched, out,
-                                 capacity, counter);
-                else {
-                    // Down the right child's subtree: every position in it comes after t.
-                    int top = 0;
-                    bpx_u32 node = child;
-                    for (;;) {
-                        const BPX_G bpx_u32 *slots = nodes + (bpx_u64)node * (2 * BPX_LBVH_SLOT);
-                        bpx_u32 left = slots[3], right_code = slots[BPX_LBVH_SLOT + 3];
-                        int go_left = bpx_lbvh_overlap(alo, ahi, slots);
-                        int go_right = bpx_lbvh_overlap(alo, ahi, slots + BPX_LBVH_SLOT);
-                        tests += 2u;
-                        if (go_left && (left & BPX_LBVH_LEAF)) {
-                            bpx_lbvh_hit(me, ids[left & ~BPX_LBVH_LEAF], bits, batch, &batched,
-                                         out, capacity, counter);
-                            go_left = 0;
-                        }
-                        if (go_right && (right_code & BPX_LBVH_LEAF)) {
-                            bpx_lbvh_hit(me, ids[right_code & ~BPX_LBVH_LEAF], bits, batch,
-                                         &batched, out, capacity, counter);
-                            go_right = 0;
-                        }
-                        if (go_left && go_right) {
-                            stack[top++] = right_code;
-                            node = left;
-                        } else if (go_left) {
-                            node = left;
-                        } else if (go_right) {
-                            node = right_code;
-                        } else {
-                            if (top == 0)
-                                break;
-                            node = stack[--top];
-                        }
-                    }
-                }
-            }
-        }
-        if (p == 0u)
-            break; // the root
-        up = node_parent[p];
-    }
-    if (batched)
+#define BPX_WALK_LIVE(box) ((box).lo[0] <= (box).hi[0])
+#define BPX_WALK_ID(box, t) ids[(t)]
+#define BPX_WALK_READ(p, side) (nodes + ((bpx_u64)(p) * 2u + (side)) * BPX_LBVH_SLOT)
+#define BPX_WALK_OVERLAP(box, s) bpx_lbvh_overlap((box).lo, (box).hi, (s))
+#define BPX_WALK_CODE(s) (s)[3]
+#define BPX_WALK_BEGIN                                                                             \
+    bpx_u64 batch[BPX_LBVH_BATCH];                                                                 \
+    bpx_u32 batched = 0u;
+#define BPX_WALK_HIT(me, at)                                                                       \
+    bpx_lbvh_hit((me), ids[(at)], bits, batch, &batched, out, capacity, counter)
+#define BPX_WALK_END                                                                               \
+    if (batched)                                                                                   \
         bpx_lbvh_flush(batch, batched, out, capacity, counter);
-    return tests;
-}
+#ifndef __OPENCL_VERSION__
+#include "../../kernels/lbvh_walk.h" // the program has it just after this file
+#endif
 
 #endif

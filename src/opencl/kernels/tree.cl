@@ -10,7 +10,8 @@
 // bpx_tree_walk walks once per box, from its leaf up (the build's parents), over the later Morton
 // positions and appends each pair as a 64-bit key (min id << bits | max id) through one atomic
 // counter; the 64-bit radix sort puts the keys in (i, j) order and bpx_tree_unpack makes them
-// pairs. The per-item steps are lbvh.h's, which the host twin runs too. Keys are this program's
+// pairs. The per-item steps are lbvh.h's (the walk src/kernels/lbvh_walk.h's, which the cuda
+// backend shares), which the host twin runs too. Keys are this program's
 // box keys (twin.h), x, y, z, 0 per box.
 
 // The cycle's small words: the scene's centre bounds (six order keys: min x, y, z, max x, y, z)
