@@ -1,16 +1,22 @@
 // bpx RTL: the chip, mirroring src/hw/model.c (the machine and its controller).
 //
 // Units: interface (registers, SSRAM read pipeline, collision write port), updater,
-// comparator, emitter. A run (general boxes, all on chip): the host writes the boxes into the
-// board's SSRAM (min x, y, z in banks 0-2, max x, y, z in banks 3-5, box i at address i),
-// writes N, then CONTROL = 1. Phases, as the model's controller runs them, with no idle clock
-// between them:
-//   UPDATE  while the updater's pass is active;
+// comparator, emitter. A run, all boxes on chip: the host writes object i at SSRAM address i,
+// writes N, then CONTROL = 1 | mode << 1:
+//   mode 0, general boxes (bpx_model_run_boxes): min x, y, z in banks 0-2, max in banks 3-5;
+//   mode 1, initialisation (bpx_model_load_extents): the minima x, y, z in banks 0-2; the run
+//           is one INIT phase (the updater fills its minima RAM), then IDLE;
+//   mode 2, updating (bpx_model_run_centres): the centres x, y, z in banks 0-2.
+// Phases, as the model's controller runs them, with no idle clock between them:
+//   UPDATE  while the updater's pass is active (INIT in mode 1);
 //   COMPARE (n >= 2) from the clock after the pass's last write, while the comparator's
 //           pipeline holds work (stall clocks included);
 //   DRAIN   while the emitter's FIFOs or output register hold collisions;
 //   then IDLE: STATUS.done; COUNT collisions were written to the collision port.
-// n = 0 takes no clock; n > DEPTH sets STATUS.error and takes no clock.
+// n = 0 takes no clock; n > DEPTH sets STATUS.error and takes no clock. A centre +/- minimum
+// beyond FLT_MAX sets STATUS.overflow (the run goes on; the host's check rejects such input
+// before the model runs). Mode 2 after a mode-1 run with another n is the host's error, as in
+// the model (BAD_STATE there); the chip does not check it.
 module bpx_chip #(
     parameter integer M = 4,
     parameter integer DEPTH = 512,
@@ -55,7 +61,10 @@ module bpx_chip #(
 
     wire [31:0] n;
     wire start_reg;
-    reg  error;
+    wire [1:0] mode;
+    reg  error, overflow;
+    wire upd_overflow;
+    wire [AW-1:0] rd_addr_next;
     wire too_many = n > DEPTH;
     wire run = start_reg && phase == PH_IDLE;   // a start while running is ignored
     wire go = run && !too_many;
@@ -80,14 +89,16 @@ module bpx_chip #(
     bpx_interface #(.AW(AW), .IW(IW), .LAT(LAT)) ifc (
         .clk(clk), .clear(clear),
         .reg_we(reg_we), .reg_addr(reg_addr), .reg_wdata(reg_wdata), .reg_rdata(reg_rdata),
-        .n(n), .start(start_reg), .done(phase == PH_IDLE), .error(error),
+        .n(n), .start(start_reg), .mode(mode), .done(phase == PH_IDLE), .error(error),
+        .overflow(overflow), .rd_addr_next(rd_addr_next),
         .req(upd_req), .req_addr(upd_req_addr), .ssram_re(ssram_re), .ssram_addr(ssram_addr),
         .rd_valid(rd_valid), .rd_addr(rd_addr),
         .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .col_we(col_we), .col_addr(col_addr), .col_i(col_i), .col_j(col_j), .count(count));
 
-    bpx_updater #(.AW(AW), .LAT(LAT)) upd (
-        .clk(clk), .start(go), .n(n_a),
+    bpx_updater #(.DEPTH(DEPTH), .AW(AW), .LAT(LAT)) upd (
+        .clk(clk), .start(go), .mode_in(mode), .n(n_a), .rd_addr_next(rd_addr_next),
+        .overflow(upd_overflow),
         .req(upd_req), .req_addr(upd_req_addr),
         .rd_valid(rd_valid), .rd_addr(rd_addr), .rd_data(ssram_rdata),
         .we(upd_we), .waddr(upd_waddr), .wdata(upd_wdata),
@@ -112,9 +123,14 @@ module bpx_chip #(
     always @(posedge clk) begin
         if (run) begin
             error <= too_many;
-            phase <= (too_many || n == 0) ? PH_IDLE : PH_UPDATE;
+            overflow <= 1'b0;
+            phase <= (too_many || n == 0) ? PH_IDLE : mode == 2'd1 ? PH_INIT : PH_UPDATE;
         end else begin
+            overflow <= overflow | upd_overflow;
             case (phase)
+                PH_INIT:
+                    if (!upd_active_d)
+                        phase <= PH_IDLE;
                 PH_UPDATE:
                     if (!upd_active_d)
                         phase <= cmp_start ? PH_COMPARE : emi_busy_d ? PH_DRAIN : PH_IDLE;
@@ -130,6 +146,7 @@ module bpx_chip #(
     end
     initial phase = PH_IDLE;
     initial error = 1'b0;
+    initial overflow = 1'b0;
 
     assign t_hits_valid = h_valid;
     assign t_hits = h_mask;

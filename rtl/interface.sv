@@ -1,7 +1,9 @@
 // bpx RTL: the CPU-IC interface (paper §4.5, §4.5.1), mirroring src/hw/interface.h.
 //
-// - Registers, written and read by the host: N (boxes), CONTROL (write 1 to bit 0: start),
-//   STATUS (bit 0 done, bit 1 error: n beyond DEPTH), COUNT (collisions written).
+// - Registers, written and read by the host: N (boxes), CONTROL (bit 0: start; bits 2:1 the
+//   mode: 0 general boxes, 1 initialisation (minima), 2 updating (centres)), STATUS (bit 0
+//   done, bit 1 error: n beyond DEPTH, bit 2 overflow: a box coordinate rounded beyond
+//   FLT_MAX), COUNT (collisions written).
 // - The SSRAM read port the updater uses: the board's SSRAM returns data LAT clocks after the
 //   address; the interface keeps each read's valid bit and address in a LAT-stage pipeline so
 //   that they arrive with the data.
@@ -22,8 +24,10 @@ module bpx_interface #(
     output reg  [31:0]   reg_rdata,
     output reg  [31:0]   n,
     output wire          start,       // CONTROL bit 0 written with 1
+    output wire [1:0]    mode,        // CONTROL bits 2:1 (with start)
     input  wire          done,
     input  wire          error,
+    input  wire          overflow,
     // SSRAM read port: the updater's request and the data arriving this clock.
     input  wire          req,
     input  wire [AW-1:0] req_addr,
@@ -31,6 +35,7 @@ module bpx_interface #(
     output wire [AW-1:0] ssram_addr,
     output wire          rd_valid,
     output wire [AW-1:0] rd_addr,
+    output wire [AW-1:0] rd_addr_next, // the read whose data arrives next clock
     // Collision write port (to the board's collision SSRAM).
     input  wire          out_valid,
     input  wire [IW-1:0] out_i,
@@ -42,13 +47,14 @@ module bpx_interface #(
     output reg  [31:0]   count
 );
     assign start = reg_we && reg_addr == 2'd1 && reg_wdata[0];
+    assign mode = reg_wdata[2:1];
     always @(posedge clk)
         if (reg_we && reg_addr == 2'd0)
             n <= reg_wdata;
     always @* begin
         case (reg_addr)
             2'd0: reg_rdata = n;
-            2'd1: reg_rdata = {30'd0, error, done};
+            2'd1: reg_rdata = {29'd0, overflow, error, done};
             default: reg_rdata = count;
         endcase
     end
@@ -68,6 +74,13 @@ module bpx_interface #(
     end
     assign rd_valid = pv[LAT-1];
     assign rd_addr = pa[LAT-1];
+    generate
+        if (LAT == 1) begin : lat1
+            assign rd_addr_next = req_addr;
+        end else begin : latn
+            assign rd_addr_next = pa[LAT-2];
+        end
+    endgenerate
 
     assign col_we = out_valid;
     assign col_addr = count;

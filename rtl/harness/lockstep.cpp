@@ -128,20 +128,10 @@ struct Harness {
         return top->reg_rdata;
     }
 
-    // One scene; returns the number of mismatches (printing the first few).
-    int run(const std::string &name, const std::vector<bpx_box> &boxes)
-    {
-        const uint32_t n = (uint32_t)boxes.size();
-        int bad = 0;
-        auto fail = [&](const char *what, uint64_t clock, uint64_t rtl, uint64_t model) {
-            if (bad < 8)
-                std::fprintf(stderr, "  %s: clock %" PRIu64 ": %s: rtl %" PRIu64 " model %" PRIu64 "\n",
-                             name.c_str(), clock, what, rtl, model);
-            bad++;
-        };
+    std::vector<Clock> trace; // the model's clocks of its last call
 
-        // The model.
-        std::vector<Clock> trace;
+    bpx_model *new_model()
+    {
         bpx_model_config config = bpx_model_default_config();
         config.m = M;
         config.ram_depth = DEPTH;
@@ -154,31 +144,47 @@ struct Harness {
             std::fprintf(stderr, "bpx_model_create failed\n");
             std::exit(2);
         }
-        bpx_model_report report{};
-        bpx_status status = bpx_model_run_boxes(model, boxes.data(), n, &report);
+        return model;
+    }
 
-        // The chip: the host writes the boxes into the SSRAM, then N and CONTROL.
+    // One run of the chip next to the model's last call (its clocks in `trace`, its status and
+    // report given): the host writes words[b][i] to bank b, address i (b < banks), then N and
+    // CONTROL (start, mode). ref: the boxes whose reference pairs the chip must find (NULL: an
+    // initialisation run, no pairs). Returns the number of mismatches (printing the first few).
+    int run(const std::string &name, uint32_t n, int mode, int banks,
+            const std::vector<float> *words, bpx_status status, const bpx_model_report &report,
+            bpx_model *model, const std::vector<bpx_box> *ref_boxes, bool expect_overflow)
+    {
+        int bad = 0;
+        auto fail = [&](const char *what, uint64_t clock, uint64_t rtl, uint64_t want) {
+            if (bad < 8)
+                std::fprintf(stderr, "  %s: clock %" PRIu64 ": %s: rtl %" PRIu64 " model %" PRIu64 "\n",
+                             name.c_str(), clock, what, rtl, want);
+            bad++;
+        };
+        // The host writes the SSRAM, then N and CONTROL.
         for (uint32_t i = 0; i < n && i < DEPTH; i++)
-            for (int b = 0; b < 6; b++) {
+            for (int b = 0; b < banks; b++) {
                 top->host_we = 1;
                 top->host_bank = b;
                 top->host_addr = i;
-                top->host_data = fbits(b < 3 ? boxes[i].min[b] : boxes[i].max[b - 3]);
+                top->host_data = fbits(words[b][i]);
                 tick();
             }
         top->host_we = 0;
         reg_write(0, n);
-        reg_write(1, 1);
+        reg_write(1, 1u | (uint32_t)mode << 1);
 
         std::vector<bpx_pair> written; // the collision SSRAM, as the chip wrote it
         uint64_t clock = 0, emitted_before = 0;
+        const bool lockstep = status == BPX_OK || status == BPX_ERR_TOO_MANY_BOXES;
         const uint64_t limit = (uint64_t)trace.size() + 100000;
         while (top->phase != 7 && clock < limit) {
             // Before the edge: phase, addresses, registered hits, stall.
-            const Clock *m = clock < trace.size() ? &trace[clock] : nullptr;
-            if (!m) {
+            const Clock *m = lockstep && clock < trace.size() ? &trace[clock] : nullptr;
+            if (lockstep && !m) {
                 fail("model stopped; rtl clock", clock, 1, 0);
-            } else {
+            } else if (m) {
                 if (top->phase != m->phase)
                     fail("phase", clock, top->phase, m->phase);
                 if ((bool)top->t_addressing != m->addressing)
@@ -224,14 +230,20 @@ struct Harness {
             }
             clock++;
         }
-        if (clock != trace.size())
+        if (top->phase != 7)
+            fail("rtl never finished", clock, clock, 0);
+        if (lockstep && clock != trace.size())
             fail("clocks", clock, clock, trace.size());
 
-        const bool rtl_error = reg_read(1) & 2u;
-        const bool model_error = status == BPX_ERR_TOO_MANY_BOXES;
-        if (rtl_error != model_error || (status != BPX_OK && !model_error))
-            fail("error flag", clock, rtl_error, model_error);
-        if (status == BPX_OK) {
+        const uint32_t st = reg_read(1);
+        const bool rtl_error = st & 2u, rtl_overflow = st & 4u;
+        if (rtl_error != (status == BPX_ERR_TOO_MANY_BOXES))
+            fail("error flag", clock, rtl_error, status == BPX_ERR_TOO_MANY_BOXES);
+        if (rtl_overflow != expect_overflow)
+            fail("overflow flag", clock, rtl_overflow, expect_overflow);
+        if (!expect_overflow && status != BPX_OK && status != BPX_ERR_TOO_MANY_BOXES)
+            fail("model status", clock, 0, (uint64_t)status);
+        if (status == BPX_OK && ref_boxes) {
             const uint32_t count = reg_read(2);
             if (count != report.collisions)
                 fail("COUNT register", clock, count, report.collisions);
@@ -252,9 +264,9 @@ struct Harness {
                 return a.i != b.i ? a.i < b.i : a.j < b.j;
             });
             size_t ref_count = 0;
-            bpx_find_pairs(boxes.data(), n, BPX_BACKEND_REFERENCE, nullptr, 0, &ref_count, nullptr);
+            bpx_find_pairs(ref_boxes->data(), n, BPX_BACKEND_REFERENCE, nullptr, 0, &ref_count, nullptr);
             std::vector<bpx_pair> ref(ref_count + 1);
-            if (bpx_find_pairs(boxes.data(), n, BPX_BACKEND_REFERENCE, ref.data(), ref.size(),
+            if (bpx_find_pairs(ref_boxes->data(), n, BPX_BACKEND_REFERENCE, ref.data(), ref.size(),
                                &ref_count, nullptr) != BPX_OK)
                 fail("reference failed", 0, 0, 0);
             ref.resize(ref_count);
@@ -273,6 +285,63 @@ struct Harness {
                     " mismatches=%d\n",
                     name.c_str(), n, clock, (uint64_t)report.collisions, report.stall_clocks, bad);
         total_clocks += clock;
+        return bad;
+    }
+
+    // General boxes (mode 0): bpx_model_run_boxes next to the chip.
+    int boxes(const std::string &name, const std::vector<bpx_box> &b)
+    {
+        const uint32_t n = (uint32_t)b.size();
+        std::vector<float> words[6];
+        for (int k = 0; k < 6; k++)
+            words[k].resize(n);
+        for (uint32_t i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) {
+                words[a][i] = b[i].min[a];
+                words[3 + a][i] = b[i].max[a];
+            }
+        bpx_model *model = new_model();
+        trace.clear();
+        bpx_model_report report{};
+        bpx_status status = bpx_model_run_boxes(model, b.data(), n, &report);
+        int bad = run(name, n, 0, 6, words, status, report, model, &b, false);
+        bpx_model_destroy(model);
+        return bad;
+    }
+
+    // The paper's two phases: minima once (mode 1, bpx_model_load_extents), then each cycle's
+    // centres (mode 2, bpx_model_run_centres). minima and each centres entry hold 3n floats.
+    int centres(const std::string &name, const std::vector<float> &minima,
+                const std::vector<std::vector<float>> &cycles, bool expect_overflow = false)
+    {
+        const uint32_t n = (uint32_t)(minima.size() / 3);
+        std::vector<float> words[3];
+        bpx_model *model = new_model();
+        trace.clear();
+        bpx_model_report report{};
+        bpx_status status = bpx_model_load_extents(model, minima.data(), n, &report);
+        for (int a = 0; a < 3; a++) {
+            words[a].resize(n);
+            for (uint32_t i = 0; i < n; i++)
+                words[a][i] = minima[3 * i + a];
+        }
+        int bad = run(name + " (init)", n, 1, 3, words, status, report, model, nullptr, false);
+        for (size_t c = 0; c < cycles.size(); c++) {
+            const std::vector<float> &cen = cycles[c];
+            std::vector<bpx_box> b(n);
+            for (uint32_t i = 0; i < n; i++)
+                for (int a = 0; a < 3; a++) {
+                    words[a][i] = cen[3 * i + a];
+                    volatile float cc = cen[3 * i + a], mm = minima[3 * i + a];
+                    b[i].min[a] = cc + mm;
+                    b[i].max[a] = cc - mm;
+                }
+            trace.clear();
+            report = bpx_model_report{};
+            status = bpx_model_run_centres(model, cen.data(), &report);
+            bad += run(name + " (cycle " + std::to_string(c) + ")", n, 2, 3, words, status, report,
+                       model, &b, expect_overflow);
+        }
         bpx_model_destroy(model);
         return bad;
     }
@@ -341,7 +410,7 @@ int main(int argc, char **argv)
     h.top->eval();
     int bad = 0, scenes = 0;
     auto scene = [&](const std::string &name, const std::vector<bpx_box> &b) {
-        bad += h.run(name, b);
+        bad += h.boxes(name, b);
         scenes++;
     };
     std::printf("lockstep: M=%d DEPTH=%u FDEPTH=%u LAT=%d seed=%u\n", M, DEPTH, FDEPTH, LAT, seed);
@@ -412,6 +481,47 @@ int main(int argc, char **argv)
         std::vector<bpx_box> over(DEPTH + 1, box(0, 0, 0, 1, 1, 1));
         scene("n = DEPTH + 1 (error)", over);
     }
+    // The paper's two phases (initialisation, then updating cycles) through the adder.
+    auto grid_minima = [&](uint32_t n) {
+        std::vector<float> m(3 * n);
+        for (auto &v : m)
+            v = -0.5f * (float)(rng() % 6);
+        return m;
+    };
+    auto real_centres = [&](uint32_t n, float span) {
+        std::uniform_real_distribution<float> u(-span, span);
+        std::vector<float> c(3 * n);
+        for (auto &v : c)
+            v = u(rng);
+        return c;
+    };
+    for (uint32_t n : {0u, 1u, 2u, DEPTH - 1, DEPTH}) {
+        bad += h.centres("centres n=" + std::to_string(n), grid_minima(n),
+                         {real_centres(n, 6), real_centres(n, 6)});
+        scenes++;
+    }
+    {
+        const float t = std::numeric_limits<float>::denorm_min();
+        std::vector<float> mins(3 * DEPTH), cen(3 * DEPTH), zc(3 * DEPTH), big(3 * DEPTH),
+            bigm(3 * DEPTH), over(3 * DEPTH);
+        for (uint32_t k = 0; k < 3 * DEPTH; k++) {
+            mins[k] = -(float)(rng() % 4) * t;                   // subnormal extents
+            cen[k] = (float)((int)(rng() % 17) - 8) * t;         // subnormal centres
+            zc[k] = (rng() % 2) ? 0.0f : -0.0f;                  // +-0 centres
+            big[k] = (rng() % 2 ? 1.0f : -1.0f) * 1.5e38f * (float)(rng() % 3) / 2.0f;
+            bigm[k] = -1.7e38f * (float)(rng() % 2);             // huge extents, no overflow
+            over[k] = 3.0e38f;
+        }
+        std::vector<float> zm(3 * DEPTH, -0.0f); // zero-size boxes: minima -0
+        bad += h.centres("centres subnormal", mins, {cen});
+        bad += h.centres("centres +-0, minima -0", zm, {zc});
+        bad += h.centres("centres +-0, minima subnormal", mins, {zc});
+        bad += h.centres("centres near FLT_MAX", bigm, {big});
+        std::vector<float> over_m(3 * DEPTH, -1.0e38f);
+        bad += h.centres("centres overflow", over_m, {over}, true);
+        scenes += 5;
+    }
+
     for (int r = 0; r < randoms; r++) {
         std::uniform_int_distribution<uint32_t> nd(0, DEPTH);
         uint32_t n = nd(rng);
