@@ -25,15 +25,29 @@ static inline float box_size(const bpx_soa *s, uint32_t i)
     return e;
 }
 
-static void sort_floats(float *v, uint32_t count)
+// Sorts sizes (non-negative: +0 to +inf, whose bits order as unsigned integers) by an LSD radix
+// sort of their bits, four 8-bit passes: O(count). An insertion sort here took 150 of grid's 190
+// us a cycle at 1000 boxes (`bpx bench --backend grid --sizes 1000 --threads 1`).
+static void sort_sizes(float *v, uint32_t count)
 {
-    for (uint32_t k = 1; k < count; k++) {
-        float x = v[k];
-        uint32_t at = k;
-        for (; at > 0 && v[at - 1] > x; at--)
-            v[at] = v[at - 1];
-        v[at] = x;
+    uint32_t keys[SAMPLE], spare[SAMPLE], counts[257];
+    memcpy(keys, v, sizeof(float) * count);
+    uint32_t *from = keys, *to = spare;
+    for (int shift = 0; shift < 32; shift += 8) {
+        memset(counts, 0, sizeof counts);
+        for (uint32_t k = 0; k < count; k++)
+            counts[(from[k] >> shift & 0xff) + 1]++;
+        if (counts[(from[0] >> shift & 0xff) + 1] == count)
+            continue; // one digit for all: the order stands
+        for (int d = 0; d < 256; d++)
+            counts[d + 1] += counts[d];
+        for (uint32_t k = 0; k < count; k++)
+            to[counts[from[k] >> shift & 0xff]++] = from[k];
+        uint32_t *t = from;
+        from = to;
+        to = t;
     }
+    memcpy(v, from, sizeof(float) * count);
 }
 
 void bpx__grid_choose_params(const bpx_soa *s, bpx_grid_state *st, bpx_grid_params *p)
@@ -61,7 +75,7 @@ void bpx__grid_choose_params(const bpx_soa *s, bpx_grid_state *st, bpx_grid_para
             lo_min[a] = lo_max[a] = 0.0f;
         sample[taken++] = 1.0f;
     }
-    sort_floats(sample, taken);
+    sort_sizes(sample, taken);
 
     // Cells GRID_CELL_SIZES times the largest box size that keeps about GRID_SWEEP_BOXES boxes
     // in one sweep (a column's cross-section, (s + e)^2, times an x reach e, the median size)
