@@ -1,7 +1,8 @@
 // The cuda backend's device-resident cycles (include/bpx/cuda.h): boxes in device memory, pairs
 // left on the device, then read back and compared with an oracle world's; a pair buffer too
 // small (CAPACITY with the needed count, then room; on the host path, grown within the cycle);
-// cycles on the caller's stream; invalid device boxes, named like host ones; queries refused
+// cycles on the caller's stream, and the caller's reads there followed by a next cycle on
+// another stream or a host cycle; invalid device boxes, named like host ones; queries refused
 // while the boxes are on the device; the paper's two-phase mode on the device's updater, with
 // host centres and with device centres (errors named like the host's); ids removed or moved
 // under device data. The host-out cycles are test_cuda.c's.
@@ -177,6 +178,92 @@ static void test_device_caller_stream(void)
         bpx_world_destroy(oracle);
         CHECK(cudaStreamDestroy(mine) == cudaSuccess);
         cudaFree(d_boxes);
+        free(boxes);
+    }
+}
+
+// The caller's work that reads a device-resident cycle's pairs on its stream A (here a copy of
+// the count and the whole room into pinned memory, enqueued behind the cycle and not waited for)
+// keeps them until it is done, whatever the world's next call (include/bpx/cuda.h): a cycle on
+// another stream B, one on the world's stream, or a host cycle, each on boxes that moved (other
+// pairs into the same buffers), waits for it on the device. On the fake device (test/fake_cuda/)
+// a next cycle that writes the count, the pairs or the keys before the caller's copy has ended
+// aborts the test; on a GPU such a race shows as a copy that is not the first cycle's pairs.
+static void test_device_stream_handoff(void)
+{
+    static const uint32_t sizes[] = {600, 3000}; // the small comparator, the tree
+    static const char *const next_names[] = {
+        "a device cycle on another stream", "a device cycle on the world's stream", "a host cycle"};
+    for (size_t z = 0; z < sizeof sizes / sizeof sizes[0]; z++) {
+        const uint32_t n = sizes[z];
+        bpx_box *boxes = check_alloc(sizeof(bpx_box) * n),
+                *moved = check_alloc(sizeof(bpx_box) * n);
+        scene_uniform_density(n, 1.0f, 41, boxes);
+        memcpy(moved, boxes, sizeof(bpx_box) * n);
+        scene_rng rng;
+        scene_rng_seed(&rng, 9);
+        scene_move(moved, n, 0.5f, &rng);
+        bpx_box *d_boxes = to_device(boxes, n);
+        bpx_world *first = oracle_world(n), *second = oracle_world(n);
+        CHECK_STATUS(bpx_world_set_boxes(first, boxes, n), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(first), BPX_OK);
+        CHECK_STATUS(bpx_world_set_boxes(second, moved, n), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(second), BPX_OK);
+        size_t want = 0, want_moved = 0;
+        const bpx_pair *want_pairs = bpx_world_pairs(first, &want);
+        const bpx_pair *moved_pairs = bpx_world_pairs(second, &want_moved);
+        CHECK_MSG(want != want_moved ||
+                      pairs_first_diff(want_pairs, want, moved_pairs, want_moved) < want,
+                  "n=%u: the moved boxes have the same pairs", n);
+        cudaStream_t a = NULL, b = NULL;
+        CHECK(cudaStreamCreateWithFlags(&a, cudaStreamNonBlocking) == cudaSuccess &&
+              cudaStreamCreateWithFlags(&b, cudaStreamNonBlocking) == cudaSuccess);
+        for (int next = 0; next < 3; next++) {
+            bpx_world *cuda = cuda_world(false);
+            CHECK_STATUS(bpx_cuda_set_boxes_device(cuda, d_boxes, n), BPX_OK);
+            CHECK_STATUS(bpx_cuda_collide_device(cuda, a), BPX_OK);
+            void *d_pairs = NULL, *d_count = NULL;
+            size_t room = 0;
+            CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, &d_count, &room), BPX_OK);
+            CHECK(room >= want);
+            unsigned long long *seen = NULL; // the count, then the room's pairs
+            CHECK(cudaMallocHost((void **)&seen, 8 + sizeof(bpx_pair) * room) == cudaSuccess);
+            CHECK(cudaMemcpyAsync(seen, d_count, 8, cudaMemcpyDeviceToHost, a) == cudaSuccess &&
+                  cudaMemcpyAsync(seen + 1, d_pairs, sizeof(bpx_pair) * room,
+                                  cudaMemcpyDeviceToHost, a) == cudaSuccess);
+            // The next call, on other boxes, while the copy on `a` may still be reading.
+            CHECK_STATUS(bpx_world_set_boxes(cuda, moved, n), BPX_OK);
+            if (next < 2) {
+                CHECK_STATUS(bpx_cuda_collide_device(cuda, next == 0 ? b : NULL), BPX_OK);
+                size_t count = 0;
+                CHECK_STATUS(bpx_cuda_finish(cuda, &count), BPX_OK);
+                CHECK_STATUS(bpx_cuda_device_pairs(cuda, &d_pairs, NULL, NULL), BPX_OK);
+                bpx_pair *got = check_alloc(sizeof(bpx_pair) * (count ? count : 1));
+                CHECK(cudaMemcpy(got, d_pairs, sizeof(bpx_pair) * count, cudaMemcpyDeviceToHost) ==
+                      cudaSuccess);
+                CHECK_MSG(count == want_moved &&
+                              pairs_first_diff(got, count, moved_pairs, want_moved) == want_moved,
+                          "n=%u, %s: %zu pairs, want %zu", n, next_names[next], count, want_moved);
+                free(got);
+            } else {
+                CHECK_STATUS(bpx_world_collide(cuda), BPX_OK);
+                same_pairs(cuda, second,
+                           "a host cycle after a device cycle on the caller's stream");
+            }
+            CHECK(cudaStreamSynchronize(a) == cudaSuccess);
+            const bpx_pair *copied = (const bpx_pair *)(seen + 1);
+            CHECK_MSG(seen[0] == want && pairs_first_diff(copied, want, want_pairs, want) == want,
+                      "n=%u, then %s: the caller's copy on its stream holds %llu pairs, want the "
+                      "first cycle's %zu",
+                      n, next_names[next], seen[0], want);
+            bpx_world_destroy(cuda);
+            CHECK(cudaFreeHost(seen) == cudaSuccess);
+        }
+        CHECK(cudaStreamDestroy(a) == cudaSuccess && cudaStreamDestroy(b) == cudaSuccess);
+        bpx_world_destroy(first);
+        bpx_world_destroy(second);
+        cudaFree(d_boxes);
+        free(moved);
         free(boxes);
     }
 }
@@ -549,6 +636,7 @@ int main(int argc, char **argv)
     test_device_first_cycle_growth();
     test_device_room();
     test_device_caller_stream();
+    test_device_stream_handoff();
     test_device_bad_count();
     test_device_queries();
     test_centres();

@@ -14,6 +14,16 @@
 // - bpx_cuda_collide_device enqueues the whole cycle on the stream you pass (or the world's) and
 //   returns without waiting: kernels you enqueue after it on that stream see the pairs and their
 //   count. Work on other streams must wait for it (an event) before reading them.
+// - The pairs, the count and the world's other buffers stay yours to read, on that stream, until
+//   the world's next call that enqueues device work (bpx_cuda_collide_device on any stream,
+//   bpx_world_collide*, bpx_cuda_set_boxes_device / _set_centres_device,
+//   bpx_world_update_centres): that call makes its own stream wait, on the device (an event
+//   recorded on the cycle's stream when the call is made; no host wait), for everything enqueued
+//   on the cycle's stream by then, so your kernels and copies queued behind the cycle finish
+//   reading before anything is rewritten. Hence: (1) keep that stream alive until then (or until
+//   bpx_world_destroy); (2) work on a third stream that reads the pairs is not waited for: make
+//   the cycle's stream wait for it (an event) before the world's next call; (3) work you enqueue
+//   after the next call reads that call's buffers, not this cycle's.
 // - Device boxes are read in place at each cycle: change them between cycles on the stream the
 //   cycle runs on, or finish that work before the call. The world's stream is non-blocking: it
 //   does not wait for the legacy default stream, where a plain cudaMemcpy from pageable memory

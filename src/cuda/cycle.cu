@@ -23,7 +23,9 @@ extern "C" {
 
 namespace {
 
-enum { event_start, event_in, event_device, event_out, event_count };
+// event_handoff: recorded on the stream of the world's last work when the next work starts on
+// another stream, which waits for it (follow_last); it times nothing.
+enum { event_start, event_in, event_device, event_out, event_handoff, event_count };
 
 // Where a cycle's boxes come from: the host's boxes (sent), the caller's device boxes (read in
 // place), or boxes the device's updater makes from centres and the stored minima: the host's
@@ -78,6 +80,9 @@ struct bpx_cuda {
     unsigned long long host_have; // pairs of the last host cycle already in host_head
     bool tree_path;
     bool pending_head; // a device-resident cycle's head is on its way to host_head
+    // The stream the world last enqueued work on (nullptr: none yet). After a device-resident
+    // cycle it is the caller's stream, where the caller's kernels read the pairs behind it.
+    cudaStream_t last_stream;
     uint64_t version;  // the world's boxes_version when its input was last given
     bpx_cuda_timing timing;
 };
@@ -126,6 +131,22 @@ bpx_pair *device_pairs(const bpx_cuda *cu)
 bpx_cuda_head *device_head(const bpx_cuda *cu)
 {
     return reinterpret_cast<bpx_cuda_head *>(cu->out);
+}
+
+// Work about to be enqueued on `s` runs after everything on the stream of the world's last work,
+// as it stands now: after a device-resident cycle that is the caller's stream, with the caller's
+// kernels and copies that read the pairs, the count and the keys enqueued behind the cycle (not
+// just the cycle, which event_out ends). A next cycle on another stream, or a host cycle on the
+// world's, would otherwise rewrite them under those readers. One event record and one wait, on
+// the device, and only when the stream changes; on the same stream, stream order does it.
+bpx_status follow_last(bpx_cuda *cu, cudaStream_t s)
+{
+    if (cu->last_stream && cu->last_stream != s) {
+        CU(cudaEventRecord(cu->events[event_handoff], cu->last_stream));
+        CU(cudaStreamWaitEvent(s, cu->events[event_handoff], 0));
+    }
+    cu->last_stream = s;
+    return BPX_OK;
 }
 
 // Room for n objects' `per` floats each (6 for boxes, 3 for centres or minima) in *arrays,
@@ -410,6 +431,8 @@ template <class Enqueue> bpx_status check_on_device(bpx_cuda *cu, bool *bad, Enq
 {
     *bad = false;
     CU(cudaSetDevice(cu->device));
+    if (bpx_status st = follow_last(cu, cu->stream); st != BPX_OK)
+        return st;
     if (bpx_status st = reserve_pairs(cu, 0); st != BPX_OK)
         return st;
     if (bpx_status st = reserve_host_pairs(cu, 0); st != BPX_OK)
@@ -431,6 +454,8 @@ bpx_status upload_minima(bpx_cuda *cu, const float *const minima[3], uint32_t n)
 {
     if (cu->minima_current)
         return BPX_OK;
+    if (bpx_status st = follow_last(cu, cu->stream); st != BPX_OK)
+        return st;
     if (bpx_status st = reserve_floats(&cu->minima, &cu->minima_capacity, n, 3, false);
         st != BPX_OK)
         return st;
@@ -468,7 +493,8 @@ bpx_status bpx__cuda_open(bpx_cuda **out)
     if (e == cudaSuccess)
         e = cudaStreamCreateWithFlags(&cu->stream, cudaStreamNonBlocking);
     for (int k = 0; k < event_count && e == cudaSuccess; k++)
-        e = cudaEventCreate(&cu->events[k]);
+        e = k == event_handoff ? cudaEventCreateWithFlags(&cu->events[k], cudaEventDisableTiming)
+                               : cudaEventCreate(&cu->events[k]);
     if (e != cudaSuccess) {
         bpx__cuda_close(cu);
         return fail(e, "cudaStreamCreate/cudaEventCreate");
@@ -569,6 +595,10 @@ static bpx_status find(bpx_cuda *cu, const float *const lo[3], const float *cons
     cu->n = n;
     cu->tree_path = n > BPX_CUDA_SMALL_MAX;
     CU(cudaSetDevice(cu->device));
+    // The caller's kernels behind a device-resident cycle on its stream may still read the
+    // buffers this cycle rewrites.
+    if (bpx_status s = follow_last(cu, cu->stream); s != BPX_OK)
+        return s;
     // Every buffer that the head lives in is sized before the boxes go in: the check of device
     // boxes writes its verdict into the head, which a later regrow would drop.
     unsigned long long expected =
@@ -759,10 +789,11 @@ bpx_status bpx__cuda_collide_device(bpx_cuda *cu, void *stream, const float *con
         n = cu->n;
     cu->n = n;
     cu->timing = bpx_cuda_timing{};
-    // A host cycle that failed part-way may have left work on the world's stream, over the
-    // buffers this cycle uses: it ends before this cycle starts on another stream.
-    if (s != cu->stream)
-        CU(cudaStreamSynchronize(cu->stream));
+    // The world's last work, on whatever stream, ends before this cycle starts on `s`: the last
+    // device-resident cycle with the caller's readers enqueued behind it, a host cycle's or a
+    // check's work on the world's stream (on the device: no host wait).
+    if (bpx_status st = follow_last(cu, s); st != BPX_OK)
+        return st;
     // The last cycle's count, copied back behind it, sizes this cycle's buffer.
     if (bpx_status st = bpx__cuda_finish(cu, nullptr); st != BPX_OK && st != BPX_ERR_CAPACITY &&
                                                        st != BPX_ERR_NOT_FINITE)

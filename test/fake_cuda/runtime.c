@@ -11,7 +11,8 @@
 // - hooks.c: the hooks that nvcc's host code calls (registration, launches).
 //
 // Stream order is checked all the same (stream_order.c): an access that races one still in
-// flight on a stream it is not ordered with aborts, naming both.
+// flight on a stream it is not ordered with (by the streams' kinds, or by cudaStreamWaitEvent)
+// aborts, naming both.
 //
 // Strict: it is here to catch the host code's bugs, so every misuse (a copy in the wrong
 // direction or past the end of a block, a free of what was not allocated, a dead handle, a NULL
@@ -310,6 +311,22 @@ cudaError_t cudaEventSynchronize(cudaEvent_t event)
     const struct CUevent_st *e = need_event("cudaEventSynchronize", event);
     if (e->recorded)
         fake_completed(e->stream, e->seq);
+    fake_unlock();
+    return cudaSuccess;
+}
+
+// Work enqueued on `stream` from now on runs after the work `event` covers (its last record); an
+// event never recorded is waited for at once, as cudart does.
+cudaError_t cudaStreamWaitEvent(cudaStream_t stream, cudaEvent_t event, unsigned int flags)
+{
+    const char *call = "cudaStreamWaitEvent";
+    fake_lock();
+    fake_need_stream(call, stream);
+    const struct CUevent_st *e = need_event(call, event);
+    if (flags)
+        fake_die(call, "unknown flags %#x", flags);
+    if (e->recorded)
+        fake_wait(fake_canonical(stream), e->stream, e->seq);
     fake_unlock();
     return cudaSuccess;
 }

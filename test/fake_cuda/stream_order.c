@@ -6,6 +6,9 @@
 // when done). An access on another stream that is not ordered after it (the legacy default
 // stream and a blocking stream are; a non-blocking stream is ordered with nothing else) and that
 // writes what it wrote, or writes what it read, is a race on a GPU, and aborts here.
+// cudaStreamWaitEvent orders a stream after what its event covers: each access the event follows
+// keeps the waiting stream (and when it waited), so that later work there, and the host's waits
+// on it, see the access as done; through chains of waits too.
 
 // Exported whatever visibility the build sets: the library calls these from its own objects.
 #pragma GCC visibility push(default)
@@ -16,7 +19,16 @@
 #include "fake_cuda.h"
 #include "stream_order.h"
 
-// A device access still in flight on a real GPU: until the host synchronises with its stream.
+// A stream that waited (cudaStreamWaitEvent) for an access: its work from `seq` on follows it.
+typedef struct {
+    struct CUstream_st *stream;
+    unsigned long seq;
+} waiter;
+
+enum { max_waiters = 8 };
+
+// A device access still in flight on a real GPU: until the host synchronises with its stream
+// (or with a stream that waited for it).
 typedef struct {
     uintptr_t base;
     size_t bytes;
@@ -24,6 +36,8 @@ typedef struct {
     bool write;
     unsigned long seq;
     const char *what;
+    waiter waited[max_waiters];
+    int waiters;
 } access;
 
 static struct {
@@ -48,6 +62,21 @@ static bool ordered(const struct CUstream_st *a, const struct CUstream_st *b)
     return a == b || (!a && blocking(b)) || (!b && blocking(a));
 }
 
+// Work on `s` from sequence number `before` on runs after access a: a's own stream (or one ordered
+// with it) from after a, or a stream that waited for a.
+static bool follows(const access *a, const struct CUstream_st *s, unsigned long before)
+{
+    if (a->seq < before && ordered(a->stream, s))
+        return true;
+    for (int w = 0; w < a->waiters; w++)
+        if (a->waited[w].seq < before && ordered(a->waited[w].stream, s))
+            return true;
+    return false;
+}
+
+// A destroyed stream's work, under a handle no later stream can have.
+static struct CUstream_st destroyed = {cudaStreamNonBlocking};
+
 static const char *stream_name(const struct CUstream_st *s)
 {
     return !s ? "the legacy stream" : blocking(s) ? "a blocking stream" : "a non-blocking stream";
@@ -61,7 +90,7 @@ void fake_touch(const char *call, const char *what, struct CUstream_st *stream, 
     for (size_t k = 0; k < in_flight.count; k++) {
         const access *a = &in_flight.at[k];
         bool meet = a->base >= base ? a->base - base < bytes : base - a->base < a->bytes;
-        if (meet && (write || a->write) && !ordered(a->stream, stream))
+        if (meet && (write || a->write) && !follows(a, stream, next_seq))
             fake_die(call,
                      "%s [%p, +%zu) on %s (%p) races %s [%p, +%zu) on %s (%p): no "
                      "synchronisation between the two streams",
@@ -79,7 +108,7 @@ void fake_touch(const char *call, const char *what, struct CUstream_st *stream, 
         in_flight.capacity = capacity;
     }
     in_flight.at[in_flight.count++] =
-        (access){base, bytes, stream, write, next_seq++, what ? what : call};
+        (access){base, bytes, stream, write, next_seq++, what ? what : call, {{0}}, 0};
 }
 
 unsigned long fake_order_now(void)
@@ -93,10 +122,33 @@ void fake_completed(const struct CUstream_st *stream, unsigned long before)
 {
     for (size_t k = 0; k < in_flight.count;) {
         const access *a = &in_flight.at[k];
-        if (a->seq < before && ordered(a->stream, stream))
+        if (follows(a, stream, before))
             in_flight.at[k] = in_flight.at[--in_flight.count];
         else
             k++;
+    }
+}
+
+// `stream` waits for the work before sequence number `before` on `on` (an event recorded there):
+// every access that work follows is followed by `stream`'s work from now on.
+void fake_wait(struct CUstream_st *stream, const struct CUstream_st *on, unsigned long before)
+{
+    unsigned long now = next_seq++; // an event recorded on `stream` from now on covers the wait
+    for (size_t k = 0; k < in_flight.count; k++) {
+        access *a = &in_flight.at[k];
+        if (!follows(a, on, before) || follows(a, stream, now + 1))
+            continue; // not covered by the event, or `stream` follows it already
+        int w = 0;
+        while (w < a->waiters && a->waited[w].stream != stream)
+            w++;
+        if (w == max_waiters)
+            fake_die("cudaStreamWaitEvent",
+                     "more than %d streams wait for one access in flight "
+                     "(the fake's own limit)",
+                     max_waiters);
+        if (w == a->waiters)
+            a->waiters++;
+        a->waited[w] = (waiter){stream, now};
     }
 }
 
@@ -130,10 +182,14 @@ void fake_order_copy(const char *call, const void *dst, const void *src, size_t 
 // under a handle no later stream can have, as the freed address could.
 void fake_order_forget(cudaStream_t stream)
 {
-    static struct CUstream_st destroyed = {cudaStreamNonBlocking};
-    for (size_t a = 0; a < in_flight.count; a++)
-        if (in_flight.at[a].stream == stream)
-            in_flight.at[a].stream = &destroyed;
+    for (size_t a = 0; a < in_flight.count; a++) {
+        access *at = &in_flight.at[a];
+        if (at->stream == stream)
+            at->stream = &destroyed;
+        for (int w = 0; w < at->waiters; w++)
+            if (at->waited[w].stream == stream)
+                at->waited[w].stream = &destroyed;
+    }
 }
 
 // ---- the fake kernels' accesses (fake_cuda.h) ----

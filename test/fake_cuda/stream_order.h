@@ -20,6 +20,9 @@ unsigned long fake_order_now(void);
 /// what that work waited for).
 void fake_completed(const struct CUstream_st *stream, unsigned long before);
 
+/// `stream` waits (cudaStreamWaitEvent) for the work before sequence number `before` on `on`.
+void fake_wait(struct CUstream_st *stream, const struct CUstream_st *on, unsigned long before);
+
 /// The host has waited for the whole device.
 void fake_completed_all(void);
 
