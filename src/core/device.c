@@ -12,9 +12,12 @@
 #include "validate.h"
 #include "world.h"
 
-// The world's device ops when its backend is `backend`; else the error (BACKEND_UNAVAILABLE).
+// The world's device ops when its backend is `backend`; else NULL_ARGUMENT (no world) or
+// BACKEND_UNAVAILABLE (named in the world's error).
 static bpx_status device_ops(bpx_world *w, bpx_backend backend, const bpx_device_ops **ops)
 {
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
     bpx__error_clear(&w->error);
     if (w->backend->id != backend || !w->backend->device)
         return bpx__error(&w->error, BPX_ERR_BACKEND_UNAVAILABLE, UINT32_MAX, -1,
@@ -30,8 +33,6 @@ static bpx_status set_input(bpx_world *w, bpx_backend backend, const char *call,
                             uint32_t n, bool centres)
 {
     const bpx_device_ops *ops = NULL;
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_status status = device_ops(w, backend, &ops);
     if (status != BPX_OK)
         return status;
@@ -79,8 +80,6 @@ static bpx_status set_input(bpx_world *w, bpx_backend backend, const char *call,
 static bpx_status collide(bpx_world *w, bpx_backend backend, void *stream)
 {
     const bpx_device_ops *ops = NULL;
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_status status = device_ops(w, backend, &ops);
     if (status != BPX_OK)
         return status;
@@ -105,8 +104,6 @@ static bpx_status device_pairs(bpx_world *w, bpx_backend backend, void **pairs, 
                                size_t *capacity)
 {
     const bpx_device_ops *ops = NULL;
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_status status = device_ops(w, backend, &ops);
     if (status != BPX_OK)
         return status;
@@ -119,8 +116,6 @@ static bpx_status finish(bpx_world *w, bpx_backend backend, size_t *count)
     const bpx_device_ops *ops = NULL;
     if (count)
         *count = 0;
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_status status = device_ops(w, backend, &ops);
     if (status != BPX_OK)
         return status;
@@ -149,8 +144,6 @@ static bpx_status handles(bpx_world *w, bpx_backend backend, void **context, voi
                           void **device)
 {
     const bpx_device_ops *ops = NULL;
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
     bpx_status status = device_ops(w, backend, &ops);
     if (status != BPX_OK)
         return status;
