@@ -1,7 +1,7 @@
-// Objects added, removed and moved between cycles; collision filters; begin/end events.
-// Every cycle is checked against an oracle kept beside the world: a double loop over
-// bpx_overlap on the live boxes, filtered by category and mask; events against the difference
-// of consecutive oracle sets. Run for every available backend and 1 and 3 workers.
+// Objects added, removed and moved between cycles; collision filters, groups, excluded pairs and
+// user data; begin/end events. Every cycle is checked against an oracle kept beside the world: a
+// double loop over bpx_overlap on the live boxes, filtered by exclusions, groups, category and
+// mask; events against the difference of consecutive oracle sets. Run for every available backend and 1 and 3 workers.
 #include <math.h>
 
 #include "pairs_util.h"
@@ -15,8 +15,32 @@ typedef struct shadow {
     bool pending[max_ids]; // removed since the last collide: the id must not come back yet
     uint32_t category[max_ids];
     uint32_t mask[max_ids];
+    int32_t group[max_ids];
+    uint64_t user_data[max_ids];
+    bool excluded[max_ids][max_ids]; // both halves set
     uint32_t n; // ids in use so far (high-water mark)
 } shadow;
+
+// A new id: every setting at its default, in no excluded pair.
+static void shadow_reset_id(shadow *s, uint32_t id)
+{
+    s->category[id] = 1;
+    s->mask[id] = UINT32_MAX;
+    s->group[id] = 0;
+    s->user_data[id] = 0;
+    for (uint32_t k = 0; k < max_ids; k++)
+        s->excluded[id][k] = s->excluded[k][id] = false;
+}
+
+// Box2D's rule, after the exclusions.
+static bool shadow_may_pair(const shadow *s, uint32_t i, uint32_t j)
+{
+    if (s->excluded[i][j])
+        return false;
+    if (s->group[i] == s->group[j] && s->group[i] != 0)
+        return s->group[i] > 0;
+    return (s->category[i] & s->mask[j]) && (s->category[j] & s->mask[i]);
+}
 
 static const bpx_box inert = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
 
@@ -27,7 +51,7 @@ static void expected_pairs(const shadow *s, pair_list *out)
     for (size_t k = 0; k < out->count; k++) {
         bpx_pair p = out->pairs[k];
         out->pairs[kept] = p;
-        kept += (s->category[p.i] & s->mask[p.j]) && (s->category[p.j] & s->mask[p.i]);
+        kept += shadow_may_pair(s, p.i, p.j);
     }
     out->count = kept;
 }
@@ -75,8 +99,7 @@ static void run(bpx_backend backend, int workers, uint64_t seed)
     memset(&s, 0, sizeof s);
     for (uint32_t id = 0; id < max_ids; id++) {
         s.boxes[id] = inert;
-        s.category[id] = 1;
-        s.mask[id] = UINT32_MAX;
+        shadow_reset_id(&s, id);
     }
     const float world = 40.0f;
     pair_list want = {0}, before = {0}, began = {0}, ended = {0};
@@ -98,8 +121,7 @@ static void run(bpx_backend backend, int workers, uint64_t seed)
                     continue;
                 s.live[id] = true;
                 s.boxes[id] = batch[k];
-                s.category[id] = 1;
-                s.mask[id] = UINT32_MAX;
+                shadow_reset_id(&s, id);
                 if (id >= s.n)
                     s.n = id + 1;
             }
@@ -144,6 +166,60 @@ static void run(bpx_backend backend, int workers, uint64_t seed)
                 }
             CHECK_STATUS(bpx_world_set_filters(w, ids, cats, masks, count), BPX_OK);
         }
+        // Groups: a few live ids into two never-pair groups, one always-pair group, or back to 0.
+        if (cycle % 5 == 1) {
+            static const int32_t choices[4] = {-1, -2, 3, 0};
+            uint32_t count = 0;
+            int32_t groups[64];
+            for (uint32_t id = 0; id < s.n && count < 64; id++)
+                if (s.live[id] && scene_rng_below(&r, 3) == 0) {
+                    ids[count] = id;
+                    groups[count] = choices[scene_rng_below(&r, 4)];
+                    s.group[id] = groups[count++];
+                }
+            CHECK_STATUS(bpx_world_set_groups(w, ids, groups, count), BPX_OK);
+        }
+        // Excluded pairs: some of the pairs overlapping now and some at random; later a few
+        // included again (and one never excluded: a no-op).
+        if (cycle % 4 == 2 || cycle % 6 == 5) {
+            bool include = cycle % 6 == 5;
+            bpx_pair pairs[48];
+            uint32_t count = 0;
+            for (size_t k = 0; k < before.count && count < 24; k++)
+                if (scene_rng_below(&r, 4) == 0 && s.live[before.pairs[k].i] &&
+                    s.live[before.pairs[k].j])
+                    pairs[count++] = before.pairs[k];
+            for (int tries = 0; tries < 200 && count < 48 && s.n > 1; tries++) {
+                uint32_t i = scene_rng_below(&r, s.n), j = scene_rng_below(&r, s.n);
+                if (i != j && s.live[i] && s.live[j])
+                    pairs[count++] = scene_rng_below(&r, 2) ? (bpx_pair){i, j} : (bpx_pair){j, i};
+            }
+            for (uint32_t k = 0; k < count; k++) {
+                bpx_pair p = pairs[k];
+                if (include && scene_rng_below(&r, 2) == 0 && !s.excluded[p.i][p.j])
+                    continue;
+                s.excluded[p.i][p.j] = s.excluded[p.j][p.i] = !include;
+            }
+            if (include)
+                CHECK_STATUS(bpx_world_include_pairs(w, pairs, count), BPX_OK);
+            else
+                CHECK_STATUS(bpx_world_exclude_pairs(w, pairs, count), BPX_OK);
+            for (uint32_t k = 0; k < count; k++)
+                CHECK(bpx_world_pair_excluded(w, pairs[k].i, pairs[k].j) ==
+                      s.excluded[pairs[k].i][pairs[k].j]);
+        }
+        // User data on some live ids; every live id reads back its own.
+        uint32_t tagged = 0;
+        uint64_t values[64];
+        for (uint32_t id = 0; id < s.n && tagged < 64; id++)
+            if (s.live[id] && scene_rng_below(&r, 5) == 0) {
+                ids[tagged] = id;
+                values[tagged] = s.user_data[id] = ((uint64_t)id << 40) ^ (uint64_t)cycle * 977u;
+                tagged++;
+            }
+        CHECK_STATUS(bpx_world_set_user_data(w, ids, values, tagged), BPX_OK);
+        for (uint32_t id = 0; id < s.n; id++)
+            CHECK(bpx_world_user_data(w, id) == (s.live[id] ? s.user_data[id] : 0));
 
         CHECK_STATUS(bpx_world_collide(w), BPX_OK);
         size_t count = 0;
@@ -333,11 +409,90 @@ static void filters_and_set_boxes(void)
     bpx_world_destroy(w);
 }
 
+// Groups, excluded pairs and user data over the objects' life: errors name the position; an
+// exclusion goes with the box (kept while its id is pending, gone once the id is free) and with
+// set_boxes' dropped ids; a positive group pairs boxes whose masks refuse each other.
+static void groups_exclusions_user_data(void)
+{
+    check_set_context("groups, exclusions, user data");
+    bpx_world_def def = bpx_default_world_def();
+    def.track_events = true;
+    bpx_world *w;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    bpx_box boxes[4];
+    for (int k = 0; k < 4; k++) // all four overlap: six pairs
+        boxes[k] = (bpx_box){{0.1f * k, 0, 0}, {1 + 0.1f * k, 1, 1}};
+    uint32_t ids[4];
+    CHECK_STATUS(bpx_world_add_boxes(w, boxes, 4, ids), BPX_OK);
+
+    bpx_pair self = {2, 2}, unknown = {1, 9};
+    bpx_pair batch[2] = {{0, 1}, {3, 3}};
+    CHECK_STATUS(bpx_world_exclude_pairs(w, &self, 1), BPX_ERR_INVALID_ARGUMENT);
+    CHECK_STATUS(bpx_world_exclude_pairs(w, &unknown, 1), BPX_ERR_INVALID_ARGUMENT);
+    CHECK_STATUS(bpx_world_exclude_pairs(w, batch, 2), BPX_ERR_INVALID_ARGUMENT);
+    CHECK(bpx_world_error(w)->index == 1);
+    CHECK(!bpx_world_pair_excluded(w, 0, 1)); // nothing changed on error
+    CHECK_STATUS(bpx_world_exclude_pairs(w, NULL, 1), BPX_ERR_NULL_ARGUMENT);
+    CHECK_STATUS(bpx_world_set_groups(w, NULL, NULL, 1), BPX_ERR_NULL_ARGUMENT);
+    int32_t group = -1;
+    uint32_t far = 4;
+    CHECK_STATUS(bpx_world_set_groups(w, &far, &group, 1), BPX_ERR_INVALID_ARGUMENT);
+    uint64_t value = 42;
+    CHECK_STATUS(bpx_world_set_user_data(w, &far, &value, 1), BPX_ERR_INVALID_ARGUMENT);
+    CHECK(bpx_world_user_data(w, 4) == 0);
+
+    bpx_pair ex[2] = {{1, 0}, {0, 1}}; // the same pair twice: one exclusion
+    CHECK_STATUS(bpx_world_exclude_pairs(w, ex, 2), BPX_OK);
+    CHECK(bpx_world_pair_excluded(w, 0, 1) && bpx_world_pair_excluded(w, 1, 0));
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK(pair_count(w) == 5);
+    uint32_t two_three[2] = {2, 3};
+    int32_t never[2] = {-1, -1}, always[2] = {5, 5};
+    uint32_t lone = 1, none = 0;
+    CHECK_STATUS(bpx_world_set_groups(w, two_three, never, 2), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK(pair_count(w) == 4); // (2, 3) never
+    CHECK_STATUS(bpx_world_set_filters(w, &two_three[0], &lone, &none, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK(pair_count(w) == 2); // 2 pairs with nobody; (0, 1) excluded: (0, 3), (1, 3)
+    CHECK_STATUS(bpx_world_set_groups(w, two_three, always, 2), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK(pair_count(w) == 3); // (2, 3) again, though 2's mask is 0
+    value = 7;
+    CHECK_STATUS(bpx_world_set_user_data(w, &two_three[0], &value, 1), BPX_OK);
+    CHECK(bpx_world_user_data(w, 2) == 7);
+
+    // Removing 1: its exclusion stays while the id is pending, and goes with the next collide.
+    uint32_t one = 1;
+    CHECK_STATUS(bpx_world_remove_boxes(w, &one, 1), BPX_OK);
+    CHECK(bpx_world_pair_excluded(w, 0, 1));
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK(!bpx_world_pair_excluded(w, 0, 1));
+    uint32_t id;
+    CHECK_STATUS(bpx_world_add_boxes(w, &boxes[1], 1, &id), BPX_OK);
+    CHECK(id == 1);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK(pair_count(w) == 4); // the new 1 pairs with 0 and 3; 2 with 3 only (its group)
+
+    // set_boxes keeps what ids 0 .. 2 had and drops 3's: 2 keeps its data, group and filter.
+    bpx_pair ex03 = {0, 3}, ex02 = {0, 2};
+    CHECK_STATUS(bpx_world_exclude_pairs(w, &ex03, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_exclude_pairs(w, &ex02, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 3), BPX_OK);
+    CHECK(!bpx_world_pair_excluded(w, 0, 3) && bpx_world_pair_excluded(w, 0, 2));
+    CHECK(bpx_world_user_data(w, 2) == 7);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK(pair_count(w) == 3); // (0, 1), (0, 3), (1, 3): 2 refuses all, 3 left its group
+    bpx_world_destroy(w);
+}
+
 int main(void)
 {
     errors();
     mode_changes();
     filters_and_set_boxes();
+    groups_exclusions_user_data();
     int ran = 0;
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
         if (!bpx_backend_query((bpx_backend)b).available)

@@ -210,6 +210,13 @@ static void setup_objects(bpx_world *w)
     setup_plain(w);
     const uint32_t filtered[2] = {5, 9}, cats[2] = {2, 2}, masks[2] = {0, 1};
     CHECK_STATUS(bpx_world_set_filters(w, filtered, cats, masks, 2), BPX_OK);
+    const uint32_t grouped[2] = {8, 10};
+    const int32_t groups[2] = {-1, -1};
+    CHECK_STATUS(bpx_world_set_groups(w, grouped, groups, 2), BPX_OK);
+    const bpx_pair excluded[2] = {{0, 1}, {7, 2}}; // 7's goes with it, at the collide below
+    CHECK_STATUS(bpx_world_exclude_pairs(w, excluded, 2), BPX_OK);
+    const uint64_t data[2] = {11, 12};
+    CHECK_STATUS(bpx_world_set_user_data(w, grouped, data, 2), BPX_OK);
     const uint32_t removed[3] = {3, 7, 11};
     CHECK_STATUS(bpx_world_remove_boxes(w, removed, 2), BPX_OK);
     CHECK_STATUS(bpx_world_collide(w), BPX_OK);
@@ -260,6 +267,23 @@ static bpx_status call_filters(bpx_world *w)
 {
     const uint32_t cats[3] = {2, 2, 2}, masks[3] = {0, 0, 0};
     return bpx_world_set_filters(w, some_ids, cats, masks, 3);
+}
+static bpx_status call_groups(bpx_world *w)
+{
+    const int32_t groups[3] = {-2, -2, -2};
+    return bpx_world_set_groups(w, some_ids, groups, 3);
+}
+static bpx_status call_exclude(bpx_world *w)
+{
+    bpx_pair pairs[38]; // past the set's first 32 keys: it grows
+    for (uint32_t k = 0; k < 38; k++)
+        pairs[k] = (bpx_pair){k % 2, 12 + k}; // ids < 50, none removed by setup_objects
+    return bpx_world_exclude_pairs(w, pairs, 38);
+}
+static bpx_status call_user_data(bpx_world *w)
+{
+    const uint64_t values[3] = {1, 2, 3};
+    return bpx_world_set_user_data(w, some_ids, values, 3);
 }
 static bpx_status call_collide(bpx_world *w)
 {
@@ -334,6 +358,10 @@ static void test_failure_keeps_world(void)
         {"remove_boxes, first", setup_plain, call_remove},
         {"move_boxes, first", setup_plain, call_move},
         {"set_filters, first", setup_plain, call_filters},
+        {"set_groups, first", setup_plain, call_groups},
+        {"exclude_pairs, first", setup_plain, call_exclude},
+        {"exclude_pairs over objects", setup_objects, call_exclude},
+        {"set_user_data, first", setup_plain, call_user_data},
         {"collide with events", setup_events, call_collide},
         {"collide_into with events", setup_events, call_collide_into},
         {"collide with pending ids", setup_events_pending, call_collide},

@@ -114,6 +114,38 @@ BPX_API bpx_status bpx_world_set_filters(bpx_world *world, const uint32_t *ids,
                                          const uint32_t *categories, const uint32_t *masks,
                                          uint32_t count);
 
+/// Groups (Box2D's rule), for boxes that must never pair (a ragdoll's links, a robot's joints)
+/// or always pair: two boxes in the same non-zero group always pair when the group is positive
+/// and never when it is negative, whatever their categories and masks; boxes in different
+/// groups, or in group 0 (every box starts there), follow the category rule. ids as in
+/// bpx_world_set_filters, and a group stays with its id as a filter does. Errors as set_filters.
+BPX_API bpx_status bpx_world_set_groups(bpx_world *world, const uint32_t *ids,
+                                        const int32_t *groups, uint32_t count);
+
+/// Excluded pairs: boxes i and j never pair, whatever their groups and filters, until the pair
+/// is included again. (i, j) and (j, i) are the same pair; excluding one twice is the same as
+/// once; any number may be excluded. An exclusion lasts while both ids hold their boxes: it goes
+/// when either box is removed (by the next collide, with the id's pairs) or dropped by set_boxes
+/// / load_extents under the rule of filters. Cost: each overlapping pair whose two boxes are
+/// both in some excluded pair costs one hash lookup; other pairs cost two reads.
+/// Errors: NULL_ARGUMENT, INVALID_ARGUMENT (an id not in use, or i == j; the error's index is
+/// the pair's position), OUT_OF_MEMORY. Nothing is changed on error.
+BPX_API bpx_status bpx_world_exclude_pairs(bpx_world *world, const bpx_pair *pairs,
+                                           uint32_t count);
+/// Ends exclusions; a pair that is not excluded is left as it is. Errors as exclude_pairs.
+BPX_API bpx_status bpx_world_include_pairs(bpx_world *world, const bpx_pair *pairs,
+                                           uint32_t count);
+/// Whether the pair is excluded now.
+BPX_API bool bpx_world_pair_excluded(const bpx_world *world, uint32_t i, uint32_t j);
+
+/// User data: a 64-bit value per box (a pointer, an engine's body handle), 0 until set, handed
+/// to query callbacks (bpx_world_query_each). It stays with its id as a filter does.
+/// Errors: NULL_ARGUMENT, INVALID_ARGUMENT (an id not in use), OUT_OF_MEMORY.
+BPX_API bpx_status bpx_world_set_user_data(bpx_world *world, const uint32_t *ids,
+                                           const uint64_t *values, uint32_t count);
+/// The user data of a box in use; 0 for an id not in use.
+BPX_API uint64_t bpx_world_user_data(const bpx_world *world, uint32_t id);
+
 /// The pairs that began and ended with the last collide (def.track_events must be set, else
 /// BAD_STATE). The first collide reports every pair as began. Lists are owned by the world and
 /// valid until the next call that changes it.

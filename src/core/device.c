@@ -83,7 +83,7 @@ static bpx_status collide(bpx_world *w, bpx_backend backend, void *stream)
     bpx_status status = device_ops(w, backend, &ops);
     if (status != BPX_OK)
         return status;
-    if (w->category || w->def.track_events)
+    if (bpx__objects_filtering(w) || w->def.track_events)
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
                           "collide_device: filters and events need the host's pairs "
                           "(bpx_world_collide applies them)");

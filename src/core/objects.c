@@ -10,20 +10,91 @@
 // ---------------------------------------------------------------------------------------------
 // Per-id arrays
 
+// The optional per-id columns: each NULL until first set, then as long as the others, and every
+// id not set holding the default (a new box: category 1, mask all ones, group 0, no user data,
+// in no excluded pair).
+typedef struct id_column {
+    void **data;
+    size_t size; // 4 or 8 bytes
+    uint64_t fill;
+} id_column;
+
+enum { COLUMNS = 5 };
+
+static void id_columns(bpx_world *w, id_column c[COLUMNS])
+{
+    c[0] = (id_column){(void **)&w->category, sizeof(uint32_t), 1};
+    c[1] = (id_column){(void **)&w->mask, sizeof(uint32_t), UINT32_MAX};
+    c[2] = (id_column){(void **)&w->group, sizeof(int32_t), 0};
+    c[3] = (id_column){(void **)&w->user_data, sizeof(uint64_t), 0};
+    c[4] = (id_column){(void **)&w->exclusions, sizeof(uint32_t), 0};
+}
+
+static void fill_column(const id_column *c, uint32_t from, uint32_t to)
+{
+    if (c->size == sizeof(uint64_t))
+        for (uint32_t id = from; id < to; id++)
+            ((uint64_t *)*c->data)[id] = c->fill;
+    else
+        for (uint32_t id = from; id < to; id++)
+            ((uint32_t *)*c->data)[id] = (uint32_t)c->fill;
+}
+
+// Every column in use back to its default for one id (a box added, or an id dropped).
+static void reset_id(bpx_world *w, uint32_t id)
+{
+    id_column c[COLUMNS];
+    id_columns(w, c);
+    for (int k = 0; k < COLUMNS; k++)
+        if (*c[k].data)
+            fill_column(&c[k], id, id + 1);
+}
+
+static size_t column_size(bpx_world *w, void **data)
+{
+    id_column c[COLUMNS];
+    id_columns(w, c);
+    for (int k = 0; k < COLUMNS; k++)
+        if (c[k].data == data)
+            return c[k].size;
+    return 0;
+}
+
+// Makes a column exist (all ids at the default). False when out of memory.
+static bool use_column(bpx_world *w, void **data)
+{
+    if (*data)
+        return true;
+    *data = bpx__alloc(column_size(w, data) * w->object_capacity);
+    if (!*data)
+        return false;
+    id_column c[COLUMNS];
+    id_columns(w, c);
+    for (int k = 0; k < COLUMNS; k++)
+        if (c[k].data == data)
+            fill_column(&c[k], 0, w->object_capacity);
+    return true;
+}
+
 static void free_object_arrays(bpx_world *w)
 {
     size_t cap = w->object_capacity;
     bpx__free(w->dead, cap);
     bpx__free(w->pending_ids, cap * sizeof(uint32_t));
     bpx__free(w->free_ids, cap * sizeof(uint32_t));
-    bpx__free(w->category, cap * sizeof(uint32_t));
-    bpx__free(w->mask, cap * sizeof(uint32_t));
+    id_column c[COLUMNS];
+    id_columns(w, c);
+    for (int k = 0; k < COLUMNS; k++) {
+        bpx__free(*c[k].data, cap * c[k].size);
+        *c[k].data = NULL;
+    }
     w->dead = NULL;
-    w->pending_ids = w->free_ids = w->category = w->mask = NULL;
+    w->pending_ids = w->free_ids = NULL;
     w->object_capacity = 0;
 }
 
-// Grows the per-id arrays to hold n ids, keeping contents; new ids are live and unfiltered.
+// Grows the per-id arrays to hold n ids, keeping contents; new ids are live and at the
+// defaults. All or nothing.
 static bool reserve_objects(bpx_world *w, uint32_t n)
 {
     uint32_t old = w->object_capacity;
@@ -32,17 +103,22 @@ static bool reserve_objects(bpx_world *w, uint32_t n)
     uint32_t cap = old ? old : 64;
     while (cap < n)
         cap = cap > UINT32_MAX / 2 ? n : cap * 2;
+    id_column c[COLUMNS];
+    id_columns(w, c);
+    void *grown[COLUMNS] = {0};
     uint8_t *dead = bpx__alloc(cap);
     uint32_t *pending = bpx__alloc(cap * sizeof(uint32_t));
     uint32_t *freed = bpx__alloc(cap * sizeof(uint32_t));
-    uint32_t *category = w->category ? bpx__alloc(cap * sizeof(uint32_t)) : NULL;
-    uint32_t *mask = w->mask ? bpx__alloc(cap * sizeof(uint32_t)) : NULL;
-    if (!dead || !pending || !freed || (w->category && (!category || !mask))) {
+    bool ok = dead && pending && freed;
+    for (int k = 0; k < COLUMNS; k++)
+        if (*c[k].data && !(grown[k] = bpx__alloc(cap * c[k].size)))
+            ok = false;
+    if (!ok) {
         bpx__free(dead, cap);
         bpx__free(pending, cap * sizeof(uint32_t));
         bpx__free(freed, cap * sizeof(uint32_t));
-        bpx__free(category, cap * sizeof(uint32_t));
-        bpx__free(mask, cap * sizeof(uint32_t));
+        for (int k = 0; k < COLUMNS; k++)
+            bpx__free(grown[k], cap * c[k].size);
         return false;
     }
     memset(dead, 0, cap);
@@ -51,22 +127,37 @@ static bool reserve_objects(bpx_world *w, uint32_t n)
         memcpy(pending, w->pending_ids, w->pending_count * sizeof(uint32_t));
         memcpy(freed, w->free_ids, w->free_count * sizeof(uint32_t));
     }
-    if (category) {
-        memcpy(category, w->category, old * sizeof(uint32_t));
-        memcpy(mask, w->mask, old * sizeof(uint32_t));
-        for (uint32_t id = old; id < cap; id++)
-            category[id] = 1, mask[id] = UINT32_MAX;
-    }
-    uint32_t pending_count = w->pending_count, free_count = w->free_count;
-    free_object_arrays(w);
+    for (int k = 0; k < COLUMNS; k++)
+        if (grown[k]) {
+            memcpy(grown[k], *c[k].data, old * c[k].size);
+            bpx__free(*c[k].data, old * c[k].size);
+            *c[k].data = grown[k];
+            fill_column(&c[k], old, cap);
+        }
+    bpx__free(w->dead, old);
+    bpx__free(w->pending_ids, old * sizeof(uint32_t));
+    bpx__free(w->free_ids, old * sizeof(uint32_t));
     w->dead = dead;
     w->pending_ids = pending;
     w->free_ids = freed;
-    w->category = category;
-    w->mask = mask;
-    w->pending_count = pending_count;
-    w->free_count = free_count;
     w->object_capacity = cap;
+    return true;
+}
+
+// Excluded pairs with an id that `dropped` marks go; the ids' counts follow.
+typedef struct drop_context {
+    bpx_world *w;
+    const uint8_t *dropped; // per id: nonzero = the id's exclusions go
+} drop_context;
+
+static bool drop_excluded(uint64_t key, const void *context)
+{
+    const drop_context *d = context;
+    uint32_t i = (uint32_t)(key >> 32), j = (uint32_t)key;
+    if (!d->dropped[i] && !d->dropped[j])
+        return false;
+    d->w->exclusions[i]--;
+    d->w->exclusions[j]--;
     return true;
 }
 
@@ -76,14 +167,16 @@ bool bpx__objects_reset(bpx_world *w, uint32_t n)
         return true;
     if (!reserve_objects(w, n))
         return false;
-    if (w->category) {
-        // A filter lasts while its id holds a box: ids kept (below the old and the new n, and
-        // not removed) keep theirs; the rest start again unfiltered. w->n is still the old n.
-        uint32_t kept = n < w->n ? n : w->n;
-        for (uint32_t id = 0; id < w->object_capacity; id++)
-            if (id >= kept || w->dead[id])
-                w->category[id] = 1, w->mask[id] = UINT32_MAX;
-    }
+    // What is set per id lasts while the id holds a box: ids kept (below the old and the new n,
+    // and not removed) keep theirs; the rest start again at the defaults. w->n is still the old n.
+    uint32_t kept = n < w->n ? n : w->n;
+    for (uint32_t id = 0; id < w->object_capacity; id++)
+        w->dead[id] = id >= kept || w->dead[id]; // 1: the id's settings go
+    if (w->excluded.count)
+        bpx__pair_set_remove_if(&w->excluded, drop_excluded, &(drop_context){w, w->dead});
+    for (uint32_t id = 0; id < w->object_capacity; id++)
+        if (w->dead[id])
+            reset_id(w, id);
     memset(w->dead, 0, w->object_capacity);
     w->pending_count = w->free_count = 0;
     return true;
@@ -100,6 +193,7 @@ void bpx__objects_reinert(bpx_world *w)
 void bpx__objects_free(bpx_world *w)
 {
     free_object_arrays(w);
+    bpx__pair_set_free(&w->excluded);
     bpx_pair_list *lists[] = {&w->previous, &w->began, &w->ended};
     for (int k = 0; k < 3; k++) {
         bpx__free(lists[k]->pairs, lists[k]->capacity * sizeof(bpx_pair));
@@ -139,8 +233,7 @@ bpx_status bpx_world_add_boxes(bpx_world *w, const bpx_box *boxes, uint32_t coun
     for (uint32_t k = 0; k < count; k++) {
         uint32_t id = k < reused ? w->free_ids[--w->free_count] : old_n + (k - reused);
         w->dead[id] = 0;
-        if (w->category)
-            w->category[id] = 1, w->mask[id] = UINT32_MAX;
+        reset_id(w, id);
         bpx__box_set(w, id, &boxes[k]);
         out_ids[k] = id;
     }
@@ -214,7 +307,36 @@ bpx_status bpx_world_move_boxes(bpx_world *w, const uint32_t *ids, const bpx_box
 }
 
 // ---------------------------------------------------------------------------------------------
-// Filters
+// Filters, groups, excluded pairs, user data
+
+// Checks that ids (NULL: 0 .. count-1) are boxes in use; the error names the position.
+static bpx_status check_in_use(bpx_world *w, const uint32_t *ids, uint32_t count, const char *what)
+{
+    for (uint32_t k = 0; k < count; k++) {
+        uint32_t id = ids ? ids[k] : k;
+        if (id >= w->n || (w->dead && w->dead[id]))
+            return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, k, -1,
+                              "%s: ids[%u] = %u is not a box in use (n = %u)", what, k, id, w->n);
+    }
+    return BPX_OK;
+}
+
+// The per-id arrays and the named columns exist (b may be NULL). All or nothing: false when out
+// of memory, with no column made.
+static bool use_columns(bpx_world *w, void **a, void **b)
+{
+    bool had_a = *a != NULL;
+    if (!reserve_objects(w, w->n) || !use_column(w, a))
+        return false;
+    if (b && !use_column(w, b)) {
+        if (!had_a) {
+            bpx__free(*a, w->object_capacity * column_size(w, a));
+            *a = NULL;
+        }
+        return false;
+    }
+    return true;
+}
 
 bpx_status bpx_world_set_filters(bpx_world *w, const uint32_t *ids, const uint32_t *categories,
                                  const uint32_t *masks, uint32_t count)
@@ -225,28 +347,11 @@ bpx_status bpx_world_set_filters(bpx_world *w, const uint32_t *ids, const uint32
     if (count && (!categories || !masks))
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "categories or masks is NULL");
-    for (uint32_t k = 0; k < count; k++) {
-        uint32_t id = ids ? ids[k] : k;
-        if (id >= w->n || (w->dead && w->dead[id]))
-            return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, k, -1,
-                              "set_filters: ids[%u] = %u is not a box in use (n = %u)", k, id,
-                              w->n);
-    }
-    if (!reserve_objects(w, w->n))
+    bpx_status status = check_in_use(w, ids, count, "set_filters");
+    if (status != BPX_OK)
+        return status;
+    if (!use_columns(w, (void **)&w->category, (void **)&w->mask))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1, "no memory");
-    if (!w->category) {
-        size_t size = w->object_capacity * sizeof(uint32_t);
-        w->category = bpx__alloc(size);
-        w->mask = bpx__alloc(size);
-        if (!w->category || !w->mask) {
-            bpx__free(w->category, size);
-            bpx__free(w->mask, size);
-            w->category = w->mask = NULL;
-            return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1, "no memory");
-        }
-        for (uint32_t id = 0; id < w->object_capacity; id++)
-            w->category[id] = 1, w->mask[id] = UINT32_MAX;
-    }
     for (uint32_t k = 0; k < count; k++) {
         uint32_t id = ids ? ids[k] : k;
         w->category[id] = categories[k];
@@ -255,18 +360,143 @@ bpx_status bpx_world_set_filters(bpx_world *w, const uint32_t *ids, const uint32
     return BPX_OK;
 }
 
+bpx_status bpx_world_set_groups(bpx_world *w, const uint32_t *ids, const int32_t *groups,
+                                uint32_t count)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    if (count && !groups)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "groups is NULL");
+    bpx_status status = check_in_use(w, ids, count, "set_groups");
+    if (status != BPX_OK)
+        return status;
+    if (!use_columns(w, (void **)&w->group, NULL))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1, "no memory");
+    for (uint32_t k = 0; k < count; k++)
+        w->group[ids ? ids[k] : k] = groups[k];
+    return BPX_OK;
+}
+
+bpx_status bpx_world_set_user_data(bpx_world *w, const uint32_t *ids, const uint64_t *values,
+                                   uint32_t count)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    if (count && !values)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "values is NULL");
+    bpx_status status = check_in_use(w, ids, count, "set_user_data");
+    if (status != BPX_OK)
+        return status;
+    if (!use_columns(w, (void **)&w->user_data, NULL))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1, "no memory");
+    for (uint32_t k = 0; k < count; k++)
+        w->user_data[ids ? ids[k] : k] = values[k];
+    return BPX_OK;
+}
+
+uint64_t bpx_world_user_data(const bpx_world *w, uint32_t id)
+{
+    if (!w || !w->user_data || id >= w->n || w->dead[id])
+        return 0;
+    return w->user_data[id];
+}
+
+// Checks a batch of pairs: both ids in use and different.
+static bpx_status check_pairs(bpx_world *w, const bpx_pair *pairs, uint32_t count,
+                              const char *what)
+{
+    if (count && !pairs)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "pairs is NULL");
+    for (uint32_t k = 0; k < count; k++) {
+        bpx_pair p = pairs[k];
+        uint32_t bad = p.i >= w->n || (w->dead && w->dead[p.i]) ? p.i
+                       : p.j >= w->n || (w->dead && w->dead[p.j]) ? p.j
+                                                                   : UINT32_MAX;
+        if (bad != UINT32_MAX)
+            return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, k, -1,
+                              "%s: pairs[%u] = (%u, %u): %u is not a box in use (n = %u)", what,
+                              k, p.i, p.j, bad, w->n);
+        if (p.i == p.j)
+            return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, k, -1,
+                              "%s: pairs[%u] = (%u, %u) pairs a box with itself", what, k, p.i,
+                              p.j);
+    }
+    return BPX_OK;
+}
+
+bpx_status bpx_world_exclude_pairs(bpx_world *w, const bpx_pair *pairs, uint32_t count)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    bpx_status status = check_pairs(w, pairs, count, "exclude_pairs");
+    if (status != BPX_OK)
+        return status;
+    if (!use_columns(w, (void **)&w->exclusions, NULL) ||
+        !bpx__pair_set_reserve(&w->excluded, count))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u more excluded pairs (%u now)", count,
+                          w->excluded.count);
+    for (uint32_t k = 0; k < count; k++)
+        if (bpx__pair_set_add(&w->excluded, bpx__pair_key(pairs[k].i, pairs[k].j))) {
+            w->exclusions[pairs[k].i]++;
+            w->exclusions[pairs[k].j]++;
+        }
+    return BPX_OK;
+}
+
+bpx_status bpx_world_include_pairs(bpx_world *w, const bpx_pair *pairs, uint32_t count)
+{
+    if (!w)
+        return BPX_ERR_NULL_ARGUMENT;
+    bpx__error_clear(&w->error);
+    bpx_status status = check_pairs(w, pairs, count, "include_pairs");
+    if (status != BPX_OK)
+        return status;
+    for (uint32_t k = 0; k < count; k++)
+        if (bpx__pair_set_remove(&w->excluded, bpx__pair_key(pairs[k].i, pairs[k].j))) {
+            w->exclusions[pairs[k].i]--;
+            w->exclusions[pairs[k].j]--;
+        }
+    return BPX_OK;
+}
+
+bool bpx_world_pair_excluded(const bpx_world *w, uint32_t i, uint32_t j)
+{
+    return w && i != j && bpx__pair_set_has(&w->excluded, bpx__pair_key(i, j));
+}
+
+bool bpx__objects_filtering(const bpx_world *w)
+{
+    return w->category || w->group || w->excluded.count;
+}
+
+// Whether two boxes may pair: excluded pairs never; then a shared non-zero group decides
+// (positive: always, negative: never); then categories and masks.
+static inline bool may_pair(const bpx_world *w, uint32_t i, uint32_t j)
+{
+    if (w->excluded.count && w->exclusions[i] && w->exclusions[j] &&
+        bpx__pair_set_has(&w->excluded, bpx__pair_key(i, j)))
+        return false;
+    if (w->group && w->group[i] == w->group[j] && w->group[i] != 0)
+        return w->group[i] > 0;
+    return !w->category ||
+           ((w->category[i] & w->mask[j]) && (w->category[j] & w->mask[i]));
+}
+
 void bpx__filter_blocks(bpx_world *w)
 {
-    if (!w->category)
+    if (!bpx__objects_filtering(w))
         return;
-    const uint32_t *category = w->category, *mask = w->mask;
     for (int b = 0; b < w->emitter.block_count; b++) {
         bpx_pair_list *hits = &w->emitter.blocks[b].hits;
         size_t kept = 0;
         for (size_t k = 0; k < hits->count; k++) {
             bpx_pair p = hits->pairs[k];
             hits->pairs[kept] = p;
-            kept += (category[p.i] & mask[p.j]) && (category[p.j] & mask[p.i]);
+            kept += may_pair(w, p.i, p.j);
         }
         hits->count = kept;
     }
@@ -309,7 +539,15 @@ bpx_status bpx__objects_after_collide(bpx_world *w, const bpx_pair *pairs, size_
         w->previous.count = count;
         w->events_valid = true;
     }
-    // The removed boxes' pairs have now been reported as ended: their ids may be reused.
+    // The removed boxes' pairs have now been reported as ended: their ids may be reused, free of
+    // the excluded pairs they were in.
+    if (w->excluded.count) {
+        bool any = false;
+        for (uint32_t k = 0; k < w->pending_count; k++)
+            any |= w->exclusions[w->pending_ids[k]] != 0;
+        if (any) // dead[id] is 1 for every removed id; those freed before are in no pair now
+            bpx__pair_set_remove_if(&w->excluded, drop_excluded, &(drop_context){w, w->dead});
+    }
     for (uint32_t k = 0; k < w->pending_count; k++)
         w->free_ids[w->free_count++] = w->pending_ids[k];
     w->pending_count = 0;

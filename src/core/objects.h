@@ -12,6 +12,8 @@
 bool bpx__objects_reset(bpx_world *w, uint32_t n);
 /// Re-inerts removed ids after the updater rewrote every box.
 void bpx__objects_reinert(bpx_world *w);
+/// Whether filters, groups or excluded pairs are set (the device-resident path cannot apply them).
+bool bpx__objects_filtering(const bpx_world *w);
 /// Drops filtered-out hits from the blocks (no-op without filters).
 void bpx__filter_blocks(bpx_world *w);
 /// After a successful collide: events from the merged pairs, then pending ids become free.

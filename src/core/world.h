@@ -2,6 +2,7 @@
 #pragma once
 
 #include "backend.h"
+#include "pair_set.h"
 
 struct bpx_world {
     bpx_world_def def;
@@ -38,8 +39,14 @@ struct bpx_world {
     uint32_t pending_count;
     uint32_t *free_ids;
     uint32_t free_count;
-    uint32_t *category; // per id; NULL until filters are first set
+    // Per id, each NULL until first set (objects.c's columns): filters, groups, user data, and
+    // how many excluded pairs the id is in (0 lets the filter skip the set's lookup).
+    uint32_t *category;
     uint32_t *mask;
+    int32_t *group;
+    uint64_t *user_data;
+    uint32_t *exclusions;
+    bpx_pair_set excluded; // pairs that never pair (bpx_world_exclude_pairs)
 
     // Events (track_events): the previous cycle's pairs, and what changed.
     bpx_pair_list previous;
