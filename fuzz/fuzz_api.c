@@ -187,7 +187,7 @@ typedef struct run {
 static const char *const op_names[] = {
     "set_boxes", "load_extents", "update_centres", "add_boxes",    "remove_boxes",
     "move_boxes", "set_filters", "collide",        "collide_into", "fail_next",
-    "copy_pairs", "find_pairs",
+    "copy_pairs", "find_pairs", "set_groups",   "exclude_pairs", "set_user_data",
 };
 enum { OP_COUNT = sizeof op_names / sizeof op_names[0] };
 
@@ -450,6 +450,99 @@ static void op_set_filters(run *r)
     }
 }
 
+static void op_set_groups(run *r)
+{
+    uint8_t how = byte(&r->in);
+    uint32_t count = how % (MAX_BATCH + 1);
+    bool by_position = how & 0x80;
+    uint32_t ids[MAX_BATCH];
+    int32_t groups[MAX_BATCH];
+    for (uint32_t k = 0; k < count; k++) {
+        ids[k] = by_position ? k : some_id(&r->in, r->m.o.n);
+        groups[k] = (int32_t)(byte(&r->in) % 5) - 2; // -2 .. 2
+    }
+    uint32_t index = UINT32_MAX;
+    bpx_status want = BPX_OK;
+    for (uint32_t k = 0; k < count && want == BPX_OK; k++)
+        if (!oracle_is_live(&r->m.o, ids[k]))
+            want = BPX_ERR_INVALID_ARGUMENT, index = k;
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_set_groups(r->world, by_position ? NULL : ids, groups, count);
+    disarm();
+    if (accept(r, "set_groups", got, want, before)) {
+        for (uint32_t k = 0; k < count; k++)
+            oracle_set_group(&r->m.o, ids[k], groups[k]);
+    } else if (got == want) {
+        check_box_error(r, "set_groups", index, -1);
+    }
+}
+
+// Excludes or includes a batch of pairs; the world's answer for each is checked after.
+static void op_exclude_pairs(run *r)
+{
+    uint8_t how = byte(&r->in);
+    uint32_t count = how % (MAX_BATCH + 1);
+    bool include = how & 0x80;
+    bpx_pair pairs[MAX_BATCH];
+    for (uint32_t k = 0; k < count; k++)
+        pairs[k] = (bpx_pair){some_id(&r->in, r->m.o.n), some_id(&r->in, r->m.o.n)};
+    uint32_t index = UINT32_MAX;
+    bpx_status want = BPX_OK;
+    for (uint32_t k = 0; k < count && want == BPX_OK; k++)
+        if (!oracle_is_live(&r->m.o, pairs[k].i) || !oracle_is_live(&r->m.o, pairs[k].j) ||
+            pairs[k].i == pairs[k].j)
+            want = BPX_ERR_INVALID_ARGUMENT, index = k;
+    long before = atomic_load(&failures);
+    bpx_status got = include ? bpx_world_include_pairs(r->world, pairs, count)
+                             : bpx_world_exclude_pairs(r->world, pairs, count);
+    disarm();
+    const char *op = include ? "include_pairs" : "exclude_pairs";
+    if (accept(r, op, got, want, before)) {
+        for (uint32_t k = 0; k < count; k++)
+            oracle_exclude(&r->m.o, pairs[k].i, pairs[k].j, !include);
+    } else if (got == want) {
+        check_box_error(r, op, index, -1);
+    }
+    for (uint32_t k = 0; k < count; k++)
+        FUZZ_CHECK(bpx_world_pair_excluded(r->world, pairs[k].i, pairs[k].j) ==
+                       (pairs[k].i != pairs[k].j && oracle_excluded(&r->m.o, pairs[k].i, pairs[k].j)),
+                   "%s: pair (%u, %u) excluded %d, the model says otherwise", op, pairs[k].i,
+                   pairs[k].j, bpx_world_pair_excluded(r->world, pairs[k].i, pairs[k].j));
+}
+
+static void op_set_user_data(run *r)
+{
+    uint8_t how = byte(&r->in);
+    uint32_t count = how % (MAX_BATCH + 1);
+    uint32_t ids[MAX_BATCH];
+    uint64_t values[MAX_BATCH];
+    for (uint32_t k = 0; k < count; k++) {
+        ids[k] = some_id(&r->in, r->m.o.n);
+        values[k] = (uint64_t)u32(&r->in) << 32 | byte(&r->in);
+    }
+    uint32_t index = UINT32_MAX;
+    bpx_status want = BPX_OK;
+    for (uint32_t k = 0; k < count && want == BPX_OK; k++)
+        if (!oracle_is_live(&r->m.o, ids[k]))
+            want = BPX_ERR_INVALID_ARGUMENT, index = k;
+    long before = atomic_load(&failures);
+    bpx_status got = bpx_world_set_user_data(r->world, ids, values, count);
+    disarm();
+    if (accept(r, "set_user_data", got, want, before)) {
+        for (uint32_t k = 0; k < count; k++)
+            r->m.o.user_data[ids[k]] = values[k];
+    } else if (got == want) {
+        check_box_error(r, "set_user_data", index, -1);
+    }
+    for (uint32_t id = 0; id < r->m.o.n; id++) {
+        uint64_t want_value = oracle_is_live(&r->m.o, id) ? r->m.o.user_data[id] : 0;
+        FUZZ_CHECK(bpx_world_user_data(r->world, id) == want_value,
+                   "user_data(%u) = %llu, the model %llu", id,
+                   (unsigned long long)bpx_world_user_data(r->world, id),
+                   (unsigned long long)want_value);
+    }
+}
+
 // After a collide the library reports as done: the model's pairs, events and reusable ids.
 static void model_collided(run *r, bpx_pair *want, size_t want_count)
 {
@@ -683,6 +776,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         case 8: op_collide_into(&r); break;
         case 10: op_copy_pairs(&r); break;
         case 11: op_find_pairs(&r, backend); break;
+        case 12: op_set_groups(&r); break;
+        case 13: op_exclude_pairs(&r); break;
+        case 14: op_set_user_data(&r); break;
         }
         bool failed_call = op != 7 && op != 8 && op != 10 && op != 11 &&
                            bpx_world_error(r.world)->status != BPX_OK;

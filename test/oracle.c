@@ -23,10 +23,31 @@ static void *oracle_alloc(size_t size)
     return p;
 }
 
+// Every setting of an id back to a new box's.
 static void unfilter(oracle_model *m, uint32_t id)
 {
     m->category[id] = 1;
     m->mask[id] = UINT32_MAX;
+    m->group[id] = 0;
+    m->user_data[id] = 0;
+}
+
+static uint64_t pair_key(uint32_t i, uint32_t j)
+{
+    return i < j ? (uint64_t)i << 32 | j : (uint64_t)j << 32 | i;
+}
+
+// Drops the excluded pairs with an id that `gone` says goes.
+static void drop_exclusions(oracle_model *m, bool (*gone)(const oracle_model *, uint32_t, uint32_t),
+                            uint32_t arg)
+{
+    uint32_t kept = 0;
+    for (uint32_t k = 0; k < m->excluded_count; k++) {
+        uint64_t key = m->excluded[k];
+        if (!gone(m, (uint32_t)(key >> 32), arg) && !gone(m, (uint32_t)key, arg))
+            m->excluded[kept++] = key;
+    }
+    m->excluded_count = kept;
 }
 
 void oracle_init(oracle_model *m, uint32_t capacity)
@@ -37,6 +58,10 @@ void oracle_init(oracle_model *m, uint32_t capacity)
     m->live = oracle_alloc(capacity * sizeof *m->live);
     m->category = oracle_alloc(capacity * sizeof *m->category);
     m->mask = oracle_alloc(capacity * sizeof *m->mask);
+    m->group = oracle_alloc(capacity * sizeof *m->group);
+    m->user_data = oracle_alloc(capacity * sizeof *m->user_data);
+    m->excluded = oracle_alloc(4 * (size_t)capacity * sizeof *m->excluded);
+    m->excluded_count = 0;
     m->pending = oracle_alloc(capacity * sizeof *m->pending);
     m->freed = oracle_alloc(capacity * sizeof *m->freed);
     m->pending_count = m->free_count = 0;
@@ -55,9 +80,18 @@ void oracle_free(oracle_model *m)
     free(m->live);
     free(m->category);
     free(m->mask);
+    free(m->group);
+    free(m->user_data);
+    free(m->excluded);
     free(m->pending);
     free(m->freed);
     memset(m, 0, sizeof *m);
+}
+
+// set_boxes keeps an id's settings when it is live and below both counts (kept).
+static bool not_kept(const oracle_model *m, uint32_t id, uint32_t kept)
+{
+    return id >= kept || !m->live[id];
 }
 
 void oracle_reset(oracle_model *m, uint32_t n)
@@ -65,6 +99,7 @@ void oracle_reset(oracle_model *m, uint32_t n)
     if (n > m->capacity)
         oracle_abort("set_boxes past the model's capacity");
     uint32_t kept = n < m->n ? n : m->n;
+    drop_exclusions(m, not_kept, kept);
     for (uint32_t id = 0; id < m->capacity; id++) {
         if (id >= kept || !m->live[id])
             unfilter(m, id);
@@ -110,8 +145,48 @@ void oracle_set_filter(oracle_model *m, uint32_t id, uint32_t category, uint32_t
     m->mask[id] = mask;
 }
 
+void oracle_set_group(oracle_model *m, uint32_t id, int32_t group)
+{
+    m->group[id] = group;
+}
+
+bool oracle_excluded(const oracle_model *m, uint32_t i, uint32_t j)
+{
+    uint64_t key = pair_key(i, j);
+    for (uint32_t k = 0; k < m->excluded_count; k++)
+        if (m->excluded[k] == key)
+            return true;
+    return false;
+}
+
+void oracle_exclude(oracle_model *m, uint32_t i, uint32_t j, bool on)
+{
+    uint64_t key = pair_key(i, j);
+    for (uint32_t k = 0; k < m->excluded_count; k++)
+        if (m->excluded[k] == key) {
+            if (!on)
+                m->excluded[k] = m->excluded[--m->excluded_count];
+            return;
+        }
+    if (!on)
+        return;
+    if (m->excluded_count == 4 * m->capacity)
+        oracle_abort("too many excluded pairs for the model");
+    m->excluded[m->excluded_count++] = key;
+}
+
+static bool is_pending(const oracle_model *m, uint32_t id, uint32_t unused)
+{
+    (void)unused;
+    for (uint32_t k = 0; k < m->pending_count; k++)
+        if (m->pending[k] == id)
+            return true;
+    return false;
+}
+
 void oracle_collided(oracle_model *m)
 {
+    drop_exclusions(m, is_pending, 0);
     for (uint32_t k = 0; k < m->pending_count; k++)
         m->freed[m->free_count++] = m->pending[k];
     m->pending_count = 0;
@@ -125,9 +200,9 @@ bool oracle_is_live(const oracle_model *m, uint32_t id)
 bool oracle_filtered(const oracle_model *m)
 {
     for (uint32_t id = 0; id < m->n; id++)
-        if (m->category[id] != 1 || m->mask[id] != UINT32_MAX)
+        if (m->category[id] != 1 || m->mask[id] != UINT32_MAX || m->group[id] != 0)
             return true;
-    return false;
+    return m->excluded_count > 0;
 }
 
 bool oracle_overlap(const bpx_box *a, const bpx_box *b)
@@ -138,12 +213,16 @@ bool oracle_overlap(const bpx_box *a, const bpx_box *b)
     return true;
 }
 
-// Live ids i and j pair: their boxes overlap and each passes the other's filter,
+// Live ids i and j pair: their boxes overlap, the pair is not excluded, and a shared non-zero
+// group says yes (positive), or else each passes the other's filter,
 // (category[i] & mask[j]) && (category[j] & mask[i]).
 static bool pair(const oracle_model *m, uint32_t i, uint32_t j)
 {
-    return oracle_overlap(&m->boxes[i], &m->boxes[j]) && (m->category[i] & m->mask[j]) &&
-           (m->category[j] & m->mask[i]);
+    if (!oracle_overlap(&m->boxes[i], &m->boxes[j]) || oracle_excluded(m, i, j))
+        return false;
+    if (m->group[i] == m->group[j] && m->group[i] != 0)
+        return m->group[i] > 0;
+    return (m->category[i] & m->mask[j]) && (m->category[j] & m->mask[i]);
 }
 
 size_t oracle_pairs(const oracle_model *m, bpx_pair *out, size_t capacity)

@@ -22,6 +22,10 @@ typedef struct oracle_model {
     bpx_box *boxes;
     bool *live;
     uint32_t *category, *mask;        // the filter: unfiltered is category 1, mask all ones
+    int32_t *group;                   // 0 unless set
+    uint64_t *user_data;              // 0 unless set
+    uint64_t *excluded;               // excluded pairs, (smaller id << 32 | larger), unordered
+    uint32_t excluded_count;
     uint32_t *pending, pending_count; // removed since the last cycle: reusable after it
     uint32_t *freed, free_count;      // reusable: add_boxes takes the last first
 } oracle_model;
@@ -42,15 +46,20 @@ uint32_t oracle_add(oracle_model *m, const bpx_box *box);
 void oracle_remove(oracle_model *m, uint32_t id);
 void oracle_move(oracle_model *m, uint32_t id, const bpx_box *box);
 void oracle_set_filter(oracle_model *m, uint32_t id, uint32_t category, uint32_t mask);
-/// A cycle succeeded: the ids removed before it are reusable.
+void oracle_set_group(oracle_model *m, uint32_t id, int32_t group);
+/// Excludes (on) or includes (off) the pair of two different ids.
+void oracle_exclude(oracle_model *m, uint32_t i, uint32_t j, bool on);
+bool oracle_excluded(const oracle_model *m, uint32_t i, uint32_t j);
+/// A cycle succeeded: the ids removed before it are reusable, in no excluded pair.
 void oracle_collided(oracle_model *m);
 /// id is handed out and live.
 bool oracle_is_live(const oracle_model *m, uint32_t id);
-/// Any id carries a filter other than unfiltered.
+/// Any id carries a filter other than unfiltered, a group, or an excluded pair.
 bool oracle_filtered(const oracle_model *m);
 
-/// The pairs the world must report: Algorithm 1 over the live ids, filters applied, in (i, j)
-/// order. The first `capacity` go to out; returns how many there are.
+/// The pairs the world must report: Algorithm 1 over the live ids, in (i, j) order, without
+/// excluded pairs, then by groups (a shared non-zero group: positive pairs, negative never),
+/// then filters. The first `capacity` go to out; returns how many there are.
 size_t oracle_pairs(const oracle_model *m, bpx_pair *out, size_t capacity);
 /// The same, into an array it allocates (free() it). Aborts without memory.
 size_t oracle_pairs_alloc(const oracle_model *m, bpx_pair **out);

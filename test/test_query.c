@@ -169,6 +169,86 @@ static bpx_world *make_world(int workers)
 static bpx_hit *expect_buf, *got_buf;
 static size_t buf_cap;
 
+// bpx_world_query_each's callbacks for the tests: collect every hit (and its user data), or
+// keep the closest so far and clip the cast to it.
+typedef struct collected {
+    bpx_hit *hits;
+    size_t count;
+    size_t capacity;
+    bool user_data_ok;
+    const uint64_t *user_data; // per id, or NULL (every box's 0)
+    bpx_hit best;
+} collected;
+
+static float collect(const bpx_hit *hit, uint64_t user_data, void *context)
+{
+    collected *c = context;
+    if (c->count < c->capacity)
+        c->hits[c->count] = *hit;
+    c->count++;
+    c->user_data_ok &= user_data == (c->user_data ? c->user_data[hit->id] : 0);
+    return INFINITY;
+}
+
+static float keep_closest(const bpx_hit *hit, uint64_t user_data, void *context)
+{
+    (void)user_data;
+    collected *c = context;
+    c->count++;
+    if (hit->fraction < c->best.fraction ||
+        (hit->fraction == c->best.fraction && hit->id < c->best.id))
+        c->best = *hit;
+    // Hits entering later cannot be closer; 0 would stop the walk, and a tie at 0 may still
+    // have a lower id: the least positive float keeps those.
+    return c->best.fraction > 0.0f ? c->best.fraction : FLT_TRUE_MIN;
+}
+
+static bpx_hit *all_buf;
+
+// The read-only calls on the same world (its tree is current: a query just ran): query_shared
+// gives the same bytes; any gives one of all's hits (or none when there are none); query_each
+// visits all's hits, and, clipping, ends on the closest.
+static void check_read_only(bpx_world *w, const world_copy *copy, const bpx_query *q, int k,
+                            const bpx_hit *want, size_t want_count, const uint64_t *user_data)
+{
+    size_t got = 0;
+    bpx_error err;
+    bpx_status s = bpx_world_query_shared(w, q, got_buf, buf_cap, &got, &err);
+    CHECK_MSG(s == BPX_OK && got == want_count &&
+                  memcmp(got_buf, want, sizeof(bpx_hit) * want_count) == 0,
+              "query %d kind %d: shared %zu hits (%s), query %zu", k, q->kind, got, err.message,
+              want_count);
+    bpx_query all = *q;
+    all.closest = false;
+    size_t all_count = oracle(copy, &all, all_buf);
+    bpx_query any = all;
+    any.any = true;
+    CHECK_STATUS(bpx_world_query(w, &any, got_buf, buf_cap, &got), BPX_OK);
+    bool found = false;
+    for (size_t h = 0; got == 1 && h < all_count; h++)
+        found |= all_buf[h].id == got_buf[0].id && all_buf[h].fraction == got_buf[0].fraction;
+    CHECK_MSG(all_count ? got == 1 && found : got == 0, "query %d kind %d: any gave %zu hits (%s), all %zu",
+              k, q->kind, got, got ? "listed" : "-", all_count);
+    collected c = {got_buf, 0, buf_cap, true, user_data, {UINT32_MAX, INFINITY}};
+    CHECK_STATUS(bpx_world_query_each(w, &all, collect, &c, NULL), BPX_OK);
+    bool same = c.count == all_count && c.user_data_ok;
+    if (same && c.count > 1) // walk order: sort as the oracle does
+        qsort(got_buf, c.count, sizeof(bpx_hit),
+              q->kind == BPX_QUERY_RAY || q->kind == BPX_QUERY_SWEEP ? hit_by_fraction : hit_by_id);
+    same = same && memcmp(got_buf, all_buf, sizeof(bpx_hit) * all_count) == 0;
+    CHECK_MSG(same, "query %d kind %d: each visited %zu, all %zu", k, q->kind, c.count, all_count);
+    if (q->kind == BPX_QUERY_RAY || q->kind == BPX_QUERY_SWEEP) {
+        c = (collected){NULL, 0, 0, true, NULL, {UINT32_MAX, INFINITY}};
+        CHECK_STATUS(bpx_world_query_each(w, &all, keep_closest, &c, NULL), BPX_OK);
+        CHECK_MSG(all_count ? c.best.id == all_buf[0].id && c.best.fraction == all_buf[0].fraction
+                            : c.count == 0,
+                  "query %d kind %d: clipping callback ended on %u@%g, closest %u@%g", k, q->kind,
+                  c.best.id, (double)c.best.fraction, all_count ? all_buf[0].id : 0,
+                  all_count ? (double)all_buf[0].fraction : 0.0);
+        CHECK(c.count <= all_count);
+    }
+}
+
 static void compare_one(bpx_world *w, const world_copy *copy, const bpx_query *q, int k)
 {
     size_t want = oracle(copy, q, expect_buf), got = 0;
@@ -179,6 +259,7 @@ static void compare_one(bpx_world *w, const world_copy *copy, const bpx_query *q
               q->kind, q->closest, got, want, got ? got_buf[0].id : 0,
               got ? (double)got_buf[0].fraction : 0.0, want ? expect_buf[0].id : 0,
               want ? (double)expect_buf[0].fraction : 0.0);
+    check_read_only(w, copy, q, k, expect_buf, want, NULL);
 }
 
 // Every scene kind at several sizes: single queries against the oracle, with the walks of one
@@ -554,6 +635,93 @@ static void test_errors(void)
     bpx_world_destroy(w);
 }
 
+// The read-only calls' rules: prepared or BAD_STATE; closest with any refused; CAPACITY with the
+// count; a callback that stops; user data; a callback that changes the world gets BAD_STATE and
+// the walk goes on unharmed.
+typedef struct meddler {
+    bpx_world *world;
+    bpx_status set, query, collide;
+    int calls;
+} meddler;
+
+static float meddle(const bpx_hit *hit, uint64_t user_data, void *context)
+{
+    (void)hit, (void)user_data;
+    meddler *m = context;
+    bpx_box b = {{0, 0, 0}, {1, 1, 1}};
+    size_t count;
+    m->set = bpx_world_set_boxes(m->world, &b, 1);
+    m->query = bpx_world_query(m->world, &(bpx_query){.kind = BPX_QUERY_BOX, .box = b,
+                                                     .filter = bpx_default_query_filter()},
+                               NULL, 0, &count);
+    m->collide = bpx_world_collide(m->world);
+    m->calls++;
+    return INFINITY;
+}
+
+static float stop_at_first(const bpx_hit *hit, uint64_t user_data, void *context)
+{
+    (void)hit, (void)user_data;
+    ++*(int *)context;
+    return 0.0f;
+}
+
+static void test_read_only_rules(void)
+{
+    check_set_context("read-only rules");
+    bpx_box boxes[4] = {{{0, 0, 0}, {1, 1, 1}}, {{2, 0, 0}, {3, 1, 1}}, {{4, 0, 0}, {5, 1, 1}},
+                        {{0.5f, 0, 0}, {2.5f, 1, 1}}};
+    bpx_world *w = make_world(1);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 4), BPX_OK);
+    bpx_query region = bpx_query_box((bpx_box){{0, 0, 0}, {5, 1, 1}});
+    bpx_hit hits[4];
+    size_t count = 0;
+    bpx_error err;
+    CHECK_STATUS(bpx_world_query_shared(w, &region, hits, 4, &count, &err), BPX_ERR_BAD_STATE);
+    CHECK(strstr(err.message, "prepare_queries") != NULL);
+    CHECK_STATUS(bpx_world_prepare_queries(w), BPX_OK);
+    CHECK_STATUS(bpx_world_query_shared(w, &region, hits, 4, &count, &err), BPX_OK);
+    CHECK(count == 4 && hits[0].id == 0 && hits[3].id == 3);
+    CHECK_STATUS(bpx_world_query_shared(w, &region, hits, 2, &count, NULL), BPX_ERR_CAPACITY);
+    CHECK(count == 4);
+    bpx_query both = bpx_query_ray((float[3]){-1, 0.5f, 0.5f}, (float[3]){1, 0, 0}, 10, true);
+    both.any = true;
+    CHECK_STATUS(bpx_world_query_shared(w, &both, hits, 4, &count, &err),
+                 BPX_ERR_INVALID_ARGUMENT);
+    CHECK_STATUS(bpx_world_query(w, &both, hits, 4, &count), BPX_ERR_INVALID_ARGUMENT);
+    both.any = false;
+    int calls = 0;
+    CHECK_STATUS(bpx_world_query_each(w, &both, stop_at_first, &calls, &err),
+                 BPX_ERR_INVALID_ARGUMENT); // closest: the callback decides
+    both.closest = false;
+    CHECK_STATUS(bpx_world_query_each(w, &both, stop_at_first, &calls, &err), BPX_OK);
+    CHECK(calls == 1);
+    CHECK_STATUS(bpx_world_query_each(w, &both, NULL, NULL, &err), BPX_ERR_NULL_ARGUMENT);
+
+    uint64_t data[4] = {10, 11, 12, 13};
+    CHECK_STATUS(bpx_world_set_user_data(w, NULL, data, 4), BPX_OK);
+    collected c = {hits, 0, 4, true, data, {UINT32_MAX, INFINITY}};
+    CHECK_STATUS(bpx_world_query_each(w, &region, collect, &c, NULL), BPX_OK);
+    CHECK(c.count == 4 && c.user_data_ok);
+
+    meddler m = {w, BPX_OK, BPX_OK, BPX_OK, 0};
+    CHECK_STATUS(bpx_world_query_each(w, &region, meddle, &m, NULL), BPX_OK);
+    CHECK(m.calls == 4 && m.set == BPX_ERR_BAD_STATE && m.query == BPX_ERR_BAD_STATE &&
+          m.collide == BPX_ERR_BAD_STATE);
+    CHECK(bpx_world_box_count(w) == 4); // unchanged
+    CHECK_STATUS(bpx_world_query_shared(w, &region, hits, 4, &count, NULL), BPX_OK);
+    CHECK(count == 4);
+
+    // A change makes the tree stale until the next prepare (or bpx_world_query).
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 3), BPX_OK);
+    CHECK_STATUS(bpx_world_query_shared(w, &region, hits, 4, &count, NULL), BPX_ERR_BAD_STATE);
+    CHECK_STATUS(bpx_world_query_each(w, &region, collect, &c, NULL), BPX_ERR_BAD_STATE);
+    CHECK_STATUS(bpx_world_prepare_queries(w), BPX_OK);
+    CHECK_STATUS(bpx_world_query_shared(w, &region, hits, 4, &count, NULL), BPX_OK);
+    CHECK(count == 3);
+    bpx_world_destroy(w);
+}
+
 // Allocation failure: OUT_OF_MEMORY, nothing leaked, and the next query works.
 static int64_t fail_after = -1;
 static void *failing_alloc(size_t size, size_t alignment, void *user)
@@ -608,6 +776,7 @@ int main(void)
     buf_cap = 1u << 20;
     expect_buf = malloc(sizeof(bpx_hit) * buf_cap);
     got_buf = malloc(sizeof(bpx_hit) * buf_cap);
+    all_buf = malloc(sizeof(bpx_hit) * buf_cap);
     int64_t start = bpx_allocated_bytes();
     test_scenes(BPX_SIMD_AUTO);
     if (bpx_simd_best() == BPX_SIMD_AVX512 && bpx_simd_supported(BPX_SIMD_AVX2))
@@ -619,9 +788,11 @@ int main(void)
     test_centres();
     test_batches();
     test_errors();
+    test_read_only_rules();
     test_out_of_memory();
     CHECK_EQ_U64((uint64_t)bpx_allocated_bytes(), (uint64_t)start);
     free(expect_buf);
     free(got_buf);
+    free(all_buf);
     return check_finish("test_query", 1);
 }

@@ -4,6 +4,12 @@
 //
 //   bpx_querybench [--sizes 100000,1000000] [--rays 1000000] [--regions 1000000]
 //                  [--sweeps 100000] [--workers 2] [--rounds 1] [--peers all]
+//   bpx_querybench --modes 1 [--sizes ...] [--rays ...] [--rounds ...]
+//
+// --modes 1 prints instead the ray modes and the read-only path's threads (issue 31): all hits,
+// any hit and the closest on the same rays (bpx_world_query_shared, one thread), and 1, 2, 4, 8
+// threads at once querying one prepared world, on a uniform scene (one overlap per box) and a
+// dense one (16).
 //
 // --rounds R runs every column R times, alternating (bpx, then each peer, R times), and reports
 // the medians: ratios side by side on a shared machine. --peers picks the peers (a comma list of
@@ -28,6 +34,7 @@
 #include <cstring>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <bpx/bpx.h>
@@ -462,6 +469,101 @@ bool listed(const std::string &peers, const char *name)
            ("," + peers + ",").find(std::string(",") + name + ",") != std::string::npos;
 }
 
+// Ray modes and threads on the read-only path (see the header comment).
+int mode_rows(const std::vector<uint32_t> &sizes, uint32_t ray_count, int rounds)
+{
+    std::printf("# bpx rays on one prepared world: ns per ray (lower is better), one thread, "
+                "bpx_world_query_shared; median of %d alternating round(s). Threads: rays per "
+                "second of T threads at once over one thread's (this machine: %u hardware "
+                "threads)\n\n",
+                rounds, std::thread::hardware_concurrency());
+    std::printf("| scene | boxes | all hits | any hit | closest | all / any | hits per ray (all) "
+                "| 2 threads | 4 threads | 8 threads |\n|---|---:|---:|---:|---:|---:|---:|---:|"
+                "---:|---:|\n");
+    for (float density : {1.0f, 16.0f})
+        for (uint32_t n : sizes) {
+            std::vector<bpx_box> boxes(n);
+            scene_uniform_density(n, density, 42, boxes.data());
+            float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+            for (const bpx_box &b : boxes)
+                for (int a = 0; a < 3; a++)
+                    lo[a] = std::fmin(lo[a], b.min[a]), hi[a] = std::fmax(hi[a], b.max[a]);
+            scene_rng r;
+            scene_rng_seed(&r, 7);
+            std::vector<bpx_query> all(ray_count), any, closest;
+            for (bpx_query &q : all) {
+                float o[3], d[3];
+                for (int a = 0; a < 3; a++)
+                    o[a] = uniform(&r, lo[a], hi[a]);
+                unit_direction(&r, d);
+                q = bpx_query_ray(o, d, 0.25f * (hi[0] - lo[0]), false);
+            }
+            any = closest = all;
+            for (bpx_query &q : any)
+                q.any = true;
+            for (bpx_query &q : closest)
+                q.closest = true;
+            bpx_world_def def = bpx_default_world_def();
+            bpx_world *world = nullptr;
+            if (bpx_world_create(&def, &world) != BPX_OK ||
+                bpx_world_set_boxes(world, boxes.data(), n) != BPX_OK ||
+                bpx_world_prepare_queries(world) != BPX_OK) {
+                std::fprintf(stderr, "bpx: cannot make the world\n");
+                return 1;
+            }
+            std::vector<bpx_hit> hits(n);
+            auto shared = [&](const std::vector<bpx_query> &qs, size_t first, size_t step,
+                              bpx_hit *out, uint64_t *total) {
+                uint64_t sum = 0;
+                for (size_t k = first; k < qs.size(); k += step) {
+                    size_t count = 0;
+                    bpx_world_query_shared(world, &qs[k], out, n, &count, nullptr);
+                    sum += count;
+                }
+                *total = sum;
+            };
+            auto timed = [&](const std::vector<bpx_query> &qs, uint64_t *total) {
+                double t0 = now_s();
+                shared(qs, 0, 1, hits.data(), total);
+                return 1e9 * (now_s() - t0) / (double)qs.size();
+            };
+            auto threads_rate = [&](int count) {
+                std::vector<std::thread> pool;
+                std::vector<std::vector<bpx_hit>> outs(count, std::vector<bpx_hit>(n));
+                std::vector<uint64_t> totals(count);
+                double t0 = now_s();
+                for (int t = 0; t < count; t++)
+                    pool.emplace_back(shared, std::cref(closest), (size_t)t, (size_t)count,
+                                      outs[t].data(), &totals[t]);
+                for (std::thread &t : pool)
+                    t.join();
+                return (double)closest.size() / (now_s() - t0);
+            };
+            std::vector<double> t_all, t_any, t_closest, s2, s4, s8;
+            uint64_t all_hits = 0, any_hits = 0, closest_hits = 0;
+            for (int round = 0; round < rounds; round++) {
+                t_all.push_back(timed(all, &all_hits));
+                t_any.push_back(timed(any, &any_hits));
+                t_closest.push_back(timed(closest, &closest_hits));
+                double one = threads_rate(1);
+                s2.push_back(threads_rate(2) / one);
+                s4.push_back(threads_rate(4) / one);
+                s8.push_back(threads_rate(8) / one);
+            }
+            if (any_hits != closest_hits) // both: one hit per ray that hits anything
+                std::fprintf(stderr, "note: any %llu hits, closest %llu\n",
+                             (unsigned long long)any_hits, (unsigned long long)closest_hits);
+            std::printf("| %s | %u | %.0f | %.0f | %.0f | %.1f× | %.1f | %.2f× | %.2f× | %.2f× |\n",
+                        density > 1.0f ? "dense (16 per box)" : "uniform (1 per box)", n,
+                        median(t_all), median(t_any), median(t_closest),
+                        median(t_all) / median(t_any), (double)all_hits / (double)all.size(),
+                        median(s2), median(s4), median(s8));
+            std::fflush(stdout);
+            bpx_world_destroy(world);
+        }
+    return 0;
+}
+
 } // namespace
 
 int main(int argc, char **argv)
@@ -470,6 +572,7 @@ int main(int argc, char **argv)
     uint32_t rays = 1000000, regions = 1000000, sweeps = 100000;
     int workers = 2, rounds = 1;
     std::string peers = "all";
+    bool modes = false;
     for (int i = 1; i + 1 < argc; i += 2) {
         if (!std::strcmp(argv[i], "--sizes"))
             sizes = parse_list(argv[i + 1]);
@@ -485,11 +588,15 @@ int main(int argc, char **argv)
             rounds = std::max(1, std::atoi(argv[i + 1]));
         else if (!std::strcmp(argv[i], "--peers"))
             peers = argv[i + 1];
+        else if (!std::strcmp(argv[i], "--modes"))
+            modes = std::atoi(argv[i + 1]) != 0;
         else {
             std::fprintf(stderr, "unknown option %s\n", argv[i]);
             return 2;
         }
     }
+    if (modes)
+        return mode_rows(sizes, rays, rounds);
     bool use_bullet = listed(peers, "bullet"), use_box2d = listed(peers, "box2d");
     bool use_embree = listed(peers, "embree");
     (void)use_bullet, (void)use_box2d, (void)use_embree;

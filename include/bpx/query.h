@@ -28,6 +28,15 @@
 //                  at fraction 0. Closest: the hit with the least fraction, ties to the lowest
 //                  id. All: every hit, sorted by fraction then id.
 // Results of region and sphere queries are sorted by id (fraction 0).
+// Any (query.any, every kind): at most one hit, the first the walk of the tree meets: some hit
+// when there is one (a line of sight is blocked), not the closest. Which one depends on the
+// tree, so it is the same for the same boxes and the same calls, whatever the thread count.
+//
+// Threads. bpx_world_query and bpx_world_query_batch bring the tree up to date and keep their
+// results in the world: one thread at a time, like every call that takes a bpx_world *. After
+// bpx_world_prepare_queries, bpx_world_query_shared and bpx_world_query_each read the world
+// only (const): any number of threads may run them at once, as long as no call changes the
+// world meanwhile (set, add, move, remove, filters, collide, bpx_world_query...).
 //
 // Bad queries are refused, naming the query (its position in a batch) and the axis:
 // NOT_FINITE (a NaN or infinite coordinate, centre, radius, origin, direction or translation;
@@ -65,6 +74,8 @@ typedef struct bpx_query {
     bpx_query_kind kind;
     /// RAY and SWEEP: true for the closest hit only, false for every hit.
     bool closest;
+    /// Every kind: stop at the first hit found (at most one; see "Any" above). Not with closest.
+    bool any;
     bpx_query_filter filter;
     bpx_box box;         ///< BOX: the region; SWEEP: the moving box at t = 0
     float centre[3];     ///< SPHERE
@@ -115,6 +126,39 @@ BPX_API bpx_status bpx_world_query_batch(bpx_world *world, const bpx_query *quer
 /// queries it. offsets (may be NULL) receives the CSR offsets (query_count + 1 entries).
 BPX_API const bpx_hit *bpx_world_query_hits(const bpx_world *world, const size_t **offsets,
                                             uint32_t *query_count, size_t *total);
+
+/// Brings the query tree up to date with the boxes (a refit or a rebuild, as the first query
+/// after a change would), so that bpx_world_query_shared and bpx_world_query_each may run.
+/// Errors: NULL_ARGUMENT, BAD_STATE (boxes on a device, as bpx_world_query), OUT_OF_MEMORY.
+BPX_API bpx_status bpx_world_prepare_queries(bpx_world *world);
+
+/// One query on a prepared world, reading it only: safe from many threads at once (see Threads
+/// above). Results as bpx_world_query. If *count exceeds capacity, returns CAPACITY and writes
+/// nothing useful to hits: call again with room for *count. Allocates nothing.
+/// Errors: NULL_ARGUMENT, BAD_STATE (the boxes changed since bpx_world_prepare_queries, or it was
+/// never called), the query errors above; the detail goes to err (may be NULL), never to the
+/// world's bpx_world_error.
+BPX_API bpx_status bpx_world_query_shared(const bpx_world *world, const bpx_query *query,
+                                          bpx_hit *hits, size_t capacity, size_t *count,
+                                          bpx_error *err);
+
+/// Called by bpx_world_query_each for each hit, with the box's user data
+/// (bpx_world_set_user_data). Its return steers the walk (Box2D's convention):
+///   < 0 (or NaN)  ignore this hit and go on;
+///   0             stop: no more hits;
+///   > 0           go on; for a ray or sweep, also end the cast at min(this, its current end):
+///                 hits entering later are skipped (return hit->fraction to look for closer
+///                 ones only, +INFINITY to go on unchanged).
+/// It must not change the world: such a call returns BAD_STATE.
+typedef float bpx_query_hit_fn(const bpx_hit *hit, uint64_t user_data, void *context);
+
+/// Runs one query on a prepared world, calling fn for each hit in the order the walk of the tree
+/// meets them (not sorted: the same order for the same boxes and calls). closest and any must
+/// be false: the callback decides. Reads the world only, like bpx_world_query_shared.
+/// Errors: NULL_ARGUMENT, BAD_STATE (not prepared; see query_shared), INVALID_ARGUMENT (closest
+/// or any set), the query errors above; detail in err (may be NULL).
+BPX_API bpx_status bpx_world_query_each(const bpx_world *world, const bpx_query *query,
+                                        bpx_query_hit_fn *fn, void *context, bpx_error *err);
 
 /// The tree's state, for benchmarks and tests: builds from scratch, refits, nodes, and the
 /// nanoseconds of the last build or refit.

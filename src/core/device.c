@@ -16,9 +16,9 @@
 // BACKEND_UNAVAILABLE (named in the world's error).
 static bpx_status device_ops(bpx_world *w, bpx_backend backend, const bpx_device_ops **ops)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "device call");
+    if (entered != BPX_OK)
+        return entered;
     if (w->backend->id != backend || !w->backend->device)
         return bpx__error(&w->error, BPX_ERR_BACKEND_UNAVAILABLE, UINT32_MAX, -1,
                           "the world's backend is %s, not %s", w->backend->name,

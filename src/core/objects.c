@@ -207,9 +207,9 @@ void bpx__objects_free(bpx_world *w)
 bpx_status bpx_world_add_boxes(bpx_world *w, const bpx_box *boxes, uint32_t count,
                                uint32_t *out_ids)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "add_boxes");
+    if (entered != BPX_OK)
+        return entered;
     if (count && (!boxes || !out_ids))
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "boxes or out_ids is NULL");
@@ -267,9 +267,9 @@ static bpx_status check_ids(bpx_world *w, const uint32_t *ids, uint32_t count, c
 
 bpx_status bpx_world_remove_boxes(bpx_world *w, const uint32_t *ids, uint32_t count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "remove_boxes");
+    if (entered != BPX_OK)
+        return entered;
     if (count && !ids)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "ids is NULL");
     if (!reserve_objects(w, w->n))
@@ -288,9 +288,9 @@ bpx_status bpx_world_remove_boxes(bpx_world *w, const uint32_t *ids, uint32_t co
 bpx_status bpx_world_move_boxes(bpx_world *w, const uint32_t *ids, const bpx_box *boxes,
                                 uint32_t count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "move_boxes");
+    if (entered != BPX_OK)
+        return entered;
     if (count && (!ids || !boxes))
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "ids or boxes is NULL");
@@ -341,9 +341,9 @@ static bool use_columns(bpx_world *w, void **a, void **b)
 bpx_status bpx_world_set_filters(bpx_world *w, const uint32_t *ids, const uint32_t *categories,
                                  const uint32_t *masks, uint32_t count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "set_filters");
+    if (entered != BPX_OK)
+        return entered;
     if (count && (!categories || !masks))
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "categories or masks is NULL");
@@ -363,9 +363,9 @@ bpx_status bpx_world_set_filters(bpx_world *w, const uint32_t *ids, const uint32
 bpx_status bpx_world_set_groups(bpx_world *w, const uint32_t *ids, const int32_t *groups,
                                 uint32_t count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "set_groups");
+    if (entered != BPX_OK)
+        return entered;
     if (count && !groups)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "groups is NULL");
     bpx_status status = check_in_use(w, ids, count, "set_groups");
@@ -381,9 +381,9 @@ bpx_status bpx_world_set_groups(bpx_world *w, const uint32_t *ids, const int32_t
 bpx_status bpx_world_set_user_data(bpx_world *w, const uint32_t *ids, const uint64_t *values,
                                    uint32_t count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "set_user_data");
+    if (entered != BPX_OK)
+        return entered;
     if (count && !values)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "values is NULL");
     bpx_status status = check_in_use(w, ids, count, "set_user_data");
@@ -428,9 +428,9 @@ static bpx_status check_pairs(bpx_world *w, const bpx_pair *pairs, uint32_t coun
 
 bpx_status bpx_world_exclude_pairs(bpx_world *w, const bpx_pair *pairs, uint32_t count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "exclude_pairs");
+    if (entered != BPX_OK)
+        return entered;
     bpx_status status = check_pairs(w, pairs, count, "exclude_pairs");
     if (status != BPX_OK)
         return status;
@@ -449,9 +449,9 @@ bpx_status bpx_world_exclude_pairs(bpx_world *w, const bpx_pair *pairs, uint32_t
 
 bpx_status bpx_world_include_pairs(bpx_world *w, const bpx_pair *pairs, uint32_t count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "include_pairs");
+    if (entered != BPX_OK)
+        return entered;
     bpx_status status = check_pairs(w, pairs, count, "include_pairs");
     if (status != BPX_OK)
         return status;

@@ -328,11 +328,24 @@ static int run_update(bpx_world *w, bpx_task_fn *task, update_job *job)
     return ok;
 }
 
-bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
+bpx_status bpx__world_enter(bpx_world *w, const char *call)
 {
     if (!w)
         return BPX_ERR_NULL_ARGUMENT;
     bpx__error_clear(&w->error);
+    if (bpx__query_callbacks_running(w))
+        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          "%s: called while a query callback of this world runs "
+                          "(bpx_world_query_each); a callback must not change the world",
+                          call);
+    return BPX_OK;
+}
+
+bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
+{
+    bpx_status entered = bpx__world_enter(w, "set_boxes");
+    if (entered != BPX_OK)
+        return entered;
     uint64_t start = bpx__now_ns();
     if (n > BPX_MAX_BOXES)
         return bpx__error(&w->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
@@ -362,9 +375,9 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
 
 bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "load_extents");
+    if (entered != BPX_OK)
+        return entered;
     if (n > BPX_MAX_BOXES)
         return bpx__error(&w->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
                           "%u objects exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
@@ -422,9 +435,9 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
 
 bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "update_centres");
+    if (entered != BPX_OK)
+        return entered;
     uint64_t start = bpx__now_ns();
     if (!w->extents_loaded)
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
@@ -518,9 +531,9 @@ static bpx_status compare(bpx_world *w, size_t *total)
 
 bpx_status bpx_world_collide(bpx_world *w)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "collide");
+    if (entered != BPX_OK)
+        return entered;
     size_t total = 0;
     bpx_status status = compare(w, &total);
     if (status != BPX_OK)
@@ -543,9 +556,9 @@ bpx_status bpx_world_collide(bpx_world *w)
 
 bpx_status bpx_world_collide_into(bpx_world *w, bpx_pair *out, size_t capacity, size_t *count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "collide_into");
+    if (entered != BPX_OK)
+        return entered;
     if (!count || (!out && capacity > 0))
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "count is NULL, or out is NULL with capacity > 0");

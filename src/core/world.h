@@ -97,3 +97,10 @@ static inline bpx_cycle bpx__world_cycle(bpx_world *w)
 // Queries (src/query/query.c).
 typedef struct bpx_query_state bpx_query_state;
 void bpx__query_free(bpx_world *w);
+/// Whether a bpx_world_query_each callback of this world is running now.
+bool bpx__query_callbacks_running(const bpx_world *w);
+
+/// The start of every call that changes the world (or its query results): NULL_ARGUMENT for no
+/// world; the world's error cleared; BAD_STATE while a query callback of the world runs (the
+/// call comes from inside one, or races the readers). `call` names the call in the message.
+bpx_status bpx__world_enter(bpx_world *w, const char *call);

@@ -11,6 +11,8 @@ bool bpx__hits_reserve(bpx_hit_list *list, size_t extra)
 {
     if (list->count + extra <= list->capacity)
         return true;
+    if (list->fixed)
+        return false;
     size_t cap = list->capacity ? list->capacity : 64;
     while (cap < list->count + extra)
         cap *= 2;
@@ -44,13 +46,14 @@ static int by_fraction(const void *a, const void *b)
 
 void bpx__hits_sort(bpx_hit_list *out, size_t first, bool cast)
 {
-    if (out->count - first > 1)
+    if (out->count - first > 1 && out->count <= out->capacity)
         qsort(out->hits + first, out->count - first, sizeof(bpx_hit), cast ? by_fraction : by_id);
 }
 
-static bpx_prepared prepare(const bpx_query *q)
+static bpx_prepared prepare(const bpx_query *q, bpx_query_hit_fn *visit, void *visit_context)
 {
-    bpx_prepared p = {.kind = q->kind, .closest = q->closest, .filter = q->filter};
+    bpx_prepared p = {.kind = q->kind, .closest = q->closest, .any = q->any, .visit = visit,
+                      .visit_context = visit_context, .filter = q->filter};
     p.all_moving = true;
     for (int a = 0; a < 3; a++) {
         switch (q->kind) {
@@ -80,9 +83,10 @@ static bpx_prepared prepare(const bpx_query *q)
     return p;
 }
 
-bool bpx__query_run(const bpx_query_view *view, const bpx_query *query, bpx_hit_list *out)
+bool bpx__query_run(const bpx_query_view *view, const bpx_query *query, bpx_query_hit_fn *visit,
+                    void *visit_context, bpx_hit_list *out)
 {
-    bpx_prepared p = prepare(query);
+    bpx_prepared p = prepare(query, visit, visit_context);
 #if BPX_HAVE_AVX512
     if (view->simd == BPX_SIMD_AVX512)
         return bpx__traverse_avx512(view, &p, out);

@@ -1,6 +1,7 @@
 // The query API: checks, the tree brought up to date, queries in chunks over the workers, and
 // the results joined in query order.
 #include <math.h>
+#include <stdatomic.h>
 #include <string.h>
 
 #include "cast.h"
@@ -24,6 +25,7 @@ struct bpx_query_state {
     bpx_hit_list results; // the last call's hits, joined
     uint32_t query_count;
     bool results_valid;
+    atomic_int in_callbacks; // bpx_world_query_each calls now running (world.h's busy check)
 };
 
 bpx_query_filter bpx_default_query_filter(void)
@@ -114,6 +116,9 @@ static bpx_status check_motion(const bpx_query *q, uint32_t index, bpx_error *e)
 
 static bpx_status check_query(const bpx_query *q, uint32_t index, bpx_error *e)
 {
+    if (q->closest && q->any)
+        return bpx__error(e, BPX_ERR_INVALID_ARGUMENT, index, -1,
+                          "query %u: closest and any both set (choose one)", index);
     switch (q->kind) {
     case BPX_QUERY_BOX:
         return check_box(&q->box, index, e);
@@ -169,6 +174,22 @@ void bpx__query_free(bpx_world *w)
     w->query = NULL;
 }
 
+bool bpx__query_callbacks_running(const bpx_world *w)
+{
+    return w->query && atomic_load_explicit(&w->query->in_callbacks, memory_order_acquire) > 0;
+}
+
+static bpx_query_view view(const bpx_world *w)
+{
+    return (bpx_query_view){&w->query->tree, w->category, w->mask, w->user_data, w->simd};
+}
+
+static bpx_status refuse_device_boxes(bpx_error *e)
+{
+    return bpx__error(e, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                      "query: the world's boxes are in a device buffer; set host boxes");
+}
+
 static bool reserve_chunks(bpx_query_state *q, uint32_t chunks, uint32_t queries)
 {
     if (chunks > q->chunk_capacity) {
@@ -211,7 +232,7 @@ static void batch_task(int begin, int end, int worker, void *context)
         uint32_t last = first + BPX_QUERY_CHUNK < job->count ? first + BPX_QUERY_CHUNK : job->count;
         for (uint32_t k = first; k < last; k++) {
             size_t before = chunk->hits.count;
-            if (!bpx__query_run(&job->view, &job->queries[k], &chunk->hits)) {
+            if (!bpx__query_run(&job->view, &job->queries[k], NULL, NULL, &chunk->hits)) {
                 chunk->status = BPX_ERR_OUT_OF_MEMORY;
                 break;
             }
@@ -223,8 +244,7 @@ static void batch_task(int begin, int end, int worker, void *context)
 static bpx_status run_batch(bpx_world *w, const bpx_query *queries, uint32_t count)
 {
     if (w->boxes_on_device)
-        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
-                          "query: the world's boxes are in a device buffer; set host boxes");
+        return refuse_device_boxes(&w->error);
     for (uint32_t k = 0; k < count; k++) {
         bpx_status s = check_query(&queries[k], k, &w->error);
         if (s != BPX_OK)
@@ -239,7 +259,7 @@ static bpx_status run_batch(bpx_world *w, const bpx_query *queries, uint32_t cou
     if (bpx__bvh_update(&q->tree, w) != BPX_OK)
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for the query tree over %u boxes", w->n);
-    batch_job job = {q, {&q->tree, w->category, w->mask, w->simd}, queries, count};
+    batch_job job = {q, view(w), queries, count};
     if (chunks > 1)
         bpx__parallel_for(&w->executor, batch_task, (int)chunks, &job);
     else if (chunks)
@@ -270,9 +290,9 @@ static bpx_status run_batch(bpx_world *w, const bpx_query *queries, uint32_t cou
 bpx_status bpx_world_query_batch(bpx_world *w, const bpx_query *queries, uint32_t count,
                                  size_t *offsets, bpx_hit *hits, size_t capacity, size_t *total)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "query_batch");
+    if (entered != BPX_OK)
+        return entered;
     if ((count && !queries) || !offsets || !total || (capacity && !hits))
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "query_batch: queries, offsets, total or hits is NULL");
@@ -293,9 +313,9 @@ bpx_status bpx_world_query_batch(bpx_world *w, const bpx_query *queries, uint32_
 bpx_status bpx_world_query(bpx_world *w, const bpx_query *query, bpx_hit *hits, size_t capacity,
                            size_t *count)
 {
-    if (!w)
-        return BPX_ERR_NULL_ARGUMENT;
-    bpx__error_clear(&w->error);
+    bpx_status entered = bpx__world_enter(w, "query");
+    if (entered != BPX_OK)
+        return entered;
     if (!query || !count || (capacity && !hits))
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "query: query, count or hits is NULL");
@@ -309,6 +329,84 @@ bpx_status bpx_world_query(bpx_world *w, const bpx_query *query, bpx_hit *hits, 
                           "query: %zu hits, room for %zu", r->count, capacity);
     if (r->count)
         memcpy(hits, r->hits, sizeof(bpx_hit) * r->count);
+    return BPX_OK;
+}
+
+bpx_status bpx_world_prepare_queries(bpx_world *w)
+{
+    bpx_status s = bpx__world_enter(w, "prepare_queries");
+    if (s != BPX_OK)
+        return s;
+    if (w->boxes_on_device)
+        return refuse_device_boxes(&w->error);
+    bpx_query_state *q = state(w);
+    if (!q || bpx__bvh_update(&q->tree, w) != BPX_OK)
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for the query tree over %u boxes", w->n);
+    return BPX_OK;
+}
+
+// The checks of the read-only calls: the query, and a tree made from the current boxes.
+static bpx_status check_shared(const bpx_world *w, const bpx_query *query, bpx_error *e)
+{
+    if (w->boxes_on_device)
+        return refuse_device_boxes(e);
+    bpx_status s = check_query(query, 0, e);
+    if (s != BPX_OK)
+        return s;
+    const bpx_bvh *t = w->query ? &w->query->tree : NULL;
+    if (!t || !t->valid || t->version != w->boxes_version)
+        return bpx__error(e, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          "query: the boxes changed since bpx_world_prepare_queries (or it was "
+                          "never called)");
+    return BPX_OK;
+}
+
+bpx_status bpx_world_query_shared(const bpx_world *w, const bpx_query *query, bpx_hit *hits,
+                                  size_t capacity, size_t *count, bpx_error *err)
+{
+    bpx_error scratch;
+    bpx_error *e = err ? err : &scratch;
+    bpx__error_clear(e);
+    if (!w || !query || !count || (capacity && !hits))
+        return bpx__error(e, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
+                          "query_shared: world, query, count or hits is NULL");
+    bpx_status s = check_shared(w, query, e);
+    if (s != BPX_OK)
+        return s;
+    bpx_hit_list out = {hits, 0, capacity, true};
+    bpx_query_view v = view(w);
+    bpx__query_run(&v, query, NULL, NULL, &out); // a fixed list never runs out of memory
+    *count = out.count;
+    if (out.count > capacity)
+        return bpx__error(e, BPX_ERR_CAPACITY, UINT32_MAX, -1, "query_shared: %zu hits, room for %zu",
+                          out.count, capacity);
+    return BPX_OK;
+}
+
+bpx_status bpx_world_query_each(const bpx_world *w, const bpx_query *query,
+                                bpx_query_hit_fn *fn, void *context, bpx_error *err)
+{
+    bpx_error scratch;
+    bpx_error *e = err ? err : &scratch;
+    bpx__error_clear(e);
+    if (!w || !query || !fn)
+        return bpx__error(e, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
+                          "query_each: world, query or fn is NULL");
+    if (query->closest || query->any)
+        return bpx__error(e, BPX_ERR_INVALID_ARGUMENT, 0, -1,
+                          "query_each: closest and any do not apply (the callback decides)");
+    bpx_status s = check_shared(w, query, e);
+    if (s != BPX_OK)
+        return s;
+    // Counted so that a callback calling back into the world to change it is refused (BAD_STATE)
+    // instead of pulling the tree from under the walk.
+    atomic_int *running = &w->query->in_callbacks;
+    atomic_fetch_add_explicit(running, 1, memory_order_acq_rel);
+    bpx_hit_list none = {NULL, 0, 0, true};
+    bpx_query_view v = view(w);
+    bpx__query_run(&v, query, fn, context, &none);
+    atomic_fetch_sub_explicit(running, 1, memory_order_acq_rel);
     return BPX_OK;
 }
 

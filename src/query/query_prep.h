@@ -7,6 +7,9 @@
 typedef struct bpx_prepared {
     bpx_query_kind kind;
     bool closest;
+    bool any;
+    bpx_query_hit_fn *visit; // bpx_world_query_each's callback, or NULL: hits are stored
+    void *visit_context;
     bpx_query_filter filter;
     float lo[3], hi[3]; // BOX: the region; RAY, SWEEP: the moving box at t = 0
     double centre[3];   // SPHERE
@@ -28,7 +31,7 @@ static inline bool bpx__query_seen(const bpx_query_view *v, const bpx_prepared *
     return (p->filter.category & mask) && (category & p->filter.mask);
 }
 
-/// Sorts out->hits[first..] by id, or (cast) by fraction then id.
+/// Sorts out->hits[first..] (nothing when a fixed list overflowed: the hits are not all there) by id, or (cast) by fraction then id.
 void bpx__hits_sort(bpx_hit_list *out, size_t first, bool cast);
 
 /// The walks, per instruction set.

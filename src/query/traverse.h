@@ -25,12 +25,36 @@ static inline void prefetch_node(const bpx_bvh *t, uint32_t index)
         __builtin_prefetch(node + line);
 }
 
+// What a walk does with a hit it found (and may see): a callback's say, or the hit stored. A
+// fixed list (the caller's memory) counts the hits past its end without storing them.
+enum { GO_ON, STOP, FAIL };
+
+static inline int take_hit(const bpx_query_view *v, const bpx_prepared *p, bpx_hit h,
+                           float *limit, bpx_hit_list *out)
+{
+    if (p->visit) {
+        float say = p->visit(&h, v->user_data ? v->user_data[h.id] : 0, p->visit_context);
+        if (say == 0.0f)
+            return STOP;
+        if (say > 0.0f && say < *limit)
+            *limit = say;
+        return GO_ON;
+    }
+    if (out->count < out->capacity || bpx__hits_reserve(out, 1))
+        out->hits[out->count] = h;
+    else if (!out->fixed)
+        return FAIL;
+    out->count++;
+    return p->any ? STOP : GO_ON;
+}
+
 // BOX and SPHERE: every box the region touches, by id.
 static bool region(const bpx_query_view *v, const bpx_prepared *p, bpx_hit_list *out)
 {
     const bpx_bvh *t = v->tree;
     size_t first = out->count;
     bool sphere = p->kind == BPX_QUERY_SPHERE;
+    float limit = INFINITY; // a region has no end to clip
     uint32_t stack[STACK];
     int top = 0;
     if (t->node_count)
@@ -38,30 +62,35 @@ static bool region(const bpx_query_view *v, const bpx_prepared *p, bpx_hit_list 
     while (top) {
         const bpx_bvh_node *node = &t->nodes[stack[--top]];
         uint32_t hit = sphere ? lanes_sphere(node, p) : lanes_box(node, p);
-        uint32_t leaves = hit & node->leaves, inner = hit & ~node->leaves;
-        if (leaves && !bpx__hits_reserve(out, BPX_BVH_WIDTH)) {
-            out->count = first;
-            return false;
-        }
-        for (; leaves; leaves &= leaves - 1) {
+        for (uint32_t leaves = hit & node->leaves; leaves; leaves &= leaves - 1) {
             uint32_t id = node->child[__builtin_ctz(leaves)];
-            if (bpx__query_seen(v, p, id))
-                out->hits[out->count++] = (bpx_hit){id, 0.0f};
+            if (!bpx__query_seen(v, p, id))
+                continue;
+            int step = take_hit(v, p, (bpx_hit){id, 0.0f}, &limit, out);
+            if (step == FAIL) {
+                out->count = first;
+                return false;
+            }
+            if (step == STOP)
+                return true;
         }
-        for (; inner; inner &= inner - 1) {
+        for (uint32_t inner = hit & ~node->leaves; inner; inner &= inner - 1) {
             prefetch_node(t, node->child[__builtin_ctz(inner)]);
             stack[top++] = node->child[__builtin_ctz(inner)];
         }
     }
-    bpx__hits_sort(out, first, false);
+    if (!p->visit)
+        bpx__hits_sort(out, first, false);
     return true;
 }
 
-// RAY and SWEEP, every hit, by fraction then id.
+// RAY and SWEEP, every hit, by fraction then id (or each to the callback, which may clip the
+// cast: nothing entering after `limit` is looked at again).
 static bool cast_all(const bpx_query_view *v, const bpx_prepared *p, bpx_hit_list *out)
 {
     const bpx_bvh *t = v->tree;
     size_t first = out->count;
+    float limit = INFINITY;
     uint32_t stack[STACK];
     int top = 0;
     if (t->node_count)
@@ -69,23 +98,29 @@ static bool cast_all(const bpx_query_view *v, const bpx_prepared *p, bpx_hit_lis
     float enter[BPX_BVH_WIDTH];
     while (top) {
         const bpx_bvh_node *node = &t->nodes[stack[--top]];
-        uint32_t hit = lanes_cast(node, p, INFINITY, enter);
-        uint32_t leaves = hit & node->leaves, inner = hit & ~node->leaves;
-        if (leaves && !bpx__hits_reserve(out, BPX_BVH_WIDTH)) {
-            out->count = first;
-            return false;
-        }
-        for (; leaves; leaves &= leaves - 1) {
+        uint32_t hit = lanes_cast(node, p, limit, enter);
+        for (uint32_t leaves = hit & node->leaves; leaves; leaves &= leaves - 1) {
             int k = __builtin_ctz(leaves);
-            if (bpx__query_seen(v, p, node->child[k]))
-                out->hits[out->count++] = (bpx_hit){node->child[k], enter[k]};
+            if (enter[k] > limit || !bpx__query_seen(v, p, node->child[k]))
+                continue;
+            int step = take_hit(v, p, (bpx_hit){node->child[k], enter[k]}, &limit, out);
+            if (step == FAIL) {
+                out->count = first;
+                return false;
+            }
+            if (step == STOP)
+                return true;
         }
-        for (; inner; inner &= inner - 1) {
-            prefetch_node(t, node->child[__builtin_ctz(inner)]);
-            stack[top++] = node->child[__builtin_ctz(inner)];
+        for (uint32_t inner = hit & ~node->leaves; inner; inner &= inner - 1) {
+            int k = __builtin_ctz(inner);
+            if (enter[k] > limit)
+                continue;
+            prefetch_node(t, node->child[k]);
+            stack[top++] = node->child[k];
         }
     }
-    bpx__hits_sort(out, first, true);
+    if (!p->visit)
+        bpx__hits_sort(out, first, true);
     return true;
 }
 
@@ -138,10 +173,8 @@ static bool cast_closest(const bpx_query_view *v, const bpx_prepared *p, bpx_hit
     }
     if (best.id == UINT32_MAX)
         return true;
-    if (!bpx__hits_reserve(out, 1))
-        return false;
-    out->hits[out->count++] = best;
-    return true;
+    float limit = INFINITY;
+    return take_hit(v, p, best, &limit, out) != FAIL;
 }
 
 bool BPX_TRAVERSE(const bpx_query_view *view, const bpx_prepared *p, bpx_hit_list *out)
@@ -151,6 +184,6 @@ bool BPX_TRAVERSE(const bpx_query_view *view, const bpx_prepared *p, bpx_hit_lis
     case BPX_QUERY_SPHERE:
         return region(view, p, out);
     default:
-        return p->closest ? cast_closest(view, p, out) : cast_all(view, p, out);
+        return p->closest && !p->visit ? cast_closest(view, p, out) : cast_all(view, p, out);
     }
 }
