@@ -177,17 +177,26 @@ static void check_same_pairs(const char *what, const bpx_pair *got, size_t got_c
 // ---------------------------------------------------------------------------------------------
 // The run
 
+// A snapshot the run took, with the model as it was then (op_snapshot, op_restore).
+typedef struct saved {
+    void *bytes;
+    size_t size;
+    model m; // m.o, m.pairs and m.previous are copies the saved state owns
+} saved;
+
 typedef struct run {
     bpx_world *world;
     model m;
     input in;
     bool inject; // an allocation of this call may fail
+    saved save;
 } run;
 
 static const char *const op_names[] = {
     "set_boxes", "load_extents", "update_centres", "add_boxes",    "remove_boxes",
     "move_boxes", "set_filters", "collide",        "collide_into", "fail_next",
     "copy_pairs", "find_pairs", "set_groups",   "exclude_pairs", "set_user_data",
+    "snapshot",   "restore",
 };
 enum { OP_COUNT = sizeof op_names / sizeof op_names[0] };
 
@@ -543,6 +552,93 @@ static void op_set_user_data(run *r)
     }
 }
 
+static bpx_pair *copy_pairs_of(const bpx_pair *pairs, size_t count)
+{
+    bpx_pair *copy = malloc((count ? count : 1) * sizeof *copy);
+    FUZZ_CHECK(copy != NULL, "out of memory");
+    if (count)
+        memcpy(copy, pairs, count * sizeof *copy);
+    return copy;
+}
+
+// The model's own memory: its oracle and pair lists.
+static void model_copy(model *dst, const model *src)
+{
+    oracle_model o = dst->o;
+    bpx_pair *pairs = dst->pairs, *previous = dst->previous;
+    *dst = *src;
+    dst->o = o;
+    oracle_copy(&dst->o, &src->o);
+    free(pairs);
+    free(previous);
+    dst->pairs = copy_pairs_of(src->pairs, src->pair_count);
+    dst->previous = copy_pairs_of(src->previous, src->previous_count);
+}
+
+static void saved_free(saved *s)
+{
+    free(s->bytes);
+    free(s->m.pairs);
+    free(s->m.previous);
+    if (s->m.o.boxes)
+        oracle_free(&s->m.o);
+    memset(s, 0, sizeof *s);
+}
+
+// Takes a snapshot (asking its size first, with a buffer too small at random) and keeps it with
+// the model of the moment.
+static void op_snapshot(run *r)
+{
+    size_t size = 0, capacity = byte(&r->in) % 8;
+    uint8_t small[8];
+    bpx_status got = bpx_world_snapshot(r->world, small, capacity, &size);
+    disarm();
+    FUZZ_CHECK(got == BPX_ERR_CAPACITY && size > capacity, "snapshot into %zu bytes: %s, %zu",
+               capacity, bpx_status_string(got), size);
+    void *bytes = malloc(size);
+    FUZZ_CHECK(bytes != NULL, "out of memory");
+    size_t again = 0;
+    FUZZ_CHECK(bpx_world_snapshot(r->world, bytes, size, &again) == BPX_OK && again == size,
+               "snapshot of %zu bytes failed", size);
+    free(r->save.bytes);
+    r->save.bytes = bytes;
+    r->save.size = size;
+    model_copy(&r->save.m, &r->m);
+}
+
+// Restores the kept snapshot, or a copy of it cut short or with one byte changed, which must be
+// refused (the world unchanged, checked by the caller).
+static void op_restore(run *r)
+{
+    uint8_t how = byte(&r->in);
+    if (!r->save.bytes)
+        return;
+    size_t size = r->save.size;
+    uint8_t *bytes = malloc(size);
+    FUZZ_CHECK(bytes != NULL, "out of memory");
+    memcpy(bytes, r->save.bytes, size);
+    bpx_status want = BPX_OK;
+    if (how % 4 == 1) {
+        size = u32(&r->in) % size;
+        want = BPX_ERR_INVALID_ARGUMENT;
+    } else if (how % 4 == 2) {
+        bytes[u32(&r->in) % size] ^= (uint8_t)(1u << (how >> 5));
+        want = BPX_ERR_INVALID_ARGUMENT;
+    }
+    long failures_before = atomic_load(&failures);
+    bpx_status got = bpx_world_restore(r->world, bytes, size);
+    disarm();
+    free(bytes);
+    if (accept(r, "restore", got, want, failures_before)) {
+        model_copy(&r->m, &r->save.m);
+        r->m.result_valid = false;
+        r->m.events_valid = false;
+        size_t count = 1;
+        FUZZ_CHECK(bpx_world_pairs(r->world, &count) == NULL || count == 0,
+                   "pairs after a restore, before a collide");
+    }
+}
+
 // After a collide the library reports as done: the model's pairs, events and reusable ids.
 static void model_collided(run *r, bpx_pair *want, size_t want_count)
 {
@@ -779,6 +875,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         case 12: op_set_groups(&r); break;
         case 13: op_exclude_pairs(&r); break;
         case 14: op_set_user_data(&r); break;
+        case 15: op_snapshot(&r); break;
+        case 16: op_restore(&r); break;
         }
         bool failed_call = op != 7 && op != 8 && op != 10 && op != 11 &&
                            bpx_world_error(r.world)->status != BPX_OK;
@@ -793,5 +891,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     free(r.m.pairs);
     free(r.m.previous);
     oracle_free(&r.m.o);
+    saved_free(&r.save);
     return 0;
 }

@@ -94,6 +94,27 @@ static bool not_kept(const oracle_model *m, uint32_t id, uint32_t kept)
     return id >= kept || !m->live[id];
 }
 
+void oracle_copy(oracle_model *dst, const oracle_model *src)
+{
+    if (dst->boxes)
+        oracle_free(dst);
+    oracle_init(dst, src->capacity);
+    uint32_t c = src->capacity;
+    dst->n = src->n;
+    memcpy(dst->boxes, src->boxes, c * sizeof *src->boxes);
+    memcpy(dst->live, src->live, c * sizeof *src->live);
+    memcpy(dst->category, src->category, c * sizeof *src->category);
+    memcpy(dst->mask, src->mask, c * sizeof *src->mask);
+    memcpy(dst->group, src->group, c * sizeof *src->group);
+    memcpy(dst->user_data, src->user_data, c * sizeof *src->user_data);
+    memcpy(dst->excluded, src->excluded, src->excluded_count * sizeof *src->excluded);
+    dst->excluded_count = src->excluded_count;
+    memcpy(dst->pending, src->pending, src->pending_count * sizeof *src->pending);
+    dst->pending_count = src->pending_count;
+    memcpy(dst->freed, src->freed, src->free_count * sizeof *src->freed);
+    dst->free_count = src->free_count;
+}
+
 void oracle_reset(oracle_model *m, uint32_t n)
 {
     if (n > m->capacity)

@@ -33,6 +33,8 @@ typedef struct oracle_model {
 /// An empty world's model (no ids). Aborts without memory.
 void oracle_init(oracle_model *m, uint32_t capacity);
 void oracle_free(oracle_model *m);
+/// dst becomes a copy of src (dst's own memory freed first when it has any).
+void oracle_copy(oracle_model *dst, const oracle_model *src);
 
 /// set_boxes / load_extents of n boxes: ids 0 .. n-1 live, none waiting for reuse; a filter
 /// stays on an id that was live and is below both counts. The caller writes the boxes.

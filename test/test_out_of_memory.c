@@ -189,6 +189,8 @@ static struct {
     float centres[3 * keep_n]; // with minima, neighbours overlap on x
     bpx_pair out[keep_n * keep_n / 2];
     uint32_t ids[keep_n];
+    void *snapshot[2]; // of a world of objects, and of a two-phase world (make_snapshots)
+    size_t snapshot_size[2];
 } keep;
 
 static void setup_two_phase(bpx_world *w)
@@ -285,6 +287,45 @@ static bpx_status call_user_data(bpx_world *w)
     const uint64_t values[3] = {1, 2, 3};
     return bpx_world_set_user_data(w, some_ids, values, 3);
 }
+static bpx_status call_restore_objects(bpx_world *w)
+{
+    return bpx_world_restore(w, keep.snapshot[0], keep.snapshot_size[0]);
+}
+static bpx_status call_restore_two_phase(bpx_world *w)
+{
+    return bpx_world_restore(w, keep.snapshot[1], keep.snapshot_size[1]);
+}
+
+// Snapshots bigger than the cases' worlds (300 boxes), made before any allocation fails.
+static void make_snapshots(void)
+{
+    bpx_world_def def = bpx_default_world_def();
+    def.track_events = true;
+    for (int k = 0; k < 2; k++) {
+        bpx_world *w = NULL;
+        CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+        if (k == 0) {
+            CHECK_STATUS(bpx_world_set_boxes(w, keep.dense, keep_n), BPX_OK);
+            const uint32_t ids[2] = {5, 9}, cats[2] = {2, 2}, masks[2] = {0, 1};
+            CHECK_STATUS(bpx_world_set_filters(w, ids, cats, masks, 2), BPX_OK);
+            const bpx_pair excluded[1] = {{1, 2}};
+            CHECK_STATUS(bpx_world_exclude_pairs(w, excluded, 1), BPX_OK);
+            const uint32_t removed = 7;
+            CHECK_STATUS(bpx_world_remove_boxes(w, &removed, 1), BPX_OK);
+        } else {
+            CHECK_STATUS(bpx_world_load_extents(w, keep.minima, keep_n), BPX_OK);
+            CHECK_STATUS(bpx_world_update_centres(w, keep.centres), BPX_OK);
+        }
+        CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+        bpx_world_snapshot(w, NULL, 0, &keep.snapshot_size[k]);
+        keep.snapshot[k] = malloc(keep.snapshot_size[k]);
+        CHECK_STATUS(bpx_world_snapshot(w, keep.snapshot[k], keep.snapshot_size[k],
+                                        &keep.snapshot_size[k]),
+                     BPX_OK);
+        bpx_world_destroy(w);
+    }
+}
+
 static bpx_status call_collide(bpx_world *w)
 {
     return bpx_world_collide(w);
@@ -365,7 +406,11 @@ static void test_failure_keeps_world(void)
         {"collide with events", setup_events, call_collide},
         {"collide_into with events", setup_events, call_collide_into},
         {"collide with pending ids", setup_events_pending, call_collide},
+        {"restore over objects", setup_objects, call_restore_objects},
+        {"restore over two-phase", setup_two_phase, call_restore_two_phase},
+        {"restore two-phase over objects", setup_objects, call_restore_two_phase},
     };
+    make_snapshots();
     int64_t start = bpx_allocated_bytes();
     atomic_store(&fa_budget, -1);
     bpx_set_allocator(fa_alloc, fa_free, &fa_tag);
@@ -404,6 +449,8 @@ static void test_failure_keeps_world(void)
         CHECK_MSG(failures > 0, "no allocation of the call failed: the case tests nothing");
     }
     bpx_set_allocator(NULL, NULL, NULL);
+    free(keep.snapshot[0]);
+    free(keep.snapshot[1]);
     CHECK(bpx_allocated_bytes() == start);
 }
 

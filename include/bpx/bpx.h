@@ -186,6 +186,30 @@ BPX_API bpx_backend bpx_world_backend(const bpx_world *world);
 BPX_API bpx_simd bpx_world_simd(const bpx_world *world);
 
 // ---------------------------------------------------------------------------------------------
+// Snapshot and restore (rollback netcode, replays, checkpoints)
+
+/// Writes the world's state into buffer: its boxes (and the two-phase extents), every id's state
+/// (live, removed, waiting for reuse), filters, groups, user data, excluded pairs, and the last
+/// collide's pairs, so that a world restored from it reports on its next collide the same pairs
+/// and events, byte for byte, as this one would. Not in it: the world's definition (backend,
+/// workers, track_events: the restoring world keeps its own), statistics, query results.
+/// The bytes are versioned and checksummed, for this library on a machine of the same byte
+/// order. *size receives the bytes needed; with capacity < *size returns CAPACITY and writes
+/// nothing (buffer may be NULL with capacity 0, to ask). Reads the world only.
+/// Errors: NULL_ARGUMENT, CAPACITY, BAD_STATE (the boxes live in a device buffer).
+BPX_API bpx_status bpx_world_snapshot(const bpx_world *world, void *buffer, size_t capacity,
+                                      size_t *size);
+
+/// Replaces the world's state with a snapshot's (from any world: a world can restore another's).
+/// Pairs and events then read as none until the next collide, which reports its events against
+/// the snapshot's last pairs.
+/// Errors: NULL_ARGUMENT; INVALID_ARGUMENT when the bytes are not a snapshot this library reads
+/// (another format version or byte order, truncated, changed: the checksum, or a field that
+/// does not hold), the message naming what and its byte offset; OUT_OF_MEMORY. On error the
+/// world is unchanged.
+BPX_API bpx_status bpx_world_restore(bpx_world *world, const void *buffer, size_t size);
+
+// ---------------------------------------------------------------------------------------------
 // One-shot
 
 /// All overlapping pairs of an array of boxes, on the calling thread, with the given backend.

@@ -13,13 +13,7 @@
 // The optional per-id columns: each NULL until first set, then as long as the others, and every
 // id not set holding the default (a new box: category 1, mask all ones, group 0, no user data,
 // in no excluded pair).
-typedef struct id_column {
-    void **data;
-    size_t size; // 4 or 8 bytes
-    uint64_t fill;
-} id_column;
-
-enum { COLUMNS = 5 };
+enum { COLUMNS = BPX_ID_COLUMNS };
 
 static void id_columns(bpx_world *w, id_column c[COLUMNS])
 {
@@ -30,7 +24,12 @@ static void id_columns(bpx_world *w, id_column c[COLUMNS])
     c[4] = (id_column){(void **)&w->exclusions, sizeof(uint32_t), 0};
 }
 
-static void fill_column(const id_column *c, uint32_t from, uint32_t to)
+void bpx__objects_columns(bpx_world *w, id_column c[BPX_ID_COLUMNS])
+{
+    id_columns(w, c);
+}
+
+void bpx__objects_fill_column(const id_column *c, uint32_t from, uint32_t to)
 {
     if (c->size == sizeof(uint64_t))
         for (uint32_t id = from; id < to; id++)
@@ -47,7 +46,7 @@ static void reset_id(bpx_world *w, uint32_t id)
     id_columns(w, c);
     for (int k = 0; k < COLUMNS; k++)
         if (*c[k].data)
-            fill_column(&c[k], id, id + 1);
+            bpx__objects_fill_column(&c[k], id, id + 1);
 }
 
 static size_t column_size(bpx_world *w, void **data)
@@ -61,7 +60,7 @@ static size_t column_size(bpx_world *w, void **data)
 }
 
 // Makes a column exist (all ids at the default). False when out of memory.
-static bool use_column(bpx_world *w, void **data)
+bool bpx__objects_use_column(bpx_world *w, void **data)
 {
     if (*data)
         return true;
@@ -72,7 +71,7 @@ static bool use_column(bpx_world *w, void **data)
     id_columns(w, c);
     for (int k = 0; k < COLUMNS; k++)
         if (c[k].data == data)
-            fill_column(&c[k], 0, w->object_capacity);
+            bpx__objects_fill_column(&c[k], 0, w->object_capacity);
     return true;
 }
 
@@ -95,7 +94,7 @@ static void free_object_arrays(bpx_world *w)
 
 // Grows the per-id arrays to hold n ids, keeping contents; new ids are live and at the
 // defaults. All or nothing.
-static bool reserve_objects(bpx_world *w, uint32_t n)
+bool bpx__objects_reserve(bpx_world *w, uint32_t n)
 {
     uint32_t old = w->object_capacity;
     if (n <= old && w->dead)
@@ -132,7 +131,7 @@ static bool reserve_objects(bpx_world *w, uint32_t n)
             memcpy(grown[k], *c[k].data, old * c[k].size);
             bpx__free(*c[k].data, old * c[k].size);
             *c[k].data = grown[k];
-            fill_column(&c[k], old, cap);
+            bpx__objects_fill_column(&c[k], old, cap);
         }
     bpx__free(w->dead, old);
     bpx__free(w->pending_ids, old * sizeof(uint32_t));
@@ -165,7 +164,7 @@ bool bpx__objects_reset(bpx_world *w, uint32_t n)
 {
     if (!w->dead) // never used: nothing to reset, and set_boxes stays free of extra work
         return true;
-    if (!reserve_objects(w, n))
+    if (!bpx__objects_reserve(w, n))
         return false;
     // What is set per id lasts while the id holds a box: ids kept (below the old and the new n,
     // and not removed) keep theirs; the rest start again at the defaults. w->n is still the old n.
@@ -227,7 +226,7 @@ bpx_status bpx_world_add_boxes(bpx_world *w, const bpx_box *boxes, uint32_t coun
     if (status != BPX_OK)
         return status;
     uint32_t old_n = w->n;
-    if (!reserve_objects(w, (uint32_t)new_n) || !bpx__boxes_resize(w, (uint32_t)new_n))
+    if (!bpx__objects_reserve(w, (uint32_t)new_n) || !bpx__boxes_resize(w, (uint32_t)new_n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %llu boxes", (unsigned long long)new_n);
     for (uint32_t k = 0; k < count; k++) {
@@ -272,7 +271,7 @@ bpx_status bpx_world_remove_boxes(bpx_world *w, const uint32_t *ids, uint32_t co
         return entered;
     if (count && !ids)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "ids is NULL");
-    if (!reserve_objects(w, w->n))
+    if (!bpx__objects_reserve(w, w->n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1, "no memory");
     bpx_status status = check_ids(w, ids, count, "remove_boxes");
     if (status != BPX_OK)
@@ -294,7 +293,7 @@ bpx_status bpx_world_move_boxes(bpx_world *w, const uint32_t *ids, const bpx_box
     if (count && (!ids || !boxes))
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "ids or boxes is NULL");
-    if (!reserve_objects(w, w->n))
+    if (!bpx__objects_reserve(w, w->n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1, "no memory");
     bpx_status status = bpx__check_boxes(boxes, count, &w->error);
     if (status == BPX_OK)
@@ -326,9 +325,9 @@ static bpx_status check_in_use(bpx_world *w, const uint32_t *ids, uint32_t count
 static bool use_columns(bpx_world *w, void **a, void **b)
 {
     bool had_a = *a != NULL;
-    if (!reserve_objects(w, w->n) || !use_column(w, a))
+    if (!bpx__objects_reserve(w, w->n) || !bpx__objects_use_column(w, a))
         return false;
-    if (b && !use_column(w, b)) {
+    if (b && !bpx__objects_use_column(w, b)) {
         if (!had_a) {
             bpx__free(*a, w->object_capacity * column_size(w, a));
             *a = NULL;

@@ -6,6 +6,21 @@
 
 #include "world.h"
 
+/// The optional per-id columns (category, mask, group, user data, exclusion counts): each NULL
+/// until first set, then as long as the per-id arrays, ids never set holding `fill`.
+typedef struct id_column {
+    void **data;
+    size_t size; // 4 or 8 bytes
+    uint64_t fill;
+} id_column;
+enum { BPX_ID_COLUMNS = 5 };
+void bpx__objects_columns(bpx_world *w, id_column c[BPX_ID_COLUMNS]);
+void bpx__objects_fill_column(const id_column *c, uint32_t from, uint32_t to);
+/// Makes the column at `data` exist, every id at its default. False when out of memory.
+bool bpx__objects_use_column(bpx_world *w, void **data);
+/// The per-id arrays hold n ids (kept contents; new ids live, at the defaults). All or nothing.
+bool bpx__objects_reserve(bpx_world *w, uint32_t n);
+
 /// Every id below n live, none pending or free; filters kept for the ids in use below both the
 /// old n (w->n, so call before the boxes change) and the new, else reset (set_boxes, load).
 /// All or nothing: on false (no memory) nothing changed.

@@ -312,6 +312,11 @@ static void tell_backend(bpx_world *w, const float *centres)
     w->backend->boxes_set(&w->backend_state, &w->def, &change);
 }
 
+void bpx__world_boxes_replaced(bpx_world *w)
+{
+    tell_backend(w, NULL);
+}
+
 // Runs an updater pass over all n boxes; true when every box passed its check.
 static int run_update(bpx_world *w, bpx_task_fn *task, update_job *job)
 {

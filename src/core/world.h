@@ -100,6 +100,9 @@ void bpx__query_free(bpx_world *w);
 /// Whether a bpx_world_query_each callback of this world is running now.
 bool bpx__query_callbacks_running(const bpx_world *w);
 
+/// Tells the backend that every box was replaced (set_boxes does; restore too).
+void bpx__world_boxes_replaced(bpx_world *w);
+
 /// The start of every call that changes the world (or its query results): NULL_ARGUMENT for no
 /// world; the world's error cleared; BAD_STATE while a query callback of the world runs (the
 /// call comes from inside one, or races the readers). `call` names the call in the message.
