@@ -56,7 +56,10 @@ void bpx__box_arrays_pad(bpx_box_arrays *b, uint32_t n)
 bool bpx__boxes_resize(bpx_world *w, uint32_t n)
 {
     if (bpx__boxes_padded(n) > w->boxes.capacity) {
-        if (!bpx__box_arrays_reserve(&w->spare, n))
+        // Boxes added a few at a time (an engine's proxies) grow the arrays by half again, so
+        // that the copies stay linear in the boxes added.
+        uint32_t room = w->n + w->n / 2 > n && w->n + w->n / 2 <= BPX_MAX_BOXES ? w->n + w->n / 2 : n;
+        if (!bpx__box_arrays_reserve(&w->spare, room) && !bpx__box_arrays_reserve(&w->spare, n))
             return false;
         for (int a = 0; a < 3; a++) {
             memcpy(w->spare.lo[a], w->boxes.lo[a], sizeof(float) * w->n);
