@@ -67,6 +67,14 @@ struct Sim {
     }
     ~Sim()
     {
+        // Empty the pair cache first, last pair first (O(1) each): removing a body scans the
+        // whole cache for its pairs, O(n pairs) for each of n bodies otherwise.
+        btOverlappingPairCache *cache = broadphase->getOverlappingPairCache();
+        while (cache->getNumOverlappingPairs() > 0) {
+            btBroadphasePair &last =
+                cache->getOverlappingPairArrayPtr()[cache->getNumOverlappingPairs() - 1];
+            cache->removeOverlappingPair(last.m_pProxy0, last.m_pProxy1, &dispatcher);
+        }
         for (auto &c : constraints)
             world->removeConstraint(c.get());
         for (btRigidBody *body : bodies) {
