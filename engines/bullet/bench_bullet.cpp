@@ -3,6 +3,7 @@
 //
 //   bpx_bulletbench [--sizes 1000,10000,100000] [--scene gas|rain] [--steps 60] [--warmup 10]
 //                   [--rounds 3] [--backend NAME] [--threads N] [--no-deterministic]
+//                   [--only dbvt|bpx]
 //
 // For each size and round, each broad phase in turn (the order alternates between rounds) builds
 // the scene, steps it --warmup steps, then times --steps steps: the whole stepSimulation, and
@@ -32,6 +33,7 @@ struct Options {
     int steps = 60, warmup = 10, rounds = 3;
     bpx_world_def def = bpx_default_world_def();
     bool deterministic = true;
+    int only = -1; // 0: btDbvtBroadphase only, 1: btBpxBroadphase only (for profiling)
 };
 
 struct Run {
@@ -121,7 +123,7 @@ int usage()
 {
     std::fprintf(stderr, "usage: bpx_bulletbench [--sizes 1000,10000,100000] [--scene gas|rain] "
                          "[--steps 60] [--warmup 10] [--rounds 3] [--backend NAME] "
-                         "[--threads N] [--no-deterministic]\n");
+                         "[--threads N] [--no-deterministic] [--only dbvt|bpx]\n");
     return 2;
 }
 
@@ -148,6 +150,11 @@ int main(int argc, char **argv)
         else if (a == "--backend" && more) {
             if (bpx_backend_from_name(argv[++k], &o.def.backend) != BPX_OK)
                 return usage();
+        } else if (a == "--only" && more) {
+            std::string w = argv[++k];
+            o.only = w == "dbvt" ? 0 : w == "bpx" ? 1 : -2;
+            if (o.only == -2)
+                return usage();
         } else if (a == "--no-deterministic")
             o.deterministic = false;
         else
@@ -172,6 +179,8 @@ int main(int argc, char **argv)
             Run r[2];
             for (int t = 0; t < 2; t++) {
                 int which = (round % 2) ? 1 - t : t; // alternate who goes first
+                if (o.only >= 0 && which != o.only)
+                    continue;
                 r[which] = run(o, which ? Broadphase::Bpx : Broadphase::Dbvt, n);
                 step[which].push_back(r[which].step_ms);
                 broad[which].push_back(r[which].broad_ms);
@@ -183,6 +192,8 @@ int main(int argc, char **argv)
             last[1] = r[1];
         }
         for (int w = 0; w < 2; w++) {
+            if (step[w].empty())
+                continue;
             double s = median(step[w]), b = median(broad[w]);
             std::printf("%8d | %-16s | %9.2f %9.2f %9.2f %9.2f | %9.0f %9.0f | %.2f\n", n,
                         broadphase_name(w ? Broadphase::Bpx : Broadphase::Dbvt), s, b,
@@ -190,6 +201,8 @@ int main(int argc, char **argv)
                         (double)last[w].pairs / o.steps, (double)last[w].contacts / o.steps,
                         median(build[w]));
         }
+        if (step[0].empty() || step[1].empty())
+            continue;
         double ms0 = median(step[0]), ms1 = median(step[1]);
         std::printf("%8d | speed-up: step %.2fx, broad phase %.2fx; contact manifolds %s\n", n,
                     ms0 / ms1, median(broad[0]) / median(broad[1]),
