@@ -68,11 +68,6 @@ bool overlap(const btBroadphaseProxy *a, const btBroadphaseProxy *b)
     return true;
 }
 
-bool filtered_in(const btOverlappingPairCache *cache, btBroadphaseProxy *a, btBroadphaseProxy *b)
-{
-    return cache->needsBroadphaseCollision(a, b);
-}
-
 // The cache's pairs; exact_only keeps those whose proxies' AABBs overlap.
 Pairs cache_pairs(const btOverlappingPairCache *cache, bool exact_only)
 {
@@ -93,7 +88,7 @@ Pairs brute_pairs(const std::vector<btBroadphaseProxy *> &proxies,
     for (size_t a = 0; a < proxies.size(); a++)
         for (size_t b = a + 1; b < proxies.size(); b++)
             if (proxies[a] && proxies[b] && overlap(proxies[a], proxies[b]) &&
-                filtered_in(cache, proxies[a], proxies[b]))
+                cache->needsBroadphaseCollision(proxies[a], proxies[b]))
                 out.push_back(make_pair_of(proxies[a], proxies[b]));
     std::sort(out.begin(), out.end());
     return out;
@@ -266,9 +261,6 @@ void churn()
                                                  [](btBroadphaseProxy *p) { return p; }),
           "proxy count");
 
-    // A NaN box pairs with nothing until it is valid again.
-    btVector3 lo(1, 1, 1), hi(2, 2, 2), nan(std::nanf(""), 0, 0);
-    btBroadphaseProxy *a = pb[0] ? pb[0] : nullptr;
     for (int s = 0; s < slots; s++) { // empty both, then resetPool
         if (pd[s]) {
             dbvt.destroyProxy(pd[s], &dispatcher);
@@ -276,11 +268,12 @@ void churn()
             pd[s] = pb[s] = nullptr;
         }
     }
-    (void)a;
     bpx.calculateOverlappingPairs(&dispatcher);
     CHECK(bpx.getOverlappingPairCache()->getNumOverlappingPairs() == 0, "pairs left");
     bpx.resetPool(&dispatcher);
     bpx.getOverlappingPairCache()->setOverlapFilterCallback(nullptr);
+    // A NaN box pairs with nothing until it is valid again.
+    btVector3 lo(1, 1, 1), hi(2, 2, 2), nan(std::nanf(""), 0, 0);
     btBroadphaseProxy *p1 = bpx.createProxy(lo, hi, 0, (void *)1, 1, -1, &dispatcher);
     btBroadphaseProxy *p2 = bpx.createProxy(lo + nan, hi, 0, (void *)2, 1, -1, &dispatcher);
     CHECK(p1->m_uniqueId == 1 && p2->m_uniqueId == 2, "resetPool: unique ids %d %d",
