@@ -70,9 +70,10 @@ PyObject *raise_status(const char *where, bpx_status status, const char *message
 // ---------------------------------------------------------------------------------------------
 // Buffers
 
-// Borrows obj's memory as a C-contiguous array of 4-byte items of the given kind ('f' float32,
-// 'I' uint32), items_per_row to a row. The Python layer converts everything before it gets
-// here; these checks keep a direct call with anything else from reading out of bounds.
+// Borrows obj's memory as a C-contiguous array of items of the given kind ('f' float32, 'I'
+// uint32, 'i' int32, 'Q' uint64), items_per_row to a row. The Python layer converts everything
+// before it gets here; these checks keep a direct call with anything else from reading out of
+// bounds.
 int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_row, Py_buffer *view,
              uint32_t *rows)
 {
@@ -81,14 +82,21 @@ int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_r
     const char *format = view->format ? view->format : "B";
     if (format[0] == '<' || format[0] == '=' || format[0] == '@')
         format++; // native little-endian, which is all bpx's hosts are
-    const char *expected = kind == 'f' ? "f" : "I";
-    Py_ssize_t row_bytes = items_per_row * 4;
-    if (view->itemsize != 4 || strcmp(format, expected) != 0 || view->len % row_bytes != 0) {
+    Py_ssize_t item_size = kind == 'Q' ? 8 : 4;
+    const char *type_name = kind == 'f'   ? "float32"
+                            : kind == 'I' ? "uint32"
+                            : kind == 'i' ? "int32"
+                                          : "uint64";
+    // NumPy writes uint64 as 'L' where unsigned long is 64 bits
+    int format_ok = strlen(format) == 1 &&
+                    (format[0] == kind || (kind == 'Q' && format[0] == 'L' && view->itemsize == 8));
+    Py_ssize_t row_bytes = items_per_row * item_size;
+    if (view->itemsize != item_size || !format_ok || view->len % row_bytes != 0) {
         char message[160];
         snprintf(message, sizeof message,
                  "expected a C-contiguous %s buffer of %zd items per row, got format '%s', "
                  "%zd bytes",
-                 kind == 'f' ? "float32" : "uint32", items_per_row, view->format, view->len);
+                 type_name, items_per_row, view->format, view->len);
         PyBuffer_Release(view);
         raise_status(where, BPX_ERR_INVALID_ARGUMENT, message);
         return -1;
@@ -629,6 +637,142 @@ static PyObject *World_set_filters(WorldObject *self, PyObject *args)
     return result;
 }
 
+// set_groups (int32 values) and set_user_data (uint64 values): one value per id, ids None for
+// 0 .. count-1.
+enum column_call { SET_GROUPS, SET_USER_DATA };
+
+static PyObject *world_set_column(WorldObject *self, PyObject *args, enum column_call call)
+{
+    const char *where = call == SET_GROUPS ? "World.set_groups" : "World.set_user_data";
+    PyObject *ids_obj, *values_obj;
+    if (!PyArg_ParseTuple(args, "OO", &ids_obj, &values_obj))
+        return NULL;
+    if (world_enter(self, where) != 0)
+        return NULL;
+    int ids_given = ids_obj != Py_None;
+    Py_buffer ids, values;
+    uint32_t id_count = 0, count;
+    if (ids_given && get_rows(where, ids_obj, 'I', 1, &ids, &id_count) != 0) {
+        world_leave(self);
+        return NULL;
+    }
+    if (get_rows(where, values_obj, call == SET_GROUPS ? 'i' : 'Q', 1, &values, &count) != 0) {
+        if (ids_given)
+            PyBuffer_Release(&ids);
+        world_leave(self);
+        return NULL;
+    }
+    PyObject *result = NULL;
+    if (ids_given && id_count != count) {
+        char message[96];
+        snprintf(message, sizeof message, "%u ids for %u values", id_count, count);
+        raise_status(where, BPX_ERR_INVALID_ARGUMENT, message);
+    } else {
+        const uint32_t *id_data = ids_given ? ids.buf : NULL;
+        bpx_status status;
+        Py_BEGIN_ALLOW_THREADS
+        if (call == SET_GROUPS)
+            status = bpx_world_set_groups(self->world, id_data, values.buf, count);
+        else
+            status = bpx_world_set_user_data(self->world, id_data, values.buf, count);
+        Py_END_ALLOW_THREADS
+        result = status == BPX_OK ? Py_NewRef(Py_None)
+                                  : raise_error(where, bpx_world_error(self->world));
+    }
+    PyBuffer_Release(&values);
+    if (ids_given)
+        PyBuffer_Release(&ids);
+    world_leave(self);
+    return result;
+}
+
+static PyObject *World_set_groups(WorldObject *self, PyObject *args)
+{
+    return world_set_column(self, args, SET_GROUPS);
+}
+
+static PyObject *World_set_user_data(WorldObject *self, PyObject *args)
+{
+    return world_set_column(self, args, SET_USER_DATA);
+}
+
+// user_data(ids) -> bytearray of one uint64 per id (0 for an id not in use).
+static PyObject *World_user_data(WorldObject *self, PyObject *obj)
+{
+    static const char where[] = "World.user_data";
+    if (world_enter(self, where) != 0)
+        return NULL;
+    Py_buffer ids;
+    uint32_t count;
+    if (get_rows(where, obj, 'I', 1, &ids, &count) != 0) {
+        world_leave(self);
+        return NULL;
+    }
+    char *data = NULL;
+    PyObject *out = new_bytes((size_t)count * sizeof(uint64_t), &data);
+    if (out) {
+        const uint32_t *id_data = ids.buf;
+        Py_BEGIN_ALLOW_THREADS
+        for (uint32_t k = 0; k < count; k++)
+            ((uint64_t *)data)[k] = bpx_world_user_data(self->world, id_data[k]);
+        Py_END_ALLOW_THREADS
+    }
+    PyBuffer_Release(&ids);
+    world_leave(self);
+    return out;
+}
+
+// exclude_pairs and include_pairs: (k, 2) uint32 pairs.
+static PyObject *world_pairs_call(WorldObject *self, PyObject *obj, int exclude)
+{
+    const char *where = exclude ? "World.exclude_pairs" : "World.include_pairs";
+    if (world_enter(self, where) != 0)
+        return NULL;
+    Py_buffer view;
+    uint32_t count;
+    if (get_rows(where, obj, 'I', 2, &view, &count) != 0) {
+        world_leave(self);
+        return NULL;
+    }
+    bpx_status status;
+    Py_BEGIN_ALLOW_THREADS
+    if (exclude)
+        status = bpx_world_exclude_pairs(self->world, view.buf, count);
+    else
+        status = bpx_world_include_pairs(self->world, view.buf, count);
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&view);
+    PyObject *result = status == BPX_OK ? Py_NewRef(Py_None)
+                                        : raise_error(where, bpx_world_error(self->world));
+    world_leave(self);
+    return result;
+}
+
+static PyObject *World_exclude_pairs(WorldObject *self, PyObject *obj)
+{
+    return world_pairs_call(self, obj, 1);
+}
+
+static PyObject *World_include_pairs(WorldObject *self, PyObject *obj)
+{
+    return world_pairs_call(self, obj, 0);
+}
+
+static PyObject *World_pair_excluded(WorldObject *self, PyObject *args)
+{
+    static const char where[] = "World.pair_excluded";
+    unsigned long long i, j;
+    if (!PyArg_ParseTuple(args, "KK", &i, &j))
+        return NULL;
+    if (i > UINT32_MAX || j > UINT32_MAX)
+        return raise_status(where, BPX_ERR_INVALID_ARGUMENT, "an id above 2**32 - 1");
+    if (world_enter(self, where) != 0)
+        return NULL;
+    bool excluded = bpx_world_pair_excluded(self->world, (uint32_t)i, (uint32_t)j);
+    world_leave(self);
+    return PyBool_FromLong(excluded);
+}
+
 static PyObject *World_collide(WorldObject *self, PyObject *unused)
 {
     (void)unused;
@@ -738,13 +882,22 @@ static PyMethodDef World_methods[] = {
     {"remove_boxes", (PyCFunction)World_remove_boxes, METH_O, "bpx_world_remove_boxes"},
     {"move_boxes", (PyCFunction)World_move_boxes, METH_VARARGS, "bpx_world_move_boxes"},
     {"set_filters", (PyCFunction)World_set_filters, METH_VARARGS, "bpx_world_set_filters"},
+    {"set_groups", (PyCFunction)World_set_groups, METH_VARARGS, "bpx_world_set_groups"},
+    {"exclude_pairs", (PyCFunction)World_exclude_pairs, METH_O, "bpx_world_exclude_pairs"},
+    {"include_pairs", (PyCFunction)World_include_pairs, METH_O, "bpx_world_include_pairs"},
+    {"pair_excluded", (PyCFunction)World_pair_excluded, METH_VARARGS,
+     "bpx_world_pair_excluded -> bool"},
+    {"set_user_data", (PyCFunction)World_set_user_data, METH_VARARGS,
+     "bpx_world_set_user_data"},
+    {"user_data", (PyCFunction)World_user_data, METH_O,
+     "bpx_world_user_data for each id -> bytearray of uint64"},
     {"collide", (PyCFunction)World_collide, METH_NOARGS, "bpx_world_collide -> pairs"},
     {"pairs", (PyCFunction)World_pairs, METH_NOARGS, "bpx_world_pairs (a copy)"},
     {"events", (PyCFunction)World_events, METH_NOARGS, "bpx_world_pair_events (copies)"},
     {"stats", (PyCFunction)World_stats, METH_NOARGS, "bpx_world_stats as a dict"},
     {"box_count", (PyCFunction)World_box_count, METH_NOARGS, "bpx_world_box_count"},
     {"query", (PyCFunction)World_query, METH_VARARGS,
-     "query(kind, closest, params, categories, masks, batch): bpx_world_query(_batch)"},
+     "query(kind, closest, any, params, categories, masks, batch): bpx_world_query(_batch)"},
     {"query_stats", (PyCFunction)World_query_stats, METH_NOARGS,
      "bpx_world_query_stats as a dict"},
     {NULL, NULL, 0, NULL}};

@@ -24,8 +24,8 @@ typedef struct {
 PyObject *raise_error(const char *where, const bpx_error *err);
 /// Raises an error that bpx itself did not report, as the bpx.Error subclass of status.
 PyObject *raise_status(const char *where, bpx_status status, const char *message);
-/// Borrows obj's memory as C-contiguous rows of items_per_row 4-byte items ('f' float32, 'I'
-/// uint32); on failure raises and returns -1 with nothing held.
+/// Borrows obj's memory as C-contiguous rows of items_per_row items ('f' float32, 'I' uint32,
+/// 'i' int32, 'Q' uint64); on failure raises and returns -1 with nothing held.
 int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_row, Py_buffer *view,
              uint32_t *rows);
 /// A new uninitialised bytearray of size bytes; *data receives its memory.
@@ -36,7 +36,7 @@ void world_leave(WorldObject *self);
 
 // query.c
 
-/// World.query(kind, closest, params, categories, masks, batch) and World.query_stats().
+/// World.query(kind, closest, any, params, categories, masks, batch) and World.query_stats().
 PyObject *World_query(WorldObject *self, PyObject *args);
 PyObject *World_query_stats(WorldObject *self, PyObject *unused);
 /// Adds QUERY_BOX, QUERY_SPHERE, QUERY_RAY and QUERY_SWEEP to the module; -1 on failure.

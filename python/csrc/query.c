@@ -34,7 +34,7 @@ static PyObject *raise_query_error(const char *where, const bpx_error *error, in
 
 typedef struct query_fill {
     bpx_query_kind kind;
-    bool closest;
+    bool closest, any;
     const float *params;
     const uint32_t *categories, *masks; // 1 value (for every query) or one per query
     uint32_t category_count, mask_count;
@@ -49,6 +49,7 @@ static void fill_queries(const query_fill *f, bpx_query *queries, uint32_t count
         memset(q, 0, sizeof *q);
         q->kind = f->kind;
         q->closest = f->closest;
+        q->any = f->any;
         q->filter.category = f->categories[f->category_count == 1 ? 0 : k];
         q->filter.mask = f->masks[f->mask_count == 1 ? 0 : k];
         switch (f->kind) {
@@ -73,18 +74,20 @@ static void fill_queries(const query_fill *f, bpx_query *queries, uint32_t count
     }
 }
 
-// World.query(kind, closest, params, categories, masks, batch)
+// World.query(kind, closest, any, params, categories, masks, batch)
 //   -> (ids, fractions or None)                     batch false: exactly one query
 //   -> (offsets, ids, fractions or None)            batch true: CSR over the queries
+// closest (rays and sweeps): the closest hit only; any (every kind): at most one hit, the first
+// the walk of the tree meets; bpx refuses the two together (INVALID_ARGUMENT).
 // ids are uint32, fractions float32 (rays and sweeps only), offsets size_t (count + 1). bpx runs
 // the queries into its own buffer (capacity 0: CAPACITY with the total, nothing written), the
 // hits are read back with bpx_world_query_hits and split into ids and fractions, with the GIL
 // released throughout and the world's lock held, which keeps bpx's hits valid meanwhile.
 PyObject *World_query(WorldObject *self, PyObject *args)
 {
-    int kind, closest, batch;
+    int kind, closest, any, batch;
     PyObject *params_obj, *categories_obj, *masks_obj;
-    if (!PyArg_ParseTuple(args, "ipOOOp", &kind, &closest, &params_obj, &categories_obj,
+    if (!PyArg_ParseTuple(args, "ippOOOp", &kind, &closest, &any, &params_obj, &categories_obj,
                           &masks_obj, &batch))
         return NULL;
     if (kind < 0 || kind >= BPX_QUERY_KIND_COUNT)
@@ -135,7 +138,7 @@ PyObject *World_query(WorldObject *self, PyObject *args)
             goto done;
         offsets = (size_t *)data;
     }
-    query_fill fill = {(bpx_query_kind)kind, closest != 0, views[0].buf, views[1].buf,
+    query_fill fill = {(bpx_query_kind)kind, closest != 0, any != 0, views[0].buf, views[1].buf,
                        views[2].buf, counts[1], counts[2]};
     size_t total = 0;
     bpx_status status;

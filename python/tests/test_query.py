@@ -636,16 +636,16 @@ def test_the_c_layer_checks_its_buffers():
         c = world._c
         one = np.ones(1, np.uint32)
         with pytest.raises(bpx.InvalidArgumentError, match="7 items per row"):
-            c.query(_bpx.QUERY_RAY, True, np.zeros((1, 6), np.float32), one, one, False)
+            c.query(_bpx.QUERY_RAY, True, False, np.zeros((1, 6), np.float32), one, one, False)
         with pytest.raises(bpx.InvalidArgumentError, match="expected one query"):
-            c.query(_bpx.QUERY_RAY, True, np.zeros((2, 7), np.float32), one, one, False)
+            c.query(_bpx.QUERY_RAY, True, False, np.zeros((2, 7), np.float32), one, one, False)
         with pytest.raises(bpx.InvalidArgumentError, match="3 categories for 2 queries"):
-            c.query(_bpx.QUERY_BOX, False, np.zeros((2, 6), np.float32),
+            c.query(_bpx.QUERY_BOX, False, False, np.zeros((2, 6), np.float32),
                     np.ones(3, np.uint32), one, True)
         with pytest.raises(bpx.InvalidArgumentError, match="float32"):
-            c.query(_bpx.QUERY_BOX, False, np.zeros((1, 6)), one, one, False)
+            c.query(_bpx.QUERY_BOX, False, False, np.zeros((1, 6)), one, one, False)
         with pytest.raises(bpx.InvalidArgumentError, match="unknown query kind"):
-            c.query(9, False, np.zeros((1, 6), np.float32), one, one, False)
+            c.query(9, False, False, np.zeros((1, 6), np.float32), one, one, False)
 
 
 def test_closed_world_and_device_free_defaults():

@@ -23,7 +23,11 @@ Queries on a world's boxes::
 
     world.query_box([0, 0, 0, 1, 1, 1])    # ids overlapping a region, sorted
     world.ray_cast(origin, direction)      # Hit(id, fraction) of the closest hit, or None
+    world.ray_cast(origin, direction, any=True)   # some hit (the first found), or None
     world.ray_cast_batch(origins, directions, all=True)   # CSR: (offsets, ids, fractions)
+
+Filtering inside the broad phase: ``world.set_filters``, ``world.set_groups`` (Box2D's groups),
+``world.exclude_pairs``; and a uint64 per box, ``world.set_user_data``.
 
 Errors are ``bpx.Error`` subclasses (``ValueError`` for bad input, ``MemoryError`` for memory)
 whose message names the box and the axis.

@@ -93,20 +93,86 @@ def uint32_array(values: Any, what: str, count: Optional[int] = None) -> np.ndar
     """Ids, categories or masks as a 1-D C-contiguous uint32 array, every value checked to fit
     (a negative id is an error naming its position, never a wrapped-around huge id). A scalar
     stands for one value, or for ``count`` copies of it when count is given."""
+    return int_array(values, what, np.uint32, count)
+
+
+def int_array(values: Any, what: str, dtype: Any, count: Optional[int] = None) -> np.ndarray:
+    """Integers as a 1-D C-contiguous array of dtype (uint32, int32 or uint64), as
+    ``uint32_array`` does for uint32: every value checked to fit, an error naming the position
+    of the first that does not; a scalar stands for one value, or count copies of it."""
+    info = np.iinfo(dtype)
     array = _asarray(values, what)
+    if array.dtype.kind in "fO" and not isinstance(values, np.ndarray):
+        array = _python_ints(values, what, info, array)
     if array.dtype.kind not in "iu":
         raise DTypeError(f"{what}: dtype {array.dtype} is not an integer dtype")
     if array.ndim == 0:
         array = np.broadcast_to(array, (1 if count is None else count,))
     if array.ndim != 1:
         raise InvalidArgumentError(f"{what}: expected a 1-D array, got shape {array.shape}")
+    if array.size and array.dtype != dtype:
+        if int(array.min()) < info.min or int(array.max()) > info.max:
+            k = int(np.argmax((array < info.min) | (array > info.max)))
+            value = int(array[k])
+            raise InvalidArgumentError(
+                f"{what}[{k}] is {value}: {_out_of_range(value, info)}", index=k
+            )
+    return np.ascontiguousarray(array, dtype=dtype)
+
+
+def _out_of_range(value: int, info: Any) -> str:
+    if value < 0 and info.min == 0:
+        return "negative"
+    if value < info.min:
+        return f"below -2**{info.bits - 1}"
+    return f"above 2**{info.bits - (info.min < 0)} - 1"
+
+
+def _python_ints(values: Any, what: str, info: Any, array: np.ndarray) -> np.ndarray:
+    """Python ints that NumPy made float64 or object (ints beyond int64, such as 2**64 - 1
+    beside small ones), checked against info's range and converted exactly; array (NumPy's own
+    conversion) when values are not all ints."""
+    items = np.array(values, dtype=object)
+    flat = items.ravel().tolist()
+    if not flat:  # [] is no values, not float64 ones
+        return np.zeros(items.shape, np.int64)
+    if not all(isinstance(v, int) and not isinstance(v, bool) for v in flat):
+        return array
+    for k, value in enumerate(flat):
+        if value < info.min or value > info.max:
+            place, index = "", None  # a scalar
+            if items.ndim in (1, 2):
+                index = k // (items.shape[1] if items.ndim == 2 else 1)  # a pair's position
+                place = f"[{index}]"
+            raise InvalidArgumentError(
+                f"{what}{place} is {value}: {_out_of_range(value, info)}", index=index
+            )
+    return items.astype(np.uint64 if info.min == 0 else np.int64)
+
+
+def pairs_array(pairs: Any, what: str) -> np.ndarray:
+    """Pairs of ids, (k, 2), as a C-contiguous uint32 array (bpx_pair's layout), every id
+    checked as ``uint32_array`` checks ids; an error names the pair's position. An empty list
+    is no pairs."""
+    array = _asarray(pairs, what)
+    if array.size == 0 and array.ndim == 1:
+        return np.empty((0, 2), np.uint32)
+    if array.dtype.kind in "fO" and not isinstance(pairs, np.ndarray):
+        array = _python_ints(pairs, what, np.iinfo(np.uint32), array)
+    if array.dtype.kind not in "iu":
+        raise DTypeError(f"{what}: dtype {array.dtype} is not an integer dtype")
+    if array.ndim != 2 or array.shape[1] != 2:
+        raise InvalidArgumentError(f"{what}: expected shape (k, 2), got {array.shape}")
     if array.size and array.dtype != np.uint32:
-        if int(array.min()) < 0:
-            k = int(np.argmax(array < 0))
-            raise InvalidArgumentError(f"{what}[{k}] is {array[k]}: negative", index=k)
-        if int(array.max()) > UINT32_MAX:
-            k = int(np.argmax(array > UINT32_MAX))
-            raise InvalidArgumentError(f"{what}[{k}] is {array[k]}: above 2**32 - 1", index=k)
+        bad = (array < 0) | (array > UINT32_MAX)
+        if bad.any():
+            k = int(np.argmax(bad.any(axis=1)))
+            value = int(array[k][bad[k]][0])
+            raise InvalidArgumentError(
+                f"{what}[{k}] is {array[k].tolist()}: {value} is "
+                f"{_out_of_range(value, np.iinfo(np.uint32))}",
+                index=k,
+            )
     return np.ascontiguousarray(array, dtype=np.uint32)
 
 

@@ -9,9 +9,16 @@ from typing import Any, NamedTuple, Optional, Tuple, Union
 import numpy as np
 
 from . import _bpx
-from ._arrays import boxes_array, pairs_from_bytes, uint32_array, vec3_array
+from ._arrays import (
+    boxes_array,
+    int_array,
+    pairs_array,
+    pairs_from_bytes,
+    uint32_array,
+    vec3_array,
+)
 from ._core import check_backend, check_threads, converted_note
-from ._errors import InvalidArgumentError
+from ._errors import DTypeError, InvalidArgumentError
 from ._query import (
     ALL,
     BatchHits,
@@ -74,13 +81,20 @@ class World:
     reported its pairs as ended).
 
     Filters: ``set_filters(ids, categories, masks)``; a and b pair only if
-    ``(category_a & mask_b) and (category_b & mask_a)``.
+    ``(category_a & mask_b) and (category_b & mask_a)``. ``set_groups(ids, groups)``: the same
+    non-zero group always pairs (positive) or never (negative), before the filter's rule.
+    ``exclude_pairs(pairs)`` / ``include_pairs(pairs)``: pairs that never pair, before both
+    (``pair_excluded(i, j)``). Each costs little per overlapping pair (two reads; a hash lookup
+    only for a pair whose boxes both have exclusions) and the pairs are the same for any
+    thread count. ``set_user_data(ids, values)`` / ``user_data(ids)``: a uint64 per box.
 
     Queries, over the current boxes (removed ids never come back), with a filter of their own:
     ``query_box`` and ``query_sphere`` (sorted uint32 ids), ``ray_cast`` and ``sweep`` (the
     closest ``Hit(id, fraction)`` or None, or with ``all=True`` every hit as
     ``Hits(ids, fractions)``), and each ``*_batch`` form for many queries at once on the
-    world's threads, in CSR form. The answers are exact, as include/bpx/query.h defines them.
+    world's threads, in CSR form. ``any=True`` (every kind) stops at the first hit the tree's
+    walk meets: at most one, none exactly when there is none. The answers are exact, as
+    include/bpx/query.h defines them.
 
     Events: with ``track_events=True``, ``events`` holds the pairs that began and ended with
     the last collide.
@@ -171,23 +185,88 @@ class World:
         """Collision filtering inside the broad phase: a and b pair only if
         ``(category_a & mask_b) and (category_b & mask_a)``. ids (None for 0 .. k-1),
         categories and masks are uint32 values, 1-D of one length; a scalar category or mask
-        applies to every id. Every box starts with category 1 and mask 0xFFFFFFFF."""
-        count: Optional[int] = None
-        id_array = None
-        if ids is not None:
-            id_array = uint32_array(ids, "World.set_filters: ids")
-            count = id_array.shape[0]
-        elif np.ndim(categories) == 0 and np.ndim(masks) == 0:
-            raise InvalidArgumentError(
-                "World.set_filters: with ids None, categories or masks must be an array"
-            )
-        elif np.ndim(categories) == 0:
-            count = np.shape(masks)[0]
-        else:
-            count = np.shape(categories)[0]
-        cats = uint32_array(categories, "World.set_filters: categories", count)
-        mask_array = uint32_array(masks, "World.set_filters: masks", count)
+        applies to every id. Every box starts with category 1 and mask 0xFFFFFFFF.
+
+        Cost: the pair test reads the two boxes' categories and masks."""
+        what = "World.set_filters"
+        id_array, count = _ids_and_count(ids, what, ("categories", categories), ("masks", masks))
+        cats = uint32_array(categories, f"{what}: categories", count)
+        mask_array = uint32_array(masks, f"{what}: masks", count)
         self._c.set_filters(id_array, cats, mask_array)
+
+    def set_groups(self, ids: Any, groups: Any) -> None:
+        """Groups (Box2D's rule): two boxes in the same non-zero group always pair when the
+        group is positive and never when it is negative, whatever their categories and masks;
+        boxes in different groups, or in group 0 (where every box starts), follow
+        ``set_filters``' rule. Excluded pairs (``exclude_pairs``) never pair, groups or not.
+
+        ids (None for 0 .. k-1) are uint32, groups int32 (-2**31 .. 2**31 - 1), 1-D of one
+        length; a scalar group applies to every id. A group stays with its id, as a filter
+        does, until the box is removed (or dropped by ``set_boxes`` / ``load_extents``).
+
+        Cost: two reads per overlapping pair (the boxes' groups); pairs come out the same for
+        any thread count.
+
+        Raises:
+            InvalidArgumentError: an id not in use (``.index``: its position in ids), a
+                negative id or one above 2**32 - 1, a group out of int32's range, lengths
+                that differ; DTypeError: non-integer ids or groups. Nothing changes on error.
+        """
+        what = "World.set_groups"
+        id_array, count = _ids_and_count(ids, what, ("groups", groups))
+        self._c.set_groups(id_array, int_array(groups, f"{what}: groups", np.int32, count))
+
+    def exclude_pairs(self, pairs: Any) -> None:
+        """Excluded pairs: boxes i and j never pair, whatever their groups and filters, until
+        ``include_pairs``. pairs: (k, 2) integer ids, each pair of two different boxes in use;
+        (i, j) and (j, i) are the same pair, and excluding one twice is the same as once.
+        An exclusion goes when either box is removed (with the id's pairs, at the next
+        collide) or dropped by ``set_boxes`` / ``load_extents``.
+
+        Cost: one hash lookup per overlapping pair whose two boxes both have an exclusion;
+        every other pair costs two reads. Pairs come out the same for any thread count.
+
+        Raises:
+            InvalidArgumentError: a pair with an id not in use or with i == j (``.index``:
+                the pair's position), a negative id or one above 2**32 - 1, a shape other than
+                (k, 2); DTypeError: non-integer ids. Nothing changes on error.
+        """
+        self._c.exclude_pairs(pairs_array(pairs, "World.exclude_pairs: pairs"))
+
+    def include_pairs(self, pairs: Any) -> None:
+        """Ends exclusions made by ``exclude_pairs``; a pair that is not excluded is left as it
+        is. pairs and errors as ``exclude_pairs``; one hash removal per pair."""
+        self._c.include_pairs(pairs_array(pairs, "World.include_pairs: pairs"))
+
+    def pair_excluded(self, i: Any, j: Any) -> bool:
+        """Whether boxes i and j are an excluded pair now (one hash lookup). False for i == j
+        and for ids not in use."""
+        what = "World.pair_excluded"
+        return self._c.pair_excluded(_one_id(i, f"{what}: i"), _one_id(j, f"{what}: j"))
+
+    def set_user_data(self, ids: Any, values: Any) -> None:
+        """User data: a 64-bit value per box (an engine's body handle, an index into a Python
+        list), 0 until set. ids (None for 0 .. k-1) are uint32, values uint64 (Python ints up
+        to 2**64 - 1), 1-D of one length; a scalar value applies to every id. A value stays with
+        its id, as a filter does. Cost: 8 bytes per box, allocated on first use; never read by
+        the broad phase.
+
+        Raises:
+            InvalidArgumentError: an id not in use (``.index``: its position in ids), a
+                negative id or value, one too big, lengths that differ; DTypeError:
+                non-integer ids or values. Nothing changes on error.
+        """
+        what = "World.set_user_data"
+        id_array, count = _ids_and_count(ids, what, ("values", values))
+        self._c.set_user_data(id_array, int_array(values, f"{what}: values", np.uint64, count))
+
+    def user_data(self, ids: Any) -> Union[int, np.ndarray]:
+        """The user data of one id (an int), or of each id in a 1-D array ((k,) uint64); 0 for
+        an id not in use or never set."""
+        values = np.frombuffer(
+            self._c.user_data(uint32_array(ids, "World.user_data: ids")), np.uint64
+        )
+        return int(values[0]) if np.ndim(ids) == 0 else values
 
     # -- comparator and emitter -----------------------------------------------------------------
 
@@ -246,26 +325,33 @@ class World:
     def _query(
         self,
         kind: int,
-        closest: bool,
+        every: bool,
+        any_hit: bool,
         what: str,
         columns: Tuple[np.ndarray, ...],
         category: Any,
         mask: Any,
         batch: bool,
     ) -> tuple:
-        """Runs one query, or a batch of k, of one kind. columns are its floats, side by side:
-        (k, m) or (k,) arrays in the kind's order, k = 1 for one query. category and mask: a
-        number, or with a batch (k,). Returns the C layer's (ids, fractions), or with a batch
-        (offsets, ids, fractions)."""
+        """Runs one query, or a batch of k, of one kind. every: every hit (always, for regions
+        and spheres), else the closest; any_hit: at most one hit, the first the tree's walk
+        meets. columns are its floats, side by side: (k, m) or (k,) arrays in the kind's order,
+        k = 1 for one query. category and mask: a number, or with a batch (k,). Returns the C
+        layer's (ids, fractions), or with a batch (offsets, ids, fractions)."""
+        if every and any_hit and kind in (_bpx.QUERY_RAY, _bpx.QUERY_SWEEP):
+            raise InvalidArgumentError(f"{what}: all and any exclude each other")
+        closest = not every and not any_hit
         count = columns[0].shape[0]
         params = Params(count, sum(1 if c.ndim == 1 else c.shape[1] for c in columns))
         for column in columns:
             params.put(column)
         cat, msk = filter_arrays(category, mask, what, count if batch else None)
         with converted_note(params.overflowed):
-            return self._c.query(kind, closest, params.rows, cat, msk, batch)
+            return self._c.query(kind, closest, bool(any_hit), params.rows, cat, msk, batch)
 
-    def query_box(self, box: Any, *, category: Any = ALL, mask: Any = ALL) -> np.ndarray:
+    def query_box(
+        self, box: Any, *, any: bool = False, category: Any = ALL, mask: Any = ALL
+    ) -> np.ndarray:
         """Ids of the boxes that overlap a box region, sorted: (k,) uint32.
 
         Box b is a hit iff the closed intervals overlap on x, y and z (the pairs' predicate:
@@ -273,6 +359,11 @@ class World:
 
         Args:
             box: (6,) [min x, y, z, max x, y, z] or (2, 3) [[min], [max]].
+            any: True: at most one id, the first hit the walk of the query tree meets (is
+                anything there?), not the lowest; empty exactly when the full answer is. The
+                walk stops at that hit, so it costs at most what the full query costs. Which
+                hit depends on the tree only: the same boxes and calls give the same one, for
+                any thread count.
             category, mask: the query's filter; it sees box b iff
                 ``(category & mask_b) and (category_b & mask)``, the rule between two boxes.
                 The default (all ones) sees every box whose mask is not 0.
@@ -284,11 +375,17 @@ class World:
         """
         what = "World.query_box"
         columns = (one_box(box, f"{what}: box"),)
-        ids, _ = self._query(_bpx.QUERY_BOX, False, what, columns, category, mask, False)
+        ids, _ = self._query(_bpx.QUERY_BOX, True, any, what, columns, category, mask, False)
         return np.frombuffer(ids, np.uint32)
 
     def query_sphere(
-        self, centre: Any, radius: Any, *, category: Any = ALL, mask: Any = ALL
+        self,
+        centre: Any,
+        radius: Any,
+        *,
+        any: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
     ) -> np.ndarray:
         """Ids of the boxes that overlap a sphere, sorted: (k,) uint32.
 
@@ -298,7 +395,7 @@ class World:
 
         Args:
             centre: (3,). radius: a number >= 0.
-            category, mask: the query's filter, as in ``query_box``.
+            any, category, mask: as in ``query_box``.
 
         Raises:
             NotFiniteError: a NaN or infinite centre (``.axis``) or radius;
@@ -306,7 +403,7 @@ class World:
         """
         what = "World.query_sphere"
         columns = (one_vec3(centre, f"{what}: centre"), one_scalar(radius, f"{what}: radius"))
-        ids, _ = self._query(_bpx.QUERY_SPHERE, False, what, columns, category, mask, False)
+        ids, _ = self._query(_bpx.QUERY_SPHERE, True, any, what, columns, category, mask, False)
         return np.frombuffer(ids, np.uint32)
 
     def ray_cast(
@@ -316,6 +413,7 @@ class World:
         max_fraction: Any = math.inf,
         *,
         all: bool = False,
+        any: bool = False,
         category: Any = ALL,
         mask: Any = ALL,
     ) -> Union[Optional[Hit], Hits]:
@@ -331,17 +429,24 @@ class World:
             max_fraction: the largest t, >= 0; +inf (the default) for an unbounded ray, 1 for
                 the segment from origin to origin + direction.
             all: False (the default): the closest hit only; True: every hit.
+            any: True: some hit, the first the walk of the query tree meets, not the closest
+                (a line of sight is blocked, or not): None exactly when the ray hits nothing.
+                The walk stops at that hit, with no search for a closer one: the cheapest
+                way to ask whether the ray hits anything. Which hit depends on the tree only:
+                the same boxes and calls give the same one, for any thread count. Not with
+                all=True.
             category, mask: the query's filter, as in ``query_box``.
 
         Returns:
             all=False: ``Hit(id, fraction)`` with the least fraction (ties to the lowest id), or
             None when the ray hits nothing. all=True: ``Hits(ids, fractions)``, (k,) uint32 and
-            (k,) float32, sorted by fraction, then id.
+            (k,) float32, sorted by fraction, then id. any=True: a ``Hit`` (its own fraction)
+            or None.
 
         Raises:
             NotFiniteError: a NaN or infinite origin or direction (``.axis``), a NaN
             max_fraction; InvalidArgumentError: a negative max_fraction, a zero direction with
-            max_fraction > 0, a wrong shape, a bad category or mask.
+            max_fraction > 0, a wrong shape, a bad category or mask, all and any together.
         """
         what = "World.ray_cast"
         columns = (
@@ -349,7 +454,9 @@ class World:
             one_vec3(direction, f"{what}: direction"),
             one_scalar(max_fraction, f"{what}: max_fraction"),
         )
-        ids, fractions = self._query(_bpx.QUERY_RAY, not all, what, columns, category, mask, False)
+        ids, fractions = self._query(
+            _bpx.QUERY_RAY, all, any, what, columns, category, mask, False
+        )
         return _hits(ids, fractions, bool(all))
 
     def sweep(
@@ -359,6 +466,7 @@ class World:
         max_fraction: Any = 1.0,
         *,
         all: bool = False,
+        any: bool = False,
         category: Any = ALL,
         mask: Any = ALL,
     ) -> Union[Optional[Hit], Hits]:
@@ -376,7 +484,7 @@ class World:
             box: the box at t = 0, (6,) or (2, 3) as in ``query_box``.
             translation: (3,); zero needs max_fraction 0.
             max_fraction: the largest t, >= 0 (default 1: the whole translation; +inf allowed).
-            all, category, mask: as in ``ray_cast``.
+            all, any, category, mask: as in ``ray_cast``.
 
         Returns:
             As ``ray_cast``: ``Hit(id, fraction)`` or None, or with all=True ``Hits``.
@@ -391,7 +499,7 @@ class World:
             one_scalar(max_fraction, f"{what}: max_fraction"),
         )
         ids, fractions = self._query(
-            _bpx.QUERY_SWEEP, not all, what, columns, category, mask, False
+            _bpx.QUERY_SWEEP, all, any, what, columns, category, mask, False
         )
         return _hits(ids, fractions, bool(all))
 
@@ -401,11 +509,12 @@ class World:
     # naming its position in the batch (``.index``) and nothing runs.
 
     def query_box_batch(
-        self, boxes: Any, *, category: Any = ALL, mask: Any = ALL
+        self, boxes: Any, *, any: bool = False, category: Any = ALL, mask: Any = ALL
     ) -> BatchIds:
         """``query_box`` for each of k boxes ((k, 6) or (k, 2, 3)) at once.
 
-        category and mask: a number for every query or (k,) arrays.
+        any: as in ``query_box`` (0 or 1 id per query). category and mask: a number for every
+        query or (k,) arrays.
 
         Returns:
             ``BatchIds(offsets, ids)``: query j's ids, sorted, are
@@ -413,21 +522,29 @@ class World:
         """
         what = "World.query_box_batch"
         columns = (many_boxes(boxes, f"{what}: boxes"),)
-        offsets, ids, _ = self._query(_bpx.QUERY_BOX, False, what, columns, category, mask, True)
+        offsets, ids, _ = self._query(
+            _bpx.QUERY_BOX, True, any, what, columns, category, mask, True
+        )
         return BatchIds(np.frombuffer(offsets, np.intp), np.frombuffer(ids, np.uint32))
 
     def query_sphere_batch(
-        self, centres: Any, radii: Any, *, category: Any = ALL, mask: Any = ALL
+        self,
+        centres: Any,
+        radii: Any,
+        *,
+        any: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
     ) -> BatchIds:
         """``query_sphere`` for k spheres at once: centres (k, 3), radii a number or (k,);
-        category and mask a number or (k,). Returns ``BatchIds(offsets, ids)`` as
-        ``query_box_batch``."""
+        any as in ``query_box``; category and mask a number or (k,). Returns
+        ``BatchIds(offsets, ids)`` as ``query_box_batch``."""
         what = "World.query_sphere_batch"
         centre_array = many_vec3(centres, f"{what}: centres")
         count = centre_array.shape[0]
         columns = (centre_array, many_scalars(radii, f"{what}: radii", count))
         offsets, ids, _ = self._query(
-            _bpx.QUERY_SPHERE, False, what, columns, category, mask, True
+            _bpx.QUERY_SPHERE, True, any, what, columns, category, mask, True
         )
         return BatchIds(np.frombuffer(offsets, np.intp), np.frombuffer(ids, np.uint32))
 
@@ -438,17 +555,19 @@ class World:
         max_fractions: Any = math.inf,
         *,
         all: bool = False,
+        any: bool = False,
         category: Any = ALL,
         mask: Any = ALL,
     ) -> BatchHits:
         """``ray_cast`` for k rays at once: origins and directions (k, 3), max_fractions a
-        number or (k,), category and mask a number or (k,).
+        number or (k,), category and mask a number or (k,); all and any as in ``ray_cast``.
 
         Returns:
             ``BatchHits(offsets, ids, fractions)``: ray j's hits are
             ``ids[offsets[j]:offsets[j + 1]]`` and the same slice of fractions (also
             ``.query(j)``, ``.split()``, ``.counts``). With all=False each ray has 0 or 1 hit
-            (its closest); with all=True every hit, sorted by fraction, then id.
+            (its closest, or with any=True the first found); with all=True every hit, sorted
+            by fraction, then id.
         """
         what = "World.ray_cast_batch"
         origin_array = many_vec3(origins, f"{what}: origins")
@@ -459,7 +578,7 @@ class World:
             many_scalars(max_fractions, f"{what}: max_fractions", count),
         )
         return _batch_hits(
-            *self._query(_bpx.QUERY_RAY, not all, what, columns, category, mask, True)
+            *self._query(_bpx.QUERY_RAY, all, any, what, columns, category, mask, True)
         )
 
     def sweep_batch(
@@ -469,12 +588,13 @@ class World:
         max_fractions: Any = 1.0,
         *,
         all: bool = False,
+        any: bool = False,
         category: Any = ALL,
         mask: Any = ALL,
     ) -> BatchHits:
         """``sweep`` for k boxes at once: boxes (k, 6) or (k, 2, 3), translations (k, 3),
-        max_fractions a number or (k,), category and mask a number or (k,). Returns
-        ``BatchHits(offsets, ids, fractions)`` as ``ray_cast_batch``."""
+        max_fractions a number or (k,), category and mask a number or (k,); all and any as in
+        ``ray_cast``. Returns ``BatchHits(offsets, ids, fractions)`` as ``ray_cast_batch``."""
         what = "World.sweep_batch"
         box_array = many_boxes(boxes, f"{what}: boxes")
         count = box_array.shape[0]
@@ -484,7 +604,7 @@ class World:
             many_scalars(max_fractions, f"{what}: max_fractions", count),
         )
         return _batch_hits(
-            *self._query(_bpx.QUERY_SWEEP, not all, what, columns, category, mask, True)
+            *self._query(_bpx.QUERY_SWEEP, all, any, what, columns, category, mask, True)
         )
 
     @property
@@ -540,3 +660,28 @@ def _batch_hits(offsets: bytearray, ids: bytearray, fractions: bytearray) -> Bat
         np.frombuffer(ids, np.uint32),
         np.frombuffer(fractions, np.float32),
     )
+
+
+def _ids_and_count(ids: Any, what: str, *columns: Tuple[str, Any]) -> Tuple[Any, int]:
+    """ids as a uint32 array (None stays None, for 0 .. k-1) and k, the length every column
+    must have: ids' length, else the first column given as an array."""
+    if ids is not None:
+        id_array = uint32_array(ids, f"{what}: ids")
+        return id_array, id_array.shape[0]
+    for _, values in columns:
+        if np.ndim(values) != 0:
+            return None, int(np.shape(values)[0])
+    names = " or ".join(name for name, _ in columns)
+    raise InvalidArgumentError(f"{what}: with ids None, {names} must be an array")
+
+
+def _one_id(value: Any, what: str) -> int:
+    """One id, checked as ``uint32_array`` checks ids."""
+    if np.ndim(value) != 0:
+        raise InvalidArgumentError(f"{what}: expected one id, got shape {np.shape(value)}")
+    try:
+        return int(uint32_array(value, what)[0])
+    except InvalidArgumentError as exc:
+        if isinstance(exc, DTypeError):
+            raise
+        raise InvalidArgumentError(f"{what} is {value}: not in 0 .. 2**32 - 1") from None
