@@ -44,7 +44,19 @@ static bool shadow_may_pair(const shadow *s, uint32_t i, uint32_t j)
 
 static const bpx_box inert = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
 
-static void expected_pairs(const shadow *s, pair_list *out)
+// The pair filter of the runs: a pure function of the pair, so the pairs it lets through are
+// known; each call is counted, to check it is asked once per beginning pair.
+static size_t filter_calls;
+static bool pair_filter_fn(uint32_t i, uint32_t j, uint64_t data_i, uint64_t data_j, void *context)
+{
+    (void)data_i, (void)data_j, (void)context;
+    filter_calls++;
+    return (i * 31u + j * 17u) % 5u != 0;
+}
+
+// The pairs that pass groups, exclusions and filters (the pair filter's candidates) into
+// candidates, and those the pair filter also lets through into out.
+static void expected_pairs(const shadow *s, pair_list *out, pair_list *candidates)
 {
     pair_list_brute(out, s->boxes, s->n);
     size_t kept = 0;
@@ -52,6 +64,14 @@ static void expected_pairs(const shadow *s, pair_list *out)
         bpx_pair p = out->pairs[k];
         out->pairs[kept] = p;
         kept += shadow_may_pair(s, p.i, p.j);
+    }
+    out->count = kept;
+    pair_list_set(candidates, out->pairs, out->count);
+    kept = 0;
+    for (size_t k = 0; k < out->count; k++) {
+        bpx_pair p = out->pairs[k];
+        out->pairs[kept] = p;
+        kept += (p.i * 31u + p.j * 17u) % 5u != 0;
     }
     out->count = kept;
 }
@@ -103,6 +123,8 @@ static void run(bpx_backend backend, int workers, uint64_t seed)
     }
     const float world = 40.0f;
     pair_list want = {0}, before = {0}, began = {0}, ended = {0};
+    pair_list candidates = {0}, last_candidates = {0}, asked = {0};
+    CHECK_STATUS(bpx_world_set_pair_filter(w, pair_filter_fn, NULL), BPX_OK);
     bpx_box batch[64];
     uint32_t ids[64];
     for (int cycle = 0; cycle < cycles; cycle++) {
@@ -221,11 +243,16 @@ static void run(bpx_backend backend, int workers, uint64_t seed)
         for (uint32_t id = 0; id < s.n; id++)
             CHECK(bpx_world_user_data(w, id) == (s.live[id] ? s.user_data[id] : 0));
 
+        filter_calls = 0;
         CHECK_STATUS(bpx_world_collide(w), BPX_OK);
         size_t count = 0;
         const bpx_pair *got = bpx_world_pairs(w, &count);
-        expected_pairs(&s, &want);
+        expected_pairs(&s, &want, &candidates);
         CHECK_PAIRS_EQ(want.pairs, want.count, got, count);
+        difference(&candidates, &last_candidates, &asked); // the pairs that began
+        CHECK_MSG(filter_calls == asked.count, "pair filter asked %zu times, %zu pairs began",
+                  filter_calls, asked.count);
+        pair_list_set(&last_candidates, candidates.pairs, candidates.count);
 
         bpx_pair_events ev;
         CHECK_STATUS(bpx_world_pair_events(w, &ev), BPX_OK);
@@ -240,6 +267,9 @@ static void run(bpx_backend backend, int workers, uint64_t seed)
     pair_list_free(&before);
     pair_list_free(&began);
     pair_list_free(&ended);
+    pair_list_free(&candidates);
+    pair_list_free(&last_candidates);
+    pair_list_free(&asked);
     bpx_world_destroy(w);
 }
 
@@ -487,12 +517,81 @@ static void groups_exclusions_user_data(void)
     bpx_world_destroy(w);
 }
 
+// The pair filter's rules: a refused pair stays out while it persists, without being asked
+// again; a new filter asks again; a filter that calls back into the world gets BAD_STATE.
+typedef struct meddler {
+    bpx_world *world;
+    bpx_status status;
+    int calls;
+} meddler;
+
+static bool refuse_and_meddle(uint32_t i, uint32_t j, uint64_t di, uint64_t dj, void *context)
+{
+    (void)i, (void)j, (void)di;
+    meddler *m = context;
+    m->calls++;
+    bpx_box b = {{0, 0, 0}, {1, 1, 1}};
+    m->status = bpx_world_set_boxes(m->world, &b, 1);
+    return dj != 99; // box 1 carries 99: its pair is refused
+}
+
+// The last collide's pair count (pair_count collides itself).
+static size_t pairs_now(bpx_world *w)
+{
+    size_t count = 0;
+    bpx_world_pairs(w, &count);
+    return count;
+}
+
+static void pair_filter_rules(void)
+{
+    check_set_context("pair filter rules");
+    bpx_world_def def = bpx_default_world_def();
+    def.track_events = true;
+    bpx_world *w;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    bpx_box boxes[2] = {{{0, 0, 0}, {1, 1, 1}}, {{0.5f, 0, 0}, {2, 1, 1}}};
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, 2), BPX_OK);
+    uint32_t one = 1;
+    uint64_t ninety_nine = 99;
+    CHECK_STATUS(bpx_world_set_user_data(w, &one, &ninety_nine, 1), BPX_OK);
+    meddler m = {w, BPX_OK, 0};
+    CHECK_STATUS(bpx_world_set_pair_filter(w, refuse_and_meddle, &m), BPX_OK);
+    for (int cycle = 0; cycle < 3; cycle++) {
+        CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+        CHECK(pairs_now(w) == 0);
+    }
+    CHECK(m.calls == 1 && m.status == BPX_ERR_BAD_STATE);
+    CHECK(bpx_world_box_count(w) == 2); // the meddling did nothing
+    bpx_box apart = {{5, 5, 5}, {6, 6, 6}};
+    CHECK_STATUS(bpx_world_move_boxes(w, &one, &apart, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK_STATUS(bpx_world_move_boxes(w, &one, &boxes[1], 1), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK); // began again: asked again
+    CHECK(m.calls == 2 && pairs_now(w) == 0);
+    ninety_nine = 1;
+    CHECK_STATUS(bpx_world_set_user_data(w, &one, &ninety_nine, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK); // persists: not asked, still refused
+    CHECK(m.calls == 2 && pairs_now(w) == 0);
+    CHECK_STATUS(bpx_world_set_pair_filter(w, refuse_and_meddle, &m), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK); // a new filter asks again
+    CHECK(m.calls == 3 && pairs_now(w) == 1);
+    bpx_pair_events ev;
+    CHECK_STATUS(bpx_world_pair_events(w, &ev), BPX_OK);
+    CHECK_MSG(ev.began_count == 1 && ev.ended_count == 0, "began %zu ended %zu", ev.began_count, ev.ended_count);
+    CHECK_STATUS(bpx_world_set_pair_filter(w, NULL, NULL), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+    CHECK(m.calls == 3 && pairs_now(w) == 1);
+    bpx_world_destroy(w);
+}
+
 int main(void)
 {
     errors();
     mode_changes();
     filters_and_set_boxes();
     groups_exclusions_user_data();
+    pair_filter_rules();
     int ran = 0;
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
         if (!bpx_backend_query((bpx_backend)b).available)

@@ -138,6 +138,24 @@ BPX_API bpx_status bpx_world_include_pairs(bpx_world *world, const bpx_pair *pai
 /// Whether the pair is excluded now.
 BPX_API bool bpx_world_pair_excluded(const bpx_world *world, uint32_t i, uint32_t j);
 
+/// A pair filter: asked once when a pair would begin (its boxes overlap and it passed groups,
+/// exclusions and filters, and it did not at the last collide), never again while it persists.
+/// Return true to let it pair, false to keep it out until it stops overlapping (or is filtered
+/// out) and begins again, when the filter is asked again. Called by bpx_world_collide* on the
+/// calling thread, pairs in (i, j) order, so the same for any worker count.
+typedef bool bpx_pair_filter_fn(uint32_t i, uint32_t j, uint64_t user_data_i,
+                                uint64_t user_data_j, void *context);
+
+/// Sets the pair filter (NULL: none, the default). Setting one, or another, asks again about
+/// every pair at the next collide; so does bpx_world_restore. It must not change the world
+/// (such calls return BAD_STATE) and should answer the same for the same pair, so that
+/// restored worlds replay alike. Cost: one merge walk over the pairs per collide, two lists of
+/// the pairs' size, and the calls for the pairs that begin.
+/// Errors: NULL_ARGUMENT (no world), BAD_STATE (called from a callback; the boxes live on a
+/// device is fine: the device-resident collide refuses a world with a pair filter).
+BPX_API bpx_status bpx_world_set_pair_filter(bpx_world *world, bpx_pair_filter_fn *fn,
+                                             void *context);
+
 /// User data: a 64-bit value per box (a pointer, an engine's body handle), 0 until set, handed
 /// to query callbacks (bpx_world_query_each). It stays with its id as a filter does.
 /// Errors: NULL_ARGUMENT, INVALID_ARGUMENT (an id not in use), OUT_OF_MEMORY.

@@ -193,8 +193,10 @@ void bpx__objects_free(bpx_world *w)
 {
     free_object_arrays(w);
     bpx__pair_set_free(&w->excluded);
-    bpx_pair_list *lists[] = {&w->previous, &w->began, &w->ended};
-    for (int k = 0; k < 3; k++) {
+    bpx_pair_list *lists[] = {&w->previous,         &w->began,         &w->ended,
+                              &w->candidates,       &w->rejected,      &w->fresh_candidates,
+                              &w->fresh_rejected};
+    for (int k = 0; k < 7; k++) {
         bpx__free(lists[k]->pairs, lists[k]->capacity * sizeof(bpx_pair));
         *lists[k] = (bpx_pair_list){0};
     }
@@ -469,7 +471,78 @@ bool bpx_world_pair_excluded(const bpx_world *w, uint32_t i, uint32_t j)
 
 bool bpx__objects_filtering(const bpx_world *w)
 {
-    return w->category || w->group || w->excluded.count;
+    return w->category || w->group || w->excluded.count || w->pair_filter;
+}
+
+bpx_status bpx_world_set_pair_filter(bpx_world *w, bpx_pair_filter_fn *fn, void *context)
+{
+    bpx_status entered = bpx__world_enter(w, "set_pair_filter");
+    if (entered != BPX_OK)
+        return entered;
+    w->pair_filter = fn;
+    w->pair_filter_context = context;
+    bpx__objects_forget_decisions(w);
+    return BPX_OK;
+}
+
+void bpx__objects_forget_decisions(bpx_world *w)
+{
+    w->candidates.count = w->rejected.count = 0;
+}
+
+// Whether a sorted list holds p, walking a cursor that only moves forward (the pairs asked
+// about come in order).
+static bool holds(const bpx_pair_list *list, size_t *cursor, bpx_pair p)
+{
+    while (*cursor < list->count && bpx__pair_less(list->pairs[*cursor], p))
+        ++*cursor;
+    return *cursor < list->count && list->pairs[*cursor].i == p.i &&
+           list->pairs[*cursor].j == p.j;
+}
+
+bpx_status bpx__pair_filter_blocks(bpx_world *w)
+{
+    if (!w->pair_filter)
+        return BPX_OK;
+    size_t total = 0;
+    bpx_status status = bpx__emitter_total(&w->emitter, &total);
+    if (status != BPX_OK)
+        return status;
+    bpx_pair_list *fresh = &w->fresh_candidates, *refused = &w->fresh_rejected;
+    fresh->count = refused->count = 0;
+    if (!bpx__list_reserve(fresh, total) || !bpx__list_reserve(refused, total))
+        return BPX_ERR_OUT_OF_MEMORY;
+    // The blocks, in order, are this cycle's pairs in (i, j) order.
+    size_t was_candidate = 0, was_rejected = 0;
+    w->in_callback = true;
+    for (int b = 0; b < w->emitter.block_count; b++) {
+        bpx_pair_list *hits = &w->emitter.blocks[b].hits;
+        size_t kept = 0;
+        for (size_t k = 0; k < hits->count; k++) {
+            bpx_pair p = hits->pairs[k];
+            fresh->pairs[fresh->count++] = p;
+            bool refuse;
+            if (holds(&w->candidates, &was_candidate, p))
+                refuse = holds(&w->rejected, &was_rejected, p);
+            else
+                refuse = !w->pair_filter(p.i, p.j, w->user_data ? w->user_data[p.i] : 0,
+                                         w->user_data ? w->user_data[p.j] : 0,
+                                         w->pair_filter_context);
+            if (refuse)
+                refused->pairs[refused->count++] = p;
+            hits->pairs[kept] = p;
+            kept += !refuse;
+        }
+        hits->count = kept;
+    }
+    w->in_callback = false;
+    bpx_pair_list t = w->candidates;
+    w->candidates = *fresh;
+    *fresh = t;
+    t = w->rejected;
+    w->rejected = *refused;
+    *refused = t;
+    return BPX_OK;
 }
 
 // Whether two boxes may pair: excluded pairs never; then a shared non-zero group decides

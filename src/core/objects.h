@@ -29,6 +29,11 @@ bool bpx__objects_reset(bpx_world *w, uint32_t n);
 void bpx__objects_reinert(bpx_world *w);
 /// Whether filters, groups or excluded pairs are set (the device-resident path cannot apply them).
 bool bpx__objects_filtering(const bpx_world *w);
+/// The pair filter over the blocks (after bpx__filter_blocks): pairs new since the last cycle
+/// asked, the rest decided as before. OUT_OF_MEMORY leaves the decisions as they were.
+bpx_status bpx__pair_filter_blocks(bpx_world *w);
+/// Every pair will be asked about again (a new filter, a restore).
+void bpx__objects_forget_decisions(bpx_world *w);
 /// Drops filtered-out hits from the blocks (no-op without filters).
 void bpx__filter_blocks(bpx_world *w);
 /// After a successful collide: events from the merged pairs, then pending ids become free.

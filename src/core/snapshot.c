@@ -460,6 +460,7 @@ bpx_status bpx_world_restore(bpx_world *w, const void *buffer, size_t size)
     // next collide, which reports its events against the restored pairs.
     w->result_valid = w->merged = w->events_valid = false;
     w->emitter.planned_n = UINT32_MAX;
+    bpx__objects_forget_decisions(w);
     bpx__world_boxes_replaced(w);
     return BPX_OK;
 }

@@ -338,10 +338,10 @@ bpx_status bpx__world_enter(bpx_world *w, const char *call)
     if (!w)
         return BPX_ERR_NULL_ARGUMENT;
     bpx__error_clear(&w->error);
-    if (bpx__query_callbacks_running(w))
+    if (w->in_callback || bpx__query_callbacks_running(w))
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
-                          "%s: called while a query callback of this world runs "
-                          "(bpx_world_query_each); a callback must not change the world",
+                          "%s: called from a callback of this world (a pair filter, or "
+                          "bpx_world_query_each's); a callback must not change the world",
                           call);
     return BPX_OK;
 }
@@ -494,6 +494,7 @@ static void release_pairs(bpx_world *w)
 static bpx_status compare(bpx_world *w, size_t *total)
 {
     w->merged = false;
+    w->result_valid = false; // the blocks are about to change: no reads of them until done
     // Last cycle's events go with its pairs: a cycle that fails shows neither (the next
     // successful one reports against the last successful one, whose pairs objects.c keeps).
     w->events_valid = false;
@@ -511,8 +512,10 @@ static bpx_status compare(bpx_world *w, size_t *total)
     w->stats.device_share = r->device_share;
     if (status == BPX_OK) {
         bpx__filter_blocks(w);
-        status = bpx__emitter_total(&w->emitter, total);
+        status = bpx__pair_filter_blocks(w);
     }
+    if (status == BPX_OK)
+        status = bpx__emitter_total(&w->emitter, total);
     w->stats.compare_ns = bpx__now_ns() - start;
     w->result_valid = status == BPX_OK; // nothing partial is ever reported
     if (status == BPX_ERR_OUT_OF_MEMORY || status == BPX_ERR_TOO_MANY_PAIRS)

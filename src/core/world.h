@@ -48,6 +48,14 @@ struct bpx_world {
     uint32_t *exclusions;
     bpx_pair_set excluded; // pairs that never pair (bpx_world_exclude_pairs)
 
+    // The pair filter (bpx_world_set_pair_filter): asked once per pair as it begins. candidates
+    // are the last cycle's pairs that passed the other filters, rejected those it refused (both
+    // sorted); fresh_* are this cycle's, swapped in when it succeeds.
+    bpx_pair_filter_fn *pair_filter;
+    void *pair_filter_context;
+    bpx_pair_list candidates, rejected, fresh_candidates, fresh_rejected;
+    bool in_callback; // a pair filter runs: calls that change the world are refused
+
     // Events (track_events): the previous cycle's pairs, and what changed.
     bpx_pair_list previous;
     bpx_pair_list began;
