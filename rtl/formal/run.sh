@@ -40,4 +40,14 @@ cd "$here"
 status=0
 "$sby" -f -d "$work" "$sby_file" "$task" >"$work.log" 2>&1 || status=$?
 grep -E 'summary:|DONE' "$work.log" | sed 's/^SBY [0-9:]* //' || true
-[ "$status" -eq 0 ] || { echo "FAILED ($sby exit $status): $work.log"; exit 1; }
+[ "$status" -eq 0 ] && exit 0
+echo "FAILED ($sby exit $status): $work.log"
+# abc's witness (Debian's abc) does not convert to a trace: find the counterexample again with
+# smtbmc (quick when one exists) for a VCD.
+if grep -q '^abc' "$sby_file" && command -v yices-smt2 >/dev/null 2>&1; then
+    awk -v dir="$here" '/^\[/ { files = ($0 == "[files]") } /^abc/ { $0 = "smtbmc yices" }
+        files && /^[^[#]/ && NF { $0 = dir "/" $0 } { print }' "$sby_file" >"$work.cex.sby"
+    "$sby" -f -d "$work.cex" "$work.cex.sby" "$task" >"$work.cex.log" 2>&1 || true
+    grep -E 'summary:|DONE' "$work.cex.log" | sed 's/^SBY [0-9:]* //' || true
+fi
+exit 1
