@@ -585,6 +585,113 @@ static void pair_filter_rules(void)
     bpx_world_destroy(w);
 }
 
+// Contact margins against an oracle of their rule, for every backend: a pair begins when its
+// gap (the largest axis distance between the boxes, in double) is <= begin, and a pair of the
+// last collide goes on while its gap is <= end; events follow. Then the flicker they stop, and
+// definitions refused.
+static double oracle_gap(const bpx_box *a, const bpx_box *b)
+{
+    double g = -INFINITY;
+    for (int k = 0; k < 3; k++) {
+        double x = (double)b->min[k] - (double)a->max[k], y = (double)a->min[k] - (double)b->max[k];
+        double apart = x > y ? x : y;
+        g = apart > g ? apart : g;
+    }
+    return g;
+}
+
+static void margins(bpx_backend backend, int workers)
+{
+    check_set_context("margins backend=%s workers=%d", bpx_backend_name(backend), workers);
+    enum { n = 150 };
+    const float begin = 0.25f, end = 0.75f;
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = backend;
+    def.worker_count = workers;
+    def.track_events = true;
+    def.begin_margin = begin;
+    def.end_margin = end;
+    bpx_world *w;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    if (!w)
+        return;
+    static bpx_box boxes[n];
+    static bool held[n][n];
+    memset(held, 0, sizeof held);
+    scene_rng r;
+    scene_rng_seed(&r, 31 + (uint64_t)backend);
+    for (uint32_t i = 0; i < n; i++)
+        boxes[i] = random_box(&r, 14.0f);
+    pair_list want = {0};
+    for (int cycle = 0; cycle < 25; cycle++) {
+        for (uint32_t i = 0; i < n; i++) { // jitter: pairs come near, touch, part
+            int a = (int)scene_rng_below(&r, 3);
+            float d = scene_rng_range(&r, -0.4f, 0.4f);
+            boxes[i].min[a] += d;
+            boxes[i].max[a] += d;
+        }
+        CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+        pair_list_reserve(&want, (size_t)n * n / 2);
+        want.count = 0;
+        size_t began = 0, ended = 0;
+        for (uint32_t i = 0; i < n; i++)
+            for (uint32_t j = i + 1; j < n; j++) {
+                double g = oracle_gap(&boxes[i], &boxes[j]);
+                bool now = g <= begin || (g <= end && held[i][j]);
+                began += now && !held[i][j];
+                ended += !now && held[i][j];
+                held[i][j] = now;
+                if (now)
+                    want.pairs[want.count++] = (bpx_pair){i, j};
+            }
+        size_t count = 0;
+        const bpx_pair *got = bpx_world_pairs(w, &count);
+        CHECK_PAIRS_EQ(want.pairs, want.count, got, count);
+        bpx_pair_events ev;
+        CHECK_STATUS(bpx_world_pair_events(w, &ev), BPX_OK);
+        CHECK(ev.began_count == began && ev.ended_count == ended);
+    }
+    pair_list_free(&want);
+    bpx_world_destroy(w);
+}
+
+static void margins_rules(void)
+{
+    check_set_context("margin rules");
+    // Two boxes that touch and part by 0.1 every cycle: with no margin, a begin and an end each
+    // time; with end_margin 0.5, one begin.
+    for (int with = 0; with < 2; with++) {
+        bpx_world_def def = bpx_default_world_def();
+        def.track_events = true;
+        def.end_margin = with ? 0.5f : 0.0f;
+        bpx_world *w;
+        CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+        size_t events = 0;
+        for (int cycle = 0; cycle < 10; cycle++) {
+            float x = cycle % 2 ? 1.1f : 1.0f;
+            bpx_box boxes[2] = {{{0, 0, 0}, {1, 1, 1}}, {{x, 0, 0}, {x + 1, 1, 1}}};
+            CHECK_STATUS(bpx_world_set_boxes(w, boxes, 2), BPX_OK);
+            CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+            bpx_pair_events ev;
+            CHECK_STATUS(bpx_world_pair_events(w, &ev), BPX_OK);
+            events += ev.began_count + ev.ended_count;
+        }
+        CHECK_MSG(events == (with ? 1u : 10u), "margin %d: %zu events", with, events);
+        bpx_world_destroy(w);
+    }
+    const float bad[][2] = {{-1.0f, 0.0f}, {NAN, 0.0f}, {0.5f, 0.25f}, {INFINITY, 0.0f},
+                            {0.0f, NAN}, {0.0f, -0.5f}};
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+        bpx_world_def def = bpx_default_world_def();
+        def.begin_margin = bad[k][0];
+        def.end_margin = bad[k][1];
+        bpx_world *w = (bpx_world *)&def;
+        CHECK_STATUS(bpx_world_create(&def, &w), BPX_ERR_INVALID_ARGUMENT);
+        CHECK(w == NULL);
+    }
+}
+
 int main(void)
 {
     errors();
@@ -592,12 +699,14 @@ int main(void)
     filters_and_set_boxes();
     groups_exclusions_user_data();
     pair_filter_rules();
+    margins_rules();
     int ran = 0;
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
         if (!bpx_backend_query((bpx_backend)b).available)
             continue;
         for (int workers = 1; workers <= 3; workers += 2) {
             run((bpx_backend)b, workers, 1000 + (uint64_t)b);
+            margins((bpx_backend)b, workers);
             ran++;
         }
     }

@@ -162,6 +162,16 @@ typedef struct bpx_world_def {
     /// device, in (0, 1]; 0 (default) = balanced each cycle by both sides' measured speed, with
     /// everything on the CPU below 20,000 boxes, where a device's launch costs more than it saves.
     float hybrid_device_share;
+    /// Contact margins, for speculative contacts and steady begin/end events (0 and 0, the
+    /// default: the exact pairs). With gap = the largest over the axes of the distance between
+    /// the two boxes' intervals (max(b.min - a.max, a.min - b.max), in double; <= 0 when they
+    /// overlap): a pair begins when gap <= begin_margin, and a pair of the last collide goes on
+    /// while gap <= end_margin, so boxes that jitter near the edge do not flicker in and out.
+    /// Finite, >= 0, end_margin >= begin_margin (0: end_margin = begin_margin). The exact
+    /// overlap of a reported pair is bpx_overlap(a, b). Cost with margins: a pass over the boxes
+    /// to grow them by end_margin / 2 for the comparator, and a gap test per pair found.
+    float begin_margin;
+    float end_margin;
 } bpx_world_def;
 
 /// The change in the pair set made by the last collide, both lists sorted by (i, j).

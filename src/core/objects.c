@@ -1,6 +1,8 @@
 // Objects added and removed between cycles, collision filters, and begin/end pair events.
 #include "objects.h"
 
+#include <float.h>
+#include <math.h>
 #include <string.h>
 
 #include "alloc.h"
@@ -471,7 +473,8 @@ bool bpx_world_pair_excluded(const bpx_world *w, uint32_t i, uint32_t j)
 
 bool bpx__objects_filtering(const bpx_world *w)
 {
-    return w->category || w->group || w->excluded.count || w->pair_filter;
+    return w->category || w->group || w->excluded.count || w->pair_filter ||
+           bpx__world_margins(w);
 }
 
 bpx_status bpx_world_set_pair_filter(bpx_world *w, bpx_pair_filter_fn *fn, void *context)
@@ -575,6 +578,72 @@ void bpx__filter_blocks(bpx_world *w)
 }
 
 // ---------------------------------------------------------------------------------------------
+// Contact margins
+
+// x moved by d and rounded outward (down for d < 0, up for d > 0); infinite x (an inert box)
+// stays infinite, a finite one stays finite.
+static float widen(float x, float d)
+{
+    if (!isfinite(x))
+        return x;
+    double exact = (double)x + (double)d;
+    float f = (float)exact;
+    if (d < 0.0f && (double)f > exact)
+        f = nextafterf(f, -INFINITY);
+    if (d > 0.0f && (double)f < exact)
+        f = nextafterf(f, INFINITY);
+    return f < -FLT_MAX ? -FLT_MAX : f > FLT_MAX ? FLT_MAX : f;
+}
+
+bool bpx__margins_grow_boxes(bpx_world *w)
+{
+    if (!bpx__box_arrays_reserve(&w->grown, w->n))
+        return false;
+    // A little more than half the margin each side: a gap within end_margin in double is
+    // within the grown boxes' reach whatever the rounding.
+    float half = nextafterf(w->def.end_margin * 0.5f, INFINITY);
+    for (int a = 0; a < 3; a++)
+        for (uint32_t i = 0; i < w->n; i++) {
+            w->grown.lo[a][i] = widen(w->boxes.lo[a][i], -half);
+            w->grown.hi[a][i] = widen(w->boxes.hi[a][i], half);
+        }
+    bpx__box_arrays_pad(&w->grown, w->n);
+    return true;
+}
+
+// The gap between boxes i and j (see bpx_world_def.begin_margin), from the exact boxes.
+static double gap(const bpx_world *w, uint32_t i, uint32_t j)
+{
+    double g = -INFINITY;
+    for (int a = 0; a < 3; a++) {
+        double lo_i = w->boxes.lo[a][i], hi_i = w->boxes.hi[a][i];
+        double lo_j = w->boxes.lo[a][j], hi_j = w->boxes.hi[a][j];
+        double apart = lo_j - hi_i > lo_i - hi_j ? lo_j - hi_i : lo_i - hi_j;
+        g = apart > g ? apart : g;
+    }
+    return g;
+}
+
+void bpx__margins_filter_blocks(bpx_world *w)
+{
+    if (!bpx__world_margins(w))
+        return;
+    double begin = w->def.begin_margin, end = w->def.end_margin;
+    size_t held = 0; // cursor in the last pairs, which come in order as the blocks do
+    for (int b = 0; b < w->emitter.block_count; b++) {
+        bpx_pair_list *hits = &w->emitter.blocks[b].hits;
+        size_t kept = 0;
+        for (size_t k = 0; k < hits->count; k++) {
+            bpx_pair p = hits->pairs[k];
+            double g = gap(w, p.i, p.j);
+            hits->pairs[kept] = p;
+            kept += g <= begin || (g <= end && holds(&w->previous, &held, p));
+        }
+        hits->count = kept;
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Events
 
 // began = now - before, ended = before - now: one merge walk over two sorted lists.
@@ -598,7 +667,8 @@ static bool diff_sorted(const bpx_pair *before, size_t nb, const bpx_pair *now, 
 
 bpx_status bpx__objects_after_collide(bpx_world *w, const bpx_pair *pairs, size_t count)
 {
-    if (w->def.track_events) {
+    // The last pairs are kept for events, and for the margins (a pair held by end_margin).
+    if (w->def.track_events || bpx__world_margins(w)) {
         w->events_valid = false;
         bpx_pair_list *prev = &w->previous;
         // Room for this cycle's pairs before the last cycle's are dropped: on failure they stay,

@@ -29,6 +29,12 @@ bool bpx__objects_reset(bpx_world *w, uint32_t n);
 void bpx__objects_reinert(bpx_world *w);
 /// Whether filters, groups or excluded pairs are set (the device-resident path cannot apply them).
 bool bpx__objects_filtering(const bpx_world *w);
+/// Contact margins: w->grown becomes the boxes grown by end_margin / 2 (rounded outward, so
+/// that every pair within end_margin is found). False when out of memory.
+bool bpx__margins_grow_boxes(bpx_world *w);
+/// Contact margins over the blocks: keeps the pairs with gap <= begin_margin, and those of the
+/// last collide with gap <= end_margin.
+void bpx__margins_filter_blocks(bpx_world *w);
 /// The pair filter over the blocks (after bpx__filter_blocks): pairs new since the last cycle
 /// asked, the rest decided as before. OUT_OF_MEMORY leaves the decisions as they were.
 bpx_status bpx__pair_filter_blocks(bpx_world *w);

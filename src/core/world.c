@@ -101,6 +101,7 @@ static void free_boxes(bpx_world *w)
 {
     bpx__box_arrays_free(&w->boxes);
     bpx__box_arrays_free(&w->spare);
+    bpx__box_arrays_free(&w->grown);
     for (int a = 0; a < 3; a++) {
         bpx__free(w->minima[a], sizeof(float) * w->extent_capacity);
         w->minima[a] = NULL;
@@ -118,7 +119,10 @@ bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
     if (def->worker_count < 0 || def->worker_count > MAX_WORKERS ||
         (unsigned)def->backend >= BPX_BACKEND_COUNT || (unsigned)def->simd >= BPX_SIMD_COUNT ||
         !def->enqueue_task != !def->finish_task || def->capacity_hint > BPX_MAX_BOXES ||
-        !(def->hybrid_device_share >= 0.0f && def->hybrid_device_share <= 1.0f))
+        !(def->hybrid_device_share >= 0.0f && def->hybrid_device_share <= 1.0f) ||
+        !(def->begin_margin >= 0.0f && def->begin_margin <= FLT_MAX) ||
+        !(def->end_margin == 0.0f ||
+          (def->end_margin >= def->begin_margin && def->end_margin <= FLT_MAX)))
         return BPX_ERR_INVALID_ARGUMENT;
 
     bpx_backend resolved = def->backend;
@@ -136,6 +140,8 @@ bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
     w->def.worker_count = def->worker_count ? def->worker_count : 1;
     w->def.spin_us = def->spin_us ? def->spin_us : DEFAULT_SPIN_US;
     w->simd = def->simd == BPX_SIMD_AUTO ? bpx_simd_best() : def->simd;
+    if (w->def.end_margin == 0.0f)
+        w->def.end_margin = w->def.begin_margin;
     bpx__error_clear(&w->error);
     w->executor = (bpx_executor){
         .worker_count = w->def.worker_count,
@@ -501,6 +507,13 @@ static bpx_status compare(bpx_world *w, size_t *total)
     w->stats.pair_count = 0;
     uint64_t start = bpx__now_ns();
     bpx_cycle cycle = bpx__world_cycle(w);
+    if (bpx__world_margins(w)) { // the comparator sees the boxes grown; the gaps decide after
+        if (!bpx__margins_grow_boxes(w))
+            return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %u boxes grown by the contact margin", w->n);
+        const bpx_box_arrays *g = &w->grown;
+        cycle.boxes = (bpx_soa){{g->lo[0], g->lo[1], g->lo[2]}, {g->hi[0], g->hi[1], g->hi[2]}, w->n};
+    }
     bpx_status status = w->backend->compare(&w->backend_state, &cycle);
     const bpx_backend_report *r = &cycle.report;
     w->stats.rebuilt = r->rebuilt;
@@ -512,6 +525,7 @@ static bpx_status compare(bpx_world *w, size_t *total)
     w->stats.device_share = r->device_share;
     if (status == BPX_OK) {
         bpx__filter_blocks(w);
+        bpx__margins_filter_blocks(w);
         status = bpx__pair_filter_blocks(w);
     }
     if (status == BPX_OK)
@@ -575,8 +589,8 @@ bpx_status bpx_world_collide_into(bpx_world *w, bpx_pair *out, size_t capacity, 
     *count = total;
     if (status != BPX_OK)
         return status;
-    if (w->def.track_events || w->pending_count) {
-        // Events need the whole ordered set; the world's own copy serves them.
+    if (w->def.track_events || w->pending_count || bpx__world_margins(w)) {
+        // Events and margins need the whole ordered set; the world's own copy serves them.
         if (!bpx_world_pairs(w, NULL) && total > 0)
             status = BPX_ERR_OUT_OF_MEMORY;
         if (status == BPX_OK)

@@ -15,6 +15,7 @@ struct bpx_world {
     uint32_t n;
     bpx_box_arrays boxes;
     bpx_box_arrays spare;
+    bpx_box_arrays grown; // with contact margins: the boxes grown by end_margin / 2, compared
 
     // Initialisation-phase data: origin-centred minima, one array per axis.
     uint32_t extent_count;
@@ -83,6 +84,13 @@ static inline bpx_extents bpx__world_extents(const bpx_world *w)
     if (!w->extents_loaded)
         return (bpx_extents){{NULL, NULL, NULL}, 0};
     return (bpx_extents){{w->minima[0], w->minima[1], w->minima[2]}, w->extent_count};
+}
+
+/// Contact margins are on (bpx_world_def.begin_margin / end_margin; end_margin >= begin_margin
+/// once the world is made).
+static inline bool bpx__world_margins(const bpx_world *w)
+{
+    return w->def.end_margin > 0.0f;
 }
 
 /// The backend's view of the world for one call (core/backend.h).
