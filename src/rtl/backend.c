@@ -1,0 +1,115 @@
+// The "rtl" backend: each collide runs the chip's RTL (rtl/*.sv, Verilated: board.h) on the
+// world's boxes, clock by clock. The paper's build: m = 4, 512-box RAMs, FIFOs of 1024, SSRAM
+// latency 2. The chip holds at most BPX_RTL_MAX_BOXES boxes and the RTL has no off-chip tiles
+// (docs/rtl.md), so more is refused with BPX_ERR_TOO_MANY_BOXES. The host writes the boxes
+// into the six SSRAM banks (general boxes; min x, y, z, max x, y, z), starts the chip, records
+// its collision writes and sorts them into (i, j) order, as the contract asks.
+#include <stdio.h>
+
+#include "core/alloc.h"
+#include "core/backend.h"
+#include "rtl/board.h"
+
+_Static_assert(BPX_RTL_DEPTH == BPX_RTL_MAX_BOXES, "the public limit is the chip's DEPTH");
+
+// Kept between cycles: the board (the Verilated model) and the sort's scratch, so that after
+// the first cycles nothing is allocated.
+typedef struct rtl_state {
+    bpx_rtl_board *board;
+    bpx_pair_list sorted, spare;
+    uint32_t counts[BPX_RTL_DEPTH + 1];
+} rtl_state;
+
+static bool rtl_query(const bpx_world_def *def, const char **reason, char *detail, size_t size)
+{
+    (void)def;
+    *reason = "";
+    snprintf(detail, size, "simulation: Verilated RTL, m = %d, %d boxes at most, FIFOs %d, "
+             "SSRAM latency %d", BPX_RTL_M, BPX_RTL_DEPTH, BPX_RTL_FDEPTH, BPX_RTL_LAT);
+    return true;
+}
+
+static void rtl_destroy(void *state)
+{
+    rtl_state *st = state;
+    bpx__rtl_board_destroy(st->board);
+    bpx__list_free(&st->sorted);
+    bpx__list_free(&st->spare);
+    bpx__free(st, sizeof *st);
+}
+
+static rtl_state *get_state(void **state)
+{
+    if (*state)
+        return *state;
+    rtl_state *st = bpx__alloc(sizeof *st);
+    if (!st)
+        return NULL;
+    *st = (rtl_state){.board = bpx__rtl_board_create()};
+    if (!st->board) {
+        bpx__free(st, sizeof *st);
+        return NULL;
+    }
+    *state = st;
+    return st;
+}
+
+// The collision SSRAM: each write the chip makes, as a pair with i < j.
+typedef struct recorder {
+    bpx_pair_list *list;
+    bool out_of_memory;
+} recorder;
+
+static bool record(void *user, uint32_t i, uint32_t j)
+{
+    recorder *r = user;
+    if (!bpx__list_reserve(r->list, 1)) {
+        r->out_of_memory = true;
+        return false;
+    }
+    r->list->pairs[r->list->count++] = i < j ? (bpx_pair){i, j} : (bpx_pair){j, i};
+    return true;
+}
+
+static bpx_status rtl_compare(void **state, bpx_cycle *c)
+{
+    const uint32_t n = c->n;
+    if (n > BPX_RTL_DEPTH)
+        return bpx__error(c->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
+                          "rtl: %u boxes; the chip holds at most %u (DEPTH)", n, BPX_RTL_DEPTH);
+    rtl_state *st = get_state(state);
+    if (!st)
+        return BPX_ERR_OUT_OF_MEMORY;
+    bpx_status status = bpx__emitter_own_blocks(c->sink, 1);
+    if (status != BPX_OK)
+        return status;
+    bpx_block *out = &c->sink->blocks[0];
+    *out = (bpx_block){.row_begin = 0, .row_end = n, .hits = out->hits, .stage = out->stage};
+    out->hits.count = 0;
+
+    const bpx_soa s = c->boxes;
+    const float *const banks[6] = {s.lo[0], s.lo[1], s.lo[2], s.hi[0], s.hi[1], s.hi[2]};
+    for (int b = 0; b < 6; b++)
+        bpx__rtl_board_write(st->board, b, banks[b], n);
+    recorder r = {&out->hits, false};
+    bpx_rtl_run run = bpx__rtl_board_run(st->board, n, BPX_RTL_MODE_BOXES, record, &r);
+    if (r.out_of_memory)
+        return BPX_ERR_OUT_OF_MEMORY;
+    if (!run.finished || run.error || run.overflow || run.count != out->hits.count)
+        return bpx__error(c->error, BPX_ERR_DEVICE, UINT32_MAX, -1,
+                          "rtl: the chip %s after %llu clocks (STATUS error %d, overflow %d; "
+                          "COUNT %u, %zu collisions written)",
+                          run.finished ? "finished wrong" : "did not finish",
+                          (unsigned long long)run.clocks, (int)run.error, (int)run.overflow,
+                          run.count, out->hits.count);
+    out->tests = run.address_clocks * (2 * BPX_RTL_M - 1);
+    return bpx__emitter_sort_blocks(c->sink, n, &st->sorted, &st->spare, st->counts);
+}
+
+const bpx_backend_impl bpx__rtl_backend = {
+    .id = BPX_BACKEND_RTL,
+    .name = "rtl",
+    .query = rtl_query,
+    .compare = rtl_compare,
+    .destroy = rtl_destroy,
+};
