@@ -17,6 +17,7 @@ _Static_assert(BPX_RTL_DEPTH == BPX_RTL_MAX_BOXES, "the public limit is the chip
 typedef struct rtl_state {
     bpx_rtl_board *board;
     bpx_pair_list sorted, spare;
+    size_t last_count; // the last cycle's collisions
     uint32_t counts[BPX_RTL_DEPTH + 1];
 } rtl_state;
 
@@ -91,6 +92,10 @@ static bpx_status rtl_compare(void **state, bpx_cycle *c)
     const float *const banks[6] = {s.lo[0], s.lo[1], s.lo[2], s.hi[0], s.hi[1], s.hi[2]};
     for (int b = 0; b < 6; b++)
         bpx__rtl_board_write(st->board, b, banks[b], n);
+    // The collision list takes turns with the sort's two (headroom alike), so that a pair
+    // count that drifts between cycles settles without allocating.
+    if (!bpx__list_reserve(&out->hits, st->last_count + st->last_count / 2))
+        return BPX_ERR_OUT_OF_MEMORY;
     recorder r = {&out->hits, false};
     bpx_rtl_run run = bpx__rtl_board_run(st->board, n, BPX_RTL_MODE_BOXES, record, &r);
     if (r.out_of_memory)
@@ -103,6 +108,7 @@ static bpx_status rtl_compare(void **state, bpx_cycle *c)
                           (unsigned long long)run.clocks, (int)run.error, (int)run.overflow,
                           run.count, out->hits.count);
     out->tests = run.address_clocks * (2 * BPX_RTL_M - 1);
+    st->last_count = run.count;
     return bpx__emitter_sort_blocks(c->sink, n, &st->sorted, &st->spare, st->counts);
 }
 
