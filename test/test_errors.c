@@ -543,9 +543,19 @@ static void test_rtl(void)
     CHECK_PAIRS_EQ(want.pairs, want.count, over.pairs, over.count);
     bpx_world_destroy(w);
 
-    // Allocation failure: world, board, sort scratch, pairs; each budget fails cleanly.
+    // Allocation failure: world, board, sort scratch, pairs, through general boxes and the two
+    // phases; each budget fails cleanly.
     enum { n = 60 };
-    pair_list_brute(&want, boxes, n);
+    float minima[3 * n], centres[3 * n];
+    extents_of(boxes, n, minima, centres);
+    bpx_box remade[n]; // the boxes the two phases make, in float as documented
+    for (uint32_t i = 0; i < n; i++) {
+        for (int a = 0; a < 3; a++) {
+            remade[i].min[a] = centres[3 * i + a] + minima[3 * i + a];
+            remade[i].max[a] = centres[3 * i + a] - minima[3 * i + a];
+        }
+    }
+    pair_list_brute(&want, remade, n);
     int64_t start = bpx_allocated_bytes();
     bpx_set_allocator(budget_alloc, budget_free, &budget_tag);
     long long budget = 0;
@@ -556,16 +566,34 @@ static void test_rtl(void)
         bpx_status s = bpx_world_create(&def, &w);
         CHECK_MSG(ok_or_oom(s), "create: %s", check_status_name(s));
         if (s == BPX_OK) {
-            s = bpx_world_set_boxes(w, boxes, n);
+            s = bpx_world_set_boxes(w, remade, n);
             CHECK_MSG(ok_or_oom(s), "set_boxes: %s", check_status_name(s));
         }
         if (s == BPX_OK) {
             s = bpx_world_collide(w);
             CHECK_MSG(ok_or_oom(s), "collide: %s", check_status_name(s));
         }
+        // The paper's two phases: the chip's initialisation, then a centres cycle.
+        if (s == BPX_OK) {
+            s = bpx_world_load_extents(w, minima, n);
+            CHECK_MSG(ok_or_oom(s), "load_extents: %s", check_status_name(s));
+        }
+        if (s == BPX_OK) {
+            s = bpx_world_update_centres(w, centres);
+            CHECK_MSG(ok_or_oom(s), "update_centres: %s", check_status_name(s));
+        }
+        if (s == BPX_OK) {
+            s = bpx_world_collide(w);
+            CHECK_MSG(ok_or_oom(s), "two-phase collide: %s", check_status_name(s));
+            if (s == BPX_OK) {
+                size_t got = 0;
+                const bpx_pair *pairs = bpx_world_pairs(w, &got);
+                CHECK_PAIRS_EQ(want.pairs, want.count, pairs, got);
+            }
+        }
         if (w) {
             budget_left = -1; // memory back: the world recovers
-            CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+            CHECK_STATUS(bpx_world_set_boxes(w, remade, n), BPX_OK);
             collide_and_keep(w, &over);
             CHECK_PAIRS_EQ(want.pairs, want.count, over.pairs, over.count);
         }

@@ -78,14 +78,15 @@ void bpx__rtl_board_destroy(bpx_rtl_board *board)
     bpx__free(board, sizeof *board);
 }
 
-void bpx__rtl_board_write(bpx_rtl_board *board, int bank, const float *words, uint32_t n)
+void bpx__rtl_board_write(bpx_rtl_board *board, int bank, const float *words, uint32_t n,
+                          uint32_t stride)
 {
     Vbpx_rtl_board &top = board->top;
     top.host_we = 1;
     top.host_bank = bank;
     for (uint32_t i = 0; i < n; i++) {
         uint32_t bits;
-        std::memcpy(&bits, &words[i], sizeof bits);
+        std::memcpy(&bits, &words[(size_t)i * stride], sizeof bits);
         top.host_addr = i;
         top.host_data = bits;
         board->tick();

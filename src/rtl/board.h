@@ -45,8 +45,10 @@ typedef bool bpx_rtl_emit(void *user, uint32_t i, uint32_t j);
 /// allocator, the Verilated model's own from C++'s).
 bpx_rtl_board *bpx__rtl_board_create(void);
 void bpx__rtl_board_destroy(bpx_rtl_board *board);
-/// Writes words[0 .. n) into SSRAM bank `bank` (0-5), one word a clock.
-void bpx__rtl_board_write(bpx_rtl_board *board, int bank, const float *words, uint32_t n);
+/// Writes words[0], words[stride], ... (n words) into SSRAM bank `bank` (0-5) at addresses
+/// 0 .. n - 1, one word a clock.
+void bpx__rtl_board_write(bpx_rtl_board *board, int bank, const float *words, uint32_t n,
+                          uint32_t stride);
 /// Writes N and CONTROL (start, mode), clocks until STATUS.done and hands each collision write
 /// to emit. Returns what the run did.
 bpx_rtl_run bpx__rtl_board_run(bpx_rtl_board *board, uint32_t n, int mode, bpx_rtl_emit *emit,
