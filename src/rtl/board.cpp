@@ -106,7 +106,9 @@ bpx_rtl_run bpx__rtl_board_run(bpx_rtl_board *board, uint32_t n, int mode, bpx_r
     // chip that never finishes is reported, not waited for.
     const uint64_t limit = (uint64_t)n * n + 64u * (uint64_t)n + 4096u;
     bool recording = true;
-    while (!(board->reg_read(REG_CONTROL) & STATUS_DONE) && run.clocks < limit) {
+    // reg_addr stays at CONTROL, so STATUS is on reg_rdata after each clock's evaluation: no
+    // third eval() a clock to read it.
+    while (!(top.reg_rdata & STATUS_DONE) && run.clocks < limit) {
         // Before the edge: the collision port's write and the comparator's addressing.
         if (top.col_we && recording)
             recording = emit(user, top.col_i, top.col_j);
