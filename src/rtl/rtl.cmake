@@ -5,7 +5,8 @@
 # Verilator runtime included) to the library's objects; bpx_rtl_link(target) links the C++
 # runtime they need.
 set(BPX_RTL_BACKEND_FOUND OFF)
-if(BPX_RTL)
+# Turned off by name (the Python package), nothing is looked for: the library stays C alone.
+if(BPX_RTL AND NOT (DEFINED BPX_RTL_BACKEND AND NOT BPX_RTL_BACKEND))
     # Verilator's package checks C++ flags: C++ first, where there is a compiler.
     include(CheckLanguage)
     check_language(CXX)
@@ -27,7 +28,6 @@ add_feature_info(rtl_backend BPX_RTL_BACKEND "the rtl backend: the Verilated chi
 
 if(BPX_RTL_BACKEND)
     list(APPEND BPX_SOURCES src/rtl/backend.c)
-    list(APPEND BPX_SIMD_DEFINES BPX_HAVE_RTL=1)
     # For the installed package: consumers of the static library link the C++ runtime too.
     string(APPEND BPX_PC_LIBS_PRIVATE " -lstdc++")
 else()
