@@ -27,7 +27,7 @@ static void run(bpx_backend backend, int workers, bool two_phase)
 {
     // rtl: 400 of the 512 boxes the chip holds. (At 512 this scene's pair count passes 512 in
     // cycle 9, and the world's merged list grows then: a new high, not a backend's allocation.)
-    const uint32_t n = full_n <= check_backend_max_boxes(backend) ? full_n : 400;
+    const uint32_t n = full_n <= check_backend_max_boxes(backend) ? full_n : 400u;
     check_set_context("backend=%s workers=%d %s n=%u", bpx_backend_name(backend), workers,
                       two_phase ? "update_centres" : "set_boxes", n);
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
