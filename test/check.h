@@ -180,3 +180,10 @@ static inline bool check_backend_has_simd(bpx_backend backend)
     return backend == BPX_BACKEND_BRUTE || backend == BPX_BACKEND_PRUNE ||
            backend == BPX_BACKEND_SAP; // sap's rebuild sweeps with the prune kernel
 }
+
+/// Most boxes a backend takes: every backend any count but rtl (the chip's RAMs). Suites skip
+/// a backend at sizes beyond it (test_errors checks the refusal).
+static inline uint32_t check_backend_max_boxes(bpx_backend backend)
+{
+    return backend == BPX_BACKEND_RTL ? BPX_RTL_MAX_BOXES : UINT32_MAX;
+}

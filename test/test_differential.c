@@ -122,7 +122,8 @@ static int build_opencl_configs(config *cfgs)
 
 // Every available backend other than the reference (and opencl, which --opencl covers), with
 // each supported SIMD width for the brute comparator, on 1 and 3 workers (3 > cores here: more
-// workers than cores must work too).
+// workers than cores must work too). A backend with a box limit (rtl) meets only the sizes
+// within it.
 static int build_configs(config *cfgs)
 {
     static const int worker_counts[] = {1, 3};
@@ -266,7 +267,8 @@ static void check_one_shot(const bpx_box *boxes, uint32_t n, const pair_list *wa
     bpx_pair *buf = check_alloc(sizeof(bpx_pair) * (want->count + slack));
     for (int b = 0; b < BPX_BACKEND_COUNT; b++) {
         if (!bpx_backend_query((bpx_backend)b).available ||
-            (b == BPX_BACKEND_OPENCL) != opencl_only || (cuda_only && b != BPX_BACKEND_CUDA)) {
+            (b == BPX_BACKEND_OPENCL) != opencl_only || (cuda_only && b != BPX_BACKEND_CUDA) ||
+            n > check_backend_max_boxes((bpx_backend)b)) {
             continue;
         }
         fill_sentinel(buf, want->count + slack);
@@ -336,6 +338,9 @@ static void test_scenes_all_backends(config *cfgs, int cfg_count)
                     check_one_shot(boxes, n, &ref);
                 }
                 for (int c = 0; c < cfg_count; c++) {
+                    if (n > check_backend_max_boxes(cfgs[c].backend)) {
+                        continue;
+                    }
                     check_set_context("scene=%s n=%u %s", scene_kind_name(kind), n, cfgs[c].label);
                     if (!world_pairs(cfgs[c].world, boxes, n, &got)) {
                         continue;
@@ -429,6 +434,9 @@ static void test_updater(config *cfgs, int cfg_count)
                     continue;
                 }
                 for (int w = 0; w < world_count; w++) {
+                    if (n > check_backend_max_boxes(bpx_world_backend(worlds[w]))) {
+                        continue;
+                    }
                     check_set_context("updater scene=%s n=%u cycle=%d %s",
                                       scene_kind_name(kinds[k]), n, cycle, labels[w]);
                     CHECK_STATUS(bpx_world_update_centres(worlds[w], centres), BPX_OK);

@@ -493,6 +493,144 @@ static void test_too_many_boxes(const bpx_box *boxes)
 
 // ---------------------------------------------------------------------------------------------
 
+// The rtl backend: its box limit (the chip's RAMs) through a world and the one-shot call, the
+// world unchanged by a refused cycle; an allocation that fails under it at every point gives
+// OUT_OF_MEMORY and leaks nothing. Without Verilator: unavailable, saying why.
+static void test_rtl(void)
+{
+    check_set_context("rtl backend");
+    bpx_backend_info info = bpx_backend_query(BPX_BACKEND_RTL);
+    if (!info.available) {
+        CHECK_MSG(strcmp(name_or(info.reason), "built without Verilator") == 0, "reason '%s'",
+                  name_or(info.reason));
+        printf("  rtl: unavailable (%s)\n", name_or(info.reason));
+        return;
+    }
+    enum { limit = BPX_RTL_MAX_BOXES };
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * (limit + 1));
+    CHECK(scene_generate(SCENE_UNIFORM_DENSITY, limit + 1, 9, boxes) == 0);
+    pair_list want = {0}, over = {0};
+    pair_list_brute(&want, boxes, limit);
+    pair_list_brute(&over, boxes, limit + 1);
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = BPX_BACKEND_RTL;
+    bpx_world *w = NULL;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    if (!w) {
+        free(boxes);
+        return;
+    }
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, limit), BPX_OK);
+    collide_and_keep(w, &over);
+    CHECK_PAIRS_EQ(want.pairs, want.count, over.pairs, over.count);
+    // The same chip as the model backend's (m = 4, 512-box RAMs): the same comparator clocks,
+    // so the same pair tests.
+    if (bpx_backend_query(BPX_BACKEND_MODEL).available) {
+        bpx_world_def model_def = bpx_default_world_def();
+        model_def.backend = BPX_BACKEND_MODEL;
+        bpx_world *model = NULL;
+        CHECK_STATUS(bpx_world_create(&model_def, &model), BPX_OK);
+        if (model) {
+            CHECK_STATUS(bpx_world_set_boxes(model, boxes, limit), BPX_OK);
+            CHECK_STATUS(bpx_world_collide(model), BPX_OK);
+            CHECK_EQ_U64(bpx_world_stats(w).pair_tests, bpx_world_stats(model).pair_tests);
+            CHECK(bpx_world_stats(w).pair_tests > 0);
+            bpx_world_destroy(model);
+        }
+    }
+    // One box more: the set is taken, the cycle refused with the limit named.
+    check_set_context("rtl backend, %u boxes", limit + 1);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, limit + 1), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_ERR_TOO_MANY_BOXES);
+    check_world_error(w, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1);
+    CHECK_MSG(strstr(bpx_world_error(w)->message, "512") != NULL, "message '%s'",
+              bpx_world_error(w)->message);
+    size_t count = 0;
+    bpx_pair out[4];
+    bpx_error err;
+    CHECK_STATUS(bpx_find_pairs(boxes, limit + 1, BPX_BACKEND_RTL, out, 4, &count, &err),
+                 BPX_ERR_TOO_MANY_BOXES);
+    check_error(&err, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1);
+    // Back within the limit, the world works again.
+    check_set_context("rtl backend, back to %u boxes", limit);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, limit), BPX_OK);
+    collide_and_keep(w, &over);
+    CHECK_PAIRS_EQ(want.pairs, want.count, over.pairs, over.count);
+    bpx_world_destroy(w);
+
+    // Allocation failure: world, board, sort scratch, pairs, through general boxes and the two
+    // phases; each budget fails cleanly.
+    enum { n = 60 };
+    float minima[3 * n], centres[3 * n];
+    extents_of(boxes, n, minima, centres);
+    bpx_box remade[n]; // the boxes the two phases make, in float as documented
+    for (uint32_t i = 0; i < n; i++) {
+        for (int a = 0; a < 3; a++) {
+            remade[i].min[a] = centres[3 * i + a] + minima[3 * i + a];
+            remade[i].max[a] = centres[3 * i + a] - minima[3 * i + a];
+        }
+    }
+    pair_list_brute(&want, remade, n);
+    int64_t start = bpx_allocated_bytes();
+    bpx_set_allocator(budget_alloc, budget_free, &budget_tag);
+    long long budget = 0;
+    for (; budget < 1000; budget++) {
+        check_set_context("rtl backend: allocation failure after %lld allocations", budget);
+        budget_left = budget;
+        w = NULL;
+        bpx_status s = bpx_world_create(&def, &w);
+        CHECK_MSG(ok_or_oom(s), "create: %s", check_status_name(s));
+        if (s == BPX_OK) {
+            s = bpx_world_set_boxes(w, remade, n);
+            CHECK_MSG(ok_or_oom(s), "set_boxes: %s", check_status_name(s));
+        }
+        if (s == BPX_OK) {
+            s = bpx_world_collide(w);
+            CHECK_MSG(ok_or_oom(s), "collide: %s", check_status_name(s));
+        }
+        // The paper's two phases: the chip's initialisation, then a centres cycle.
+        if (s == BPX_OK) {
+            s = bpx_world_load_extents(w, minima, n);
+            CHECK_MSG(ok_or_oom(s), "load_extents: %s", check_status_name(s));
+        }
+        if (s == BPX_OK) {
+            s = bpx_world_update_centres(w, centres);
+            CHECK_MSG(ok_or_oom(s), "update_centres: %s", check_status_name(s));
+        }
+        if (s == BPX_OK) {
+            s = bpx_world_collide(w);
+            CHECK_MSG(ok_or_oom(s), "two-phase collide: %s", check_status_name(s));
+            if (s == BPX_OK) {
+                size_t got = 0;
+                const bpx_pair *pairs = bpx_world_pairs(w, &got);
+                CHECK_PAIRS_EQ(want.pairs, want.count, pairs, got);
+            }
+        }
+        if (w) {
+            budget_left = -1; // memory back: the world recovers
+            CHECK_STATUS(bpx_world_set_boxes(w, remade, n), BPX_OK);
+            collide_and_keep(w, &over);
+            CHECK_PAIRS_EQ(want.pairs, want.count, over.pairs, over.count);
+        }
+        bpx_world_destroy(w);
+        budget_left = -1;
+        CHECK_EQ_U64(budget_live, 0);
+        CHECK(bpx_allocated_bytes() == start);
+        if (s == BPX_OK)
+            break;
+    }
+    bpx_set_allocator(NULL, NULL, NULL);
+    printf("  rtl: limit %u boxes; a cycle needs %lld allocations, every shorter budget failed "
+           "cleanly\n",
+           limit, budget);
+    CHECK(budget > 2 && budget < 1000);
+    pair_list_free(&want);
+    pair_list_free(&over);
+    free(boxes);
+}
+
+// ---------------------------------------------------------------------------------------------
+
 static void test_updater_errors(const bpx_box *boxes)
 {
     float minima[3 * base_n];
@@ -603,5 +741,6 @@ int main(void)
     test_bad_boxes(boxes);
     test_too_many_boxes(boxes);
     test_updater_errors(boxes);
+    test_rtl();
     return check_finish("test_errors", 1);
 }

@@ -21,12 +21,15 @@ static void counting_free(void *memory, void *user)
     free(memory);
 }
 
-enum { n = 3000, warmup = 4, measured = 12 };
+enum { full_n = 3000, warmup = 4, measured = 12 };
 
 static void run(bpx_backend backend, int workers, bool two_phase)
 {
-    check_set_context("backend=%s workers=%d %s", bpx_backend_name(backend), workers,
-                      two_phase ? "update_centres" : "set_boxes");
+    // rtl: 400 of the 512 boxes the chip holds. (At 512 this scene's pair count passes 512 in
+    // cycle 9, and the world's merged list grows then: a new high, not a backend's allocation.)
+    const uint32_t n = full_n <= check_backend_max_boxes(backend) ? full_n : 400u;
+    check_set_context("backend=%s workers=%d %s n=%u", bpx_backend_name(backend), workers,
+                      two_phase ? "update_centres" : "set_boxes", n);
     bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
     float *minima = check_alloc(sizeof(float) * 3 * n), *centres = check_alloc(sizeof(float) * 3 * n);
     scene_uniform_density(n, 1.0f, 7, boxes);

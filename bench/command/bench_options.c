@@ -175,6 +175,8 @@ static bool fits(const bench_variant *v, uint32_t n, bool quick)
         return n <= (quick ? 5000u : 20000u);
     case BPX_BACKEND_BRUTE:
         return n <= quadratic;
+    case BPX_BACKEND_RTL:
+        return n <= BPX_RTL_MAX_BOXES; // the chip's RAMs
     case BPX_BACKEND_OPENCL:
         // The auto rule's rows: brute force, the tree from 2048 boxes. The forced paths
         // measure the crossover (full runs only): the sweep's candidates grow like n^(5/3), so
@@ -221,6 +223,9 @@ int bench_cmd_list_variants(const bench_options *o, uint32_t n, bench_variant *o
     }
     if (bpx_backend_query(BPX_BACKEND_CUDA).available)
         all[count++] = (bench_variant){-1, BPX_BACKEND_CUDA, BPX_SIMD_AUTO, 1, false, 0};
+    // The chip's RTL, simulated (to BPX_RTL_MAX_BOXES boxes).
+    if (bpx_backend_query(BPX_BACKEND_RTL).available)
+        all[count++] = (bench_variant){-1, BPX_BACKEND_RTL, BPX_SIMD_AUTO, 1, false, 0};
     // CPU and device in one cycle, the CPU side on every thread.
     if (bpx_backend_query(BPX_BACKEND_HYBRID).available)
         all[count++] = (bench_variant){-1, BPX_BACKEND_HYBRID, BPX_SIMD_AUTO, o->threads, false, 0};

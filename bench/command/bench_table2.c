@@ -92,6 +92,9 @@ static int list_variants(const bench_table2_options *o, bench_variant *out)
         all[count++] = (bench_variant){-1, BPX_BACKEND_OPENCL, BPX_SIMD_AUTO, 1, true, 0};
     if (bpx_backend_query(BPX_BACKEND_CUDA).available)
         all[count++] = (bench_variant){-1, BPX_BACKEND_CUDA, BPX_SIMD_AUTO, 1, true, 0};
+    // The chip's RTL, simulated: the paper's design the paper's way (n <= 500 fits its RAMs).
+    if (bpx_backend_query(BPX_BACKEND_RTL).available)
+        all[count++] = (bench_variant){-1, BPX_BACKEND_RTL, BPX_SIMD_AUTO, 1, true, 0};
     for (int p = 0; p < bench_peer_count() && count < BENCH_MAX_VARIANTS; p++)
         all[count++] = (bench_variant){p, BPX_BACKEND_AUTO, BPX_SIMD_AUTO, 1, false, 0};
     int kept = 0;

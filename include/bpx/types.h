@@ -67,8 +67,16 @@ typedef enum bpx_backend {
                            ///< block up to 1024 boxes); device-resident cycles in bpx/cuda.h
     BPX_BACKEND_HYBRID,    ///< "hybrid": the CPU (auto) and a device (cuda, else opencl) share
                            ///< each cycle, space cut along x by their measured speed
+    BPX_BACKEND_RTL,       ///< "rtl": the chip's RTL (rtl/*.sv) simulated by Verilator, clock by
+                           ///< clock; at most BPX_RTL_MAX_BOXES boxes. Built when Verilator is
+                           ///< found; unavailable otherwise ("built without Verilator")
     BPX_BACKEND_COUNT
 } bpx_backend;
+
+/// Most boxes the rtl backend takes: the chip's on-chip RAMs (its DEPTH, the paper's 512). The
+/// RTL has no off-chip tiles, so a cycle with more returns BPX_ERR_TOO_MANY_BOXES, naming the
+/// limit (docs/rtl.md).
+#define BPX_RTL_MAX_BOXES 512u
 
 /// SIMD instruction set of the brute-force comparator. AUTO picks the widest the CPU supports;
 /// forcing a narrower one is for tests and benchmarks. Lanes: scalar 1, SSE2/NEON 4, AVX2 8,

@@ -7,10 +7,11 @@ sys.path.insert(0, os.path.dirname(__file__))  # scenes.py
 
 import bpx  # noqa: E402
 
-# Backends that run on this machine, auto first; model (the FPGA clock by clock), opencl (PoCL on
-# a CPU) and hybrid (opencl beside the CPU here) are slow per box, so their tests use smaller sets.
+# Backends that run on this machine, auto first; model (the FPGA clock by clock), rtl (the chip's
+# RTL simulated, built only with -C cmake.define.BPX_RTL_BACKEND=ON), opencl (PoCL on a CPU) and
+# hybrid (opencl beside the CPU here) are slow per box, so their tests use smaller sets.
 BACKENDS = bpx.available_backends()
-SLOW_BACKENDS = {"model", "opencl", "cuda", "hybrid", "reference"}
+SLOW_BACKENDS = {"model", "rtl", "opencl", "cuda", "hybrid", "reference"}
 
 
 def pytest_report_header(config):

@@ -244,3 +244,4 @@ extern const bpx_backend_impl bpx__model_backend;
 extern const bpx_backend_impl bpx__opencl_backend;
 extern const bpx_backend_impl bpx__cuda_backend;
 extern const bpx_backend_impl bpx__hybrid_backend;
+extern const bpx_backend_impl bpx__rtl_backend;

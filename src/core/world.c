@@ -20,7 +20,7 @@ static const char *const backend_names[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_SAP] = "sap",     [BPX_BACKEND_GRID] = "grid",
     [BPX_BACKEND_MODEL] = "model", [BPX_BACKEND_OPENCL] = "opencl",
     [BPX_BACKEND_CUDA] = "cuda",
-    [BPX_BACKEND_HYBRID] = "hybrid",
+    [BPX_BACKEND_HYBRID] = "hybrid", [BPX_BACKEND_RTL] = "rtl",
 };
 
 static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
@@ -40,6 +40,7 @@ static const bpx_backend_impl *const backends[BPX_BACKEND_COUNT] = {
     [BPX_BACKEND_CUDA] = &bpx__cuda_backend,
 #endif
     [BPX_BACKEND_HYBRID] = &bpx__hybrid_backend,
+    [BPX_BACKEND_RTL] = &bpx__rtl_backend, // without Verilator, a stub that says so
 };
 
 enum { MAX_WORKERS = 256, DEFAULT_SPIN_US = 200 };

@@ -89,7 +89,8 @@ def find_pairs(
             real dtype or layout is converted to float32 once (rounding is monotone: no
             float64 overlap is lost).
         backend: "auto" (default), "reference", "brute", "prune", "sap", "grid", "model",
-            "opencl", "cuda", "hybrid": see ``bpx.backends()``.
+            "opencl", "cuda", "hybrid", "rtl" (the chip's RTL simulated, at most 512 boxes; not
+            in the wheel): see ``bpx.backends()``.
         threads: threads working on the call, 1 .. 256 (0 is 1). None: every CPU this process
             may use from 16,384 boxes, one thread below (where starting threads costs more
             than they save).
