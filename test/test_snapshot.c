@@ -27,6 +27,8 @@ typedef struct byte_log {
 
 static void log_put(byte_log *l, const void *data, size_t size)
 {
+    if (!size)
+        return;
     if (l->size + size > l->capacity) {
         l->capacity = 2 * (l->size + size);
         l->bytes = realloc(l->bytes, l->capacity);
