@@ -134,7 +134,7 @@ static void run(bpx_backend backend, int workers, uint64_t seed)
         uint32_t adds = scene_rng_below(&r, cycle == 0 ? 64 : 24);
         for (uint32_t k = 0; k < adds; k++)
             batch[k] = random_box(&r, world);
-        if (s.n + adds <= max_ids) {
+        if (s.n + adds <= max_ids && s.n + adds <= check_backend_max_boxes(backend)) {
             CHECK_STATUS(bpx_world_add_boxes(w, batch, adds, ids), BPX_OK);
             for (uint32_t k = 0; k < adds; k++) {
                 uint32_t id = ids[k];
