@@ -414,13 +414,12 @@ static bpx_status check_pairs(bpx_world *w, const bpx_pair *pairs, uint32_t coun
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "pairs is NULL");
     for (uint32_t k = 0; k < count; k++) {
         bpx_pair p = pairs[k];
-        uint32_t bad = p.i >= w->n || (w->dead && w->dead[p.i]) ? p.i
-                       : p.j >= w->n || (w->dead && w->dead[p.j]) ? p.j
-                                                                   : UINT32_MAX;
-        if (bad != UINT32_MAX)
+        bool i_out = p.i >= w->n || (w->dead && w->dead[p.i]);
+        bool j_out = p.j >= w->n || (w->dead && w->dead[p.j]);
+        if (i_out || j_out)
             return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, k, -1,
                               "%s: pairs[%u] = (%u, %u): %u is not a box in use (n = %u)", what,
-                              k, p.i, p.j, bad, w->n);
+                              k, p.i, p.j, i_out ? p.i : p.j, w->n);
         if (p.i == p.j)
             return bpx__error(&w->error, BPX_ERR_INVALID_ARGUMENT, k, -1,
                               "%s: pairs[%u] = (%u, %u) pairs a box with itself", what, k, p.i,
