@@ -50,6 +50,7 @@ module bpx_emitter #(
     reg          any_hi;
     integer k;
     always @* begin
+        k = 0;  // the loop index is a variable too: assigned on every path, no latch
         any_hi = 1'b0;
         pick_hi = {LW{1'b0}};
         pick_lo = {LW{1'b0}};
@@ -132,6 +133,7 @@ module bpx_emitter #(
         if (TRACE) begin : trace
             integer t;
             always @* begin
+                t = 0;
                 fill_max = 32'd0;
                 for (t = 0; t < L; t = t + 1)
                     if (fill[t] > fill_max)
