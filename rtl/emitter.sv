@@ -40,7 +40,8 @@ module bpx_emitter #(
     reg  [FW-1:0] fill [0:L-1];
     reg  [PW-1:0] head [0:L-1];
     (* fsm_encoding = "none" *) reg [LW-1:0] next_lane; // a counter, not an FSM for Yosys
-    reg  [LW-1:0] out_sel;
+    (* fsm_encoding = "none" *) reg [LW-1:0] out_sel;   // likewise: as an FSM it took 2/3 of
+                                                         // the LUTs at M = 8 (docs/rtl.md)
     wire [L-1:0]  nonempty, full;
     wire [L-1:0]  push = (!stall && h_valid) ? h_mask : {L{1'b0}};
 
@@ -50,6 +51,7 @@ module bpx_emitter #(
     reg          any_hi;
     integer k;
     always @* begin
+        k = 0;  // the loop index is a variable too: assigned on every path, no latch
         any_hi = 1'b0;
         pick_hi = {LW{1'b0}};
         pick_lo = {LW{1'b0}};
@@ -132,6 +134,7 @@ module bpx_emitter #(
         if (TRACE) begin : trace
             integer t;
             always @* begin
+                t = 0;
                 fill_max = 32'd0;
                 for (t = 0; t < L; t = t + 1)
                     if (fill[t] > fill_max)

@@ -1,9 +1,11 @@
 // bpx RTL: the updater (paper §4.2, Figure 2), mirroring src/hw/updater.h.
 //
 // One object per clock: an address counter requests the SSRAM word at `next`; the data comes
-// back LAT clocks later through the interface's read pipeline; the add stage registers the
-// result; the clock after, it is written at that address. A pass over n objects takes
-// n + LAT + 1 clocks. Modes (the model's bpx_hw_update_mode):
+// back LAT clocks later through the interface's read pipeline; the adders' first half
+// (bpx_fadd_align) goes into the align register and their second half (bpx_fadd_round) into the
+// add register; the clock after, it is written at that address. A pass over n objects takes
+// n + LAT + 2 clocks, in every mode (the modes without adds go through both registers too).
+// Modes (the model's bpx_hw_update_mode):
 //   0 boxes   (BPX_HW_PASS_BOXES, not in the paper): min x, y, z from banks 0-2, max x, y, z
 //             from banks 3-5, written into the comparator's six memories;
 //   1 minima  (BPX_HW_STORE_MINIMA, the paper's initialisation): banks 0-2 hold the
@@ -39,8 +41,16 @@ module bpx_updater #(
 );
     localparam integer CW = $clog2(LAT + 2) + 1;  // reads in flight
 
+    localparam integer PW = 41;  // bpx_fadd_align's output (rtl/fadd.sv)
+
     reg [AW-1:0]   next, last;
     reg [CW-1:0]   in_flight;
+    // The align register: the arriving word (modes 0, 1) and the six adders' first halves.
+    reg            pipe_valid;
+    reg [AW-1:0]   pipe_addr;
+    reg [6*32-1:0] pipe;
+    reg [6*PW-1:0] pipe_part;
+    // The add register: what is written next clock.
     reg            stage_valid;
     reg [AW-1:0]   stage_addr;
     reg [6*32-1:0] stage;
@@ -69,7 +79,9 @@ module bpx_updater #(
                            rd_data[4*32 +: 32], rd_data[1*32 +: 32],
                            rd_data[3*32 +: 32], rd_data[0*32 +: 32]};
 
-    // centre + minimum and centre - minimum, per axis.
+    // centre + minimum and centre - minimum, per axis: first halves from the arriving data,
+    // second halves from the align register.
+    wire [6*PW-1:0] parts;
     wire [6*32-1:0] sums;
     wire [5:0]      ovf;
     genvar ga;
@@ -77,32 +89,44 @@ module bpx_updater #(
         for (ga = 0; ga < 3; ga = ga + 1) begin : axis
             wire [31:0] c = rd_data[ga*32 +: 32];
             wire [31:0] m = mq[ga*32 +: 32];
-            bpx_fadd lo (.a(c), .b(m), .s(sums[(2*ga)*32 +: 32]), .overflow(ovf[2*ga]));
-            bpx_fadd hi (.a(c), .b({~m[31], m[30:0]}), .s(sums[(2*ga+1)*32 +: 32]),
-                         .overflow(ovf[2*ga+1]));
+            bpx_fadd_align lo (.a(c), .b(m), .p(parts[(2*ga)*PW +: PW]));
+            bpx_fadd_align hi (.a(c), .b({~m[31], m[30:0]}), .p(parts[(2*ga+1)*PW +: PW]));
+        end
+        for (ga = 0; ga < 6; ga = ga + 1) begin : round
+            bpx_fadd_round r (.p(pipe_part[ga*PW +: PW]), .s(sums[ga*32 +: 32]),
+                              .overflow(ovf[ga]));
         end
     endgenerate
-    assign overflow = take && mode == 2'd2 && |ovf;
-    wire [6*32-1:0] next_stage = mode == 2'd0 ? box : mode == 2'd2 ? sums : rd_data;
+    assign overflow = pipe_valid && mode == 2'd2 && |ovf;
+    wire [6*32-1:0] next_pipe = mode == 2'd0 ? box : rd_data;
+    wire [6*32-1:0] next_stage = mode == 2'd2 ? sums : pipe;
 
     wire [AW-1:0] next_n = next + issue;
     wire [CW-1:0] in_flight_n = in_flight + issue - take;
-    assign active_d = start ? (n != 0) : (active && (next_n < last || in_flight_n != 0 || take));
+    assign active_d = start ? (n != 0)
+                      : (active && (next_n < last || in_flight_n != 0 || take || pipe_valid));
 
     always @(posedge clk) begin
         if (start) begin
             next <= {AW{1'b0}};
             last <= n;
             in_flight <= {CW{1'b0}};
+            pipe_valid <= 1'b0;
             stage_valid <= 1'b0;
             active <= n != 0;
             mode <= mode_in;
         end else if (active) begin
             next <= next_n;
             in_flight <= in_flight_n;
-            stage_valid <= take;
+            pipe_valid <= take;
             if (take) begin
-                stage_addr <= rd_addr;
+                pipe_addr <= rd_addr;
+                pipe <= next_pipe;
+                pipe_part <= parts;
+            end
+            stage_valid <= pipe_valid;
+            if (pipe_valid) begin
+                stage_addr <= pipe_addr;
                 stage <= next_stage;
             end
             active <= active_d;

@@ -21,6 +21,7 @@ void bpx__hw_updater_start(bpx_hw_updater *u, bpx_hw_update_mode mode, uint32_t 
     u->end = end;
     u->destination = to - begin;
     u->in_flight = 0;
+    u->pipe_valid = false;
     u->stage_valid = false;
     u->active = begin < end;
 }

@@ -2,8 +2,11 @@
 // minima the host wrote to the SSRAM in its own on-chip RAM. Updating: for each object it reads
 // the centre from the SSRAM, adds the stored minimum to get the box's minimum and subtracts it
 // to get the maximum (the maximum is the minimum with its sign changed), and writes the box
-// into the comparator's six memories. Pipeline: SSRAM read (latency L) -> add register -> RAM
-// write, one object per clock.
+// into the comparator's six memories. Pipeline: SSRAM read (latency L) -> align register ->
+// add register -> RAM write, one object per clock: a pass over n objects takes n + L + 2
+// clocks. The chip's binary32 adder is two stages (rtl/fadd.sv: align and add, then normalise
+// and round; one stage was too slow for 108 MHz), so the model computes the sum when the data
+// arrives and delays it by one register: the same bits at the same clock.
 #pragma once
 
 #include <stdbool.h>
@@ -33,8 +36,12 @@ typedef struct bpx_hw_updater {
     uint32_t end;         // one past the last
     uint32_t destination; // RAM address = SSRAM address + destination (mod 2^32)
     uint32_t in_flight;   // reads not yet returned
-    // The add stage's register: a box (memory order: min x, max x, min y, max y, min z, max z)
-    // or three minima, and the RAM address it goes to.
+    // The align register: the adders' first stage (here the whole sum), and its RAM address.
+    bool pipe_valid;
+    uint32_t pipe_address;
+    float pipe[BPX_HW_AXES];
+    // The add register: a box (memory order: min x, max x, min y, max y, min z, max z) or three
+    // minima, and the RAM address it goes to.
     bool stage_valid;
     uint32_t stage_address;
     float stage[BPX_HW_AXES];
@@ -79,7 +86,8 @@ static inline void bpx__hw_updater_evaluate(bpx_hw_updater *u, bpx_hw_interface 
         u->issue = true;
     }
 
-    // Add stage: the data of the read issued `latency` clocks ago.
+    // Align stage: the data of the read issued `latency` clocks ago (the add stage is the align
+    // register moved on at commit).
     const bpx_hw_read *in = bpx__hw_interface_data(ifc);
     if (in->valid) {
         u->next_valid = true;
@@ -121,7 +129,7 @@ static inline void bpx__hw_updater_evaluate(bpx_hw_updater *u, bpx_hw_interface 
     }
 }
 
-/// Commit: address counter, stage register, minima RAM write.
+/// Commit: address counter, align and add registers, minima RAM write.
 static inline void bpx__hw_updater_commit(bpx_hw_updater *u)
 {
     if (!u->active)
@@ -135,10 +143,15 @@ static inline void bpx__hw_updater_commit(bpx_hw_updater *u)
     }
     if (u->next_valid)
         u->in_flight--;
-    u->stage_valid = u->next_valid;
-    if (u->next_valid) {
-        u->stage_address = u->next_address;
-        memcpy(u->stage, u->next_stage, sizeof u->stage);
+    u->stage_valid = u->pipe_valid;
+    if (u->pipe_valid) {
+        u->stage_address = u->pipe_address;
+        memcpy(u->stage, u->pipe, sizeof u->stage);
     }
-    u->active = u->next < u->end || u->in_flight > 0 || u->stage_valid;
+    u->pipe_valid = u->next_valid;
+    if (u->next_valid) {
+        u->pipe_address = u->next_address;
+        memcpy(u->pipe, u->next_stage, sizeof u->pipe);
+    }
+    u->active = u->next < u->end || u->in_flight > 0 || u->pipe_valid || u->stage_valid;
 }
