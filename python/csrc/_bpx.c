@@ -364,14 +364,16 @@ void world_leave(WorldObject *self)
 static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
 {
     static const char where[] = "World";
-    static char *keywords[] = {"backend", "simd", "threads", "track_events", "spin_us",
-                               "capacity_hint", NULL};
+    static char *keywords[] = {"backend",       "simd",         "threads",    "track_events",
+                               "spin_us",       "capacity_hint", "begin_margin", "end_margin",
+                               NULL};
     const char *backend_name = "auto", *simd_name = "auto";
     int threads = 1, track_events = 0, spin_us = 0;
     unsigned long capacity_hint = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|ssipik", keywords, &backend_name,
+    float begin_margin = 0.0f, end_margin = 0.0f;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|ssipikff", keywords, &backend_name,
                                      &simd_name, &threads, &track_events, &spin_us,
-                                     &capacity_hint))
+                                     &capacity_hint, &begin_margin, &end_margin))
         return -1;
     if (self->world) {
         raise_status(where, BPX_ERR_BAD_STATE, "the world is already initialised");
@@ -390,6 +392,8 @@ static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
     def.track_events = track_events != 0;
     def.spin_us = spin_us;
     def.capacity_hint = capacity_hint > BPX_MAX_BOXES ? BPX_MAX_BOXES : (uint32_t)capacity_hint;
+    def.begin_margin = begin_margin;
+    def.end_margin = end_margin;
     if (!self->lock && !(self->lock = PyThread_allocate_lock())) {
         PyErr_NoMemory();
         return -1;
@@ -402,8 +406,10 @@ static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
     Py_END_ALLOW_THREADS
     if (status != BPX_OK) {
         if (status == BPX_ERR_INVALID_ARGUMENT)
-            snprintf(err.message, sizeof err.message, "threads is %d, expected 0 .. 256",
-                     threads);
+            snprintf(err.message, sizeof err.message,
+                     "threads is %d (0 .. 256), or the margins %g, %g are not finite and >= 0 "
+                     "with end_margin >= begin_margin (or 0)",
+                     threads, (double)begin_margin, (double)end_margin);
         raise_error(where, &err);
         return -1;
     }
@@ -773,6 +779,52 @@ static PyObject *World_pair_excluded(WorldObject *self, PyObject *args)
     return PyBool_FromLong(excluded);
 }
 
+static PyObject *World_snapshot(WorldObject *self, PyObject *unused)
+{
+    (void)unused;
+    static const char where[] = "World.snapshot";
+    if (world_enter(self, where) != 0)
+        return NULL;
+    size_t size = 0;
+    bpx_status status = bpx_world_snapshot(self->world, NULL, 0, &size);
+    PyObject *bytes = NULL;
+    if (status == BPX_OK || status == BPX_ERR_CAPACITY) {
+        bytes = PyBytes_FromStringAndSize(NULL, (Py_ssize_t)size);
+        if (bytes) {
+            Py_BEGIN_ALLOW_THREADS
+            status = bpx_world_snapshot(self->world, PyBytes_AS_STRING(bytes), size, &size);
+            Py_END_ALLOW_THREADS
+        }
+    }
+    if (bytes && status != BPX_OK) {
+        Py_CLEAR(bytes);
+        raise_status(where, status, "the world's state could not be written");
+    }
+    world_leave(self);
+    return bytes;
+}
+
+static PyObject *World_restore(WorldObject *self, PyObject *arg)
+{
+    static const char where[] = "World.restore";
+    Py_buffer view;
+    if (PyObject_GetBuffer(arg, &view, PyBUF_SIMPLE) != 0)
+        return NULL;
+    if (world_enter(self, where) != 0) {
+        PyBuffer_Release(&view);
+        return NULL;
+    }
+    bpx_status status;
+    Py_BEGIN_ALLOW_THREADS
+    status = bpx_world_restore(self->world, view.buf, (size_t)view.len);
+    Py_END_ALLOW_THREADS
+    PyObject *result = status == BPX_OK ? Py_NewRef(Py_None)
+                                        : raise_error(where, bpx_world_error(self->world));
+    PyBuffer_Release(&view);
+    world_leave(self);
+    return result;
+}
+
 static PyObject *World_collide(WorldObject *self, PyObject *unused)
 {
     (void)unused;
@@ -875,6 +927,8 @@ static PyObject *World_box_count(WorldObject *self, PyObject *unused)
 
 static PyMethodDef World_methods[] = {
     {"close", (PyCFunction)World_close, METH_NOARGS, "Destroys the C world; idempotent."},
+    {"snapshot", (PyCFunction)World_snapshot, METH_NOARGS, "bpx_world_snapshot -> bytes"},
+    {"restore", (PyCFunction)World_restore, METH_O, "bpx_world_restore(bytes-like)"},
     {"load_extents", (PyCFunction)World_load_extents, METH_O, "bpx_world_load_extents"},
     {"update_centres", (PyCFunction)World_update_centres, METH_O, "bpx_world_update_centres"},
     {"set_boxes", (PyCFunction)World_set_boxes, METH_O, "bpx_world_set_boxes"},

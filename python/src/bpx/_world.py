@@ -124,17 +124,50 @@ class World:
         simd: str = "auto",
         spin_us: int = 0,
         capacity_hint: int = 0,
+        begin_margin: float = 0.0,
+        end_margin: float = 0.0,
     ) -> None:
         backend = check_backend(backend, "World")
         threads = check_threads(threads, "World")
         if not isinstance(simd, str):
             raise InvalidArgumentError(f"World: simd must be a name (str), got {simd!r}")
+        begin, end = float(begin_margin), float(end_margin)
+        if not (0.0 <= begin < float("inf")) or not (
+            end == 0.0 or (begin <= end < float("inf"))
+        ):
+            raise InvalidArgumentError(
+                f"World: begin_margin {begin_margin!r} and end_margin {end_margin!r} must be "
+                "finite and >= 0, with end_margin >= begin_margin (or 0: the same)"
+            )
         self._c = _bpx.World(
-            backend, simd, threads, bool(track_events), int(spin_us), int(capacity_hint)
+            backend,
+            simd,
+            threads,
+            bool(track_events),
+            int(spin_us),
+            int(capacity_hint),
+            begin,
+            end,
         )
         self._requested = backend
         self._threads = threads
         self._track_events = bool(track_events)
+
+    # -- snapshot and restore -----------------------------------------------------------------
+
+    def snapshot(self) -> bytes:
+        """The world's whole state as bytes (``bpx_world_snapshot``): boxes, extents, ids,
+        filters, groups, user data, excluded pairs and the last collide's pairs, versioned and
+        checksummed. A world restored from them reports the same pairs and events on its next
+        collide as this one would."""
+        return self._c.snapshot()
+
+    def restore(self, data: Any) -> None:
+        """Replaces the world's state with a snapshot's (``bpx_world_restore``; any bytes-like
+        object). Pairs read as none until the next collide. Bytes that are not a snapshot this
+        library reads (cut short, changed, another version) raise ``InvalidArgumentError``
+        naming what and where, and leave the world as it was."""
+        self._c.restore(data)
 
     # -- the updater: the paper's two phases --------------------------------------------------
 
