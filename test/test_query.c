@@ -128,7 +128,7 @@ static float direction_component(scene_rng *r)
 static bpx_query random_query(scene_rng *r, const bpx_box *boxes, uint32_t n)
 {
     bpx_query q = {.filter = bpx_default_query_filter()};
-    q.kind = (bpx_query_kind)scene_rng_below(r, BPX_QUERY_KIND_COUNT);
+    q.kind = (bpx_query_kind)scene_rng_below(r, BPX_QUERY_SWEEP + 1); // the oracle's kinds
     q.closest = scene_rng_below(r, 2);
     for (int a = 0; a < 3; a++) {
         float x = pick(r, boxes, n, a), y = pick(r, boxes, n, a);
@@ -722,6 +722,163 @@ static void test_read_only_rules(void)
     bpx_world_destroy(w);
 }
 
+// Oriented boxes: with the identity and a quarter turn they are box queries of known bounds
+// (the same hits); with random rotations, against a separating-axis test written from the
+// boxes' corners (another formulation: projections of 8 corners on each of the 15 axes), which
+// must agree except within a hair of touching; the any, shared and callback forms follow; and
+// bad ones are refused. Points are box queries of a point.
+static void random_rotation(scene_rng *r, float m[9])
+{
+    // A unit quaternion from four normal-ish draws, then its matrix (row-major).
+    double q[4], len = 0.0;
+    for (int k = 0; k < 4; k++) {
+        q[k] = scene_rng_range(r, -1.0f, 1.0f);
+        len += q[k] * q[k];
+    }
+    len = sqrt(len);
+    double w = q[0] / len, x = q[1] / len, y = q[2] / len, z = q[3] / len;
+    double R[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
+                   2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                   2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
+    for (int k = 0; k < 9; k++)
+        m[k] = (float)R[k];
+}
+
+// The corners' separating-axis test; *slack receives how near the decision was (the least
+// |gap| over the axes, relative to the boxes' size), so that a disagreement can be judged.
+static bool corners_meet(const bpx_query *q, const bpx_box *b, double *slack)
+{
+    double qc[8][3], bc[8][3], axes[15][3];
+    for (int k = 0; k < 8; k++)
+        for (int a = 0; a < 3; a++) {
+            double v = q->centre[a];
+            for (int j = 0; j < 3; j++)
+                v += q->rotation[3 * a + j] * ((k >> j) & 1 ? 1.0 : -1.0) * q->half_extents[j];
+            qc[k][a] = v;
+            bc[k][a] = (k >> a) & 1 ? b->max[a] : b->min[a];
+        }
+    for (int i = 0; i < 3; i++)
+        for (int a = 0; a < 3; a++) {
+            axes[i][a] = i == a;
+            axes[3 + i][a] = q->rotation[3 * a + i];
+        }
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            const double *u = axes[i], *v = axes[3 + j];
+            double *c = axes[6 + 3 * i + j];
+            c[0] = u[1] * v[2] - u[2] * v[1];
+            c[1] = u[2] * v[0] - u[0] * v[2];
+            c[2] = u[0] * v[1] - u[1] * v[0];
+        }
+    bool meet = true;
+    *slack = INFINITY;
+    for (int l = 0; l < 15; l++) {
+        double n = sqrt(axes[l][0] * axes[l][0] + axes[l][1] * axes[l][1] + axes[l][2] * axes[l][2]);
+        if (n < 1e-9)
+            continue;
+        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        for (int k = 0; k < 8; k++) {
+            double pq = (qc[k][0] * axes[l][0] + qc[k][1] * axes[l][1] + qc[k][2] * axes[l][2]) / n;
+            double pb = (bc[k][0] * axes[l][0] + bc[k][1] * axes[l][1] + bc[k][2] * axes[l][2]) / n;
+            lo[0] = fmin(lo[0], pq), hi[0] = fmax(hi[0], pq);
+            lo[1] = fmin(lo[1], pb), hi[1] = fmax(hi[1], pb);
+        }
+        double gap = fmax(lo[1] - hi[0], lo[0] - hi[1]); // > 0: separated
+        *slack = fmin(*slack, fabs(gap));
+        if (gap > 0)
+            meet = false;
+    }
+    return meet;
+}
+
+static void test_oriented(void)
+{
+    check_set_context("oriented boxes");
+    enum { n = 3000 };
+    bpx_box *boxes = malloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 2.0f, 17, boxes);
+    bpx_world *w = make_world(1);
+    CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_prepare_queries(w), BPX_OK);
+    scene_rng r;
+    scene_rng_seed(&r, 23);
+    static const float identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    static const float quarter[9] = {0, -1, 0, 1, 0, 0, 0, 0, 1}; // a quarter turn about z
+    size_t got = 0, want = 0, near = 0, hits_total = 0;
+    for (int k = 0; k < 400; k++) {
+        const bpx_box *b = &boxes[scene_rng_below(&r, n)];
+        // Centres and half extents in quarters, so that centre +- half is exact in float.
+        float c[3], h[3];
+        for (int a = 0; a < 3; a++) {
+            c[a] = (float)(int)(b->min[a] * 4.0f) * 0.25f;
+            h[a] = (float)(1 + scene_rng_below(&r, 12)) * 0.25f;
+        }
+        int form = k % 3;
+        bpx_query q = bpx_query_oriented(c, h, form == 0 ? identity : form == 1 ? quarter : identity);
+        if (form == 2)
+            random_rotation(&r, q.rotation);
+        CHECK_STATUS(bpx_world_query(w, &q, got_buf, buf_cap, &got), BPX_OK);
+        hits_total += got;
+        if (form < 2) { // the same as the box query of its bounds
+            float reach[3] = {form ? h[1] : h[0], form ? h[0] : h[1], h[2]};
+            bpx_box bounds;
+            for (int a = 0; a < 3; a++)
+                bounds.min[a] = c[a] - reach[a], bounds.max[a] = c[a] + reach[a];
+            bpx_query box = bpx_query_box(bounds);
+            CHECK_STATUS(bpx_world_query(w, &box, expect_buf, buf_cap, &want), BPX_OK);
+            CHECK_MSG(got == want && memcmp(got_buf, expect_buf, sizeof(bpx_hit) * got) == 0,
+                      "oriented %d (form %d): %zu hits, box query %zu", k, form, got, want);
+        } else { // against the corners' test over every box
+            size_t g = 0;
+            for (uint32_t i = 0; i < n; i++) {
+                double slack;
+                bool meet = corners_meet(&q, &boxes[i], &slack);
+                bool listed = g < got && got_buf[g].id == i;
+                g += listed;
+                if (meet != listed) {
+                    near++;
+                    CHECK_MSG(slack < 1e-4, "oriented %d: box %u %s, the corners' test says %s "
+                              "(slack %g)", k, i, listed ? "hit" : "missed",
+                              meet ? "meet" : "apart", slack);
+                }
+            }
+            CHECK(g == got);
+        }
+        // The read-only forms give the same (and any gives one of them).
+        size_t shared = 0;
+        CHECK_STATUS(bpx_world_query_shared(w, &q, expect_buf, buf_cap, &shared, NULL), BPX_OK);
+        CHECK(shared == got && memcmp(expect_buf, got_buf, sizeof(bpx_hit) * got) == 0);
+        q.any = true;
+        size_t one = 0;
+        CHECK_STATUS(bpx_world_query(w, &q, expect_buf, buf_cap, &one), BPX_OK);
+        CHECK(one == (got > 0));
+    }
+    CHECK(hits_total > 400); // the scene is dense enough to test something
+    CHECK(near <= 2);        // disagreements only a hair from touching, and rare
+    // Points: the boxes that contain the point.
+    float point[3] = {boxes[0].min[0], boxes[0].min[1], boxes[0].max[2]};
+    bpx_query pq = bpx_query_point(point);
+    CHECK_STATUS(bpx_world_query(w, &pq, got_buf, buf_cap, &got), BPX_OK);
+    bool has0 = false;
+    for (size_t k = 0; k < got; k++)
+        has0 |= got_buf[k].id == 0;
+    CHECK(has0); // a corner of box 0 is in box 0 (closed)
+    // Bad oriented boxes.
+    float c[3] = {0, 0, 0}, h[3] = {1, 1, 1}, skew[9] = {1, 0.1f, 0, 0, 1, 0, 0, 0, 1};
+    bpx_query bad = bpx_query_oriented(c, h, skew);
+    CHECK_STATUS(bpx_world_query(w, &bad, got_buf, buf_cap, &got), BPX_ERR_INVALID_ARGUMENT);
+    CHECK(strstr(bpx_world_error(w)->message, "orthonormal") != NULL);
+    float negative[3] = {1, -1, 1};
+    bad = bpx_query_oriented(c, negative, identity);
+    CHECK_STATUS(bpx_world_query(w, &bad, got_buf, buf_cap, &got), BPX_ERR_INVALID_ARGUMENT);
+    CHECK(bpx_world_error(w)->axis == 1);
+    float nan_centre[3] = {0, NAN, 0};
+    bad = bpx_query_oriented(nan_centre, h, identity);
+    CHECK_STATUS(bpx_world_query(w, &bad, got_buf, buf_cap, &got), BPX_ERR_NOT_FINITE);
+    bpx_world_destroy(w);
+    free(boxes);
+}
+
 // Allocation failure: OUT_OF_MEMORY, nothing leaked, and the next query works.
 static int64_t fail_after = -1;
 static void *failing_alloc(size_t size, size_t alignment, void *user)
@@ -789,6 +946,7 @@ int main(void)
     test_batches();
     test_errors();
     test_read_only_rules();
+    test_oriented();
     test_out_of_memory();
     CHECK_EQ_U64((uint64_t)bpx_allocated_bytes(), (uint64_t)start);
     free(expect_buf);

@@ -14,6 +14,13 @@
 //                  predicate of the pairs: touching boxes are hits)
 //   sphere         b is a hit iff d2 <= radius * radius, in double precision, where
 //                  d2 = sum over axes of g*g, g = max(b.min - c, c - b.max, 0) per axis
+//   oriented box   the box {centre + R u : |u_k| <= half_k}, R = rotation (row-major 3x3,
+//                  orthonormal: its columns are the box's axes); b is a hit iff none of the 15
+//                  axes of the separating-axis test (x, y, z, R's columns, and the 9 cross
+//                  products of one with the other) separates them, in double precision, where
+//                  an axis separates when |T . L| > r_b + r_q strictly (closed boxes: touching
+//                  is a hit), T the difference of the centres, r the half-widths' projections
+//                  (b's centre (min + max) / 2 and half-size (max - min) / 2 in double)
 //   ray / sweep    a sweep moves box q along t * translation, t in [0, max_fraction]; a ray is
 //                  the sweep of the point box [origin, origin]. Per axis, with d the
 //                  translation's component (+0.0 and -0.0 are both zero):
@@ -41,7 +48,8 @@
 // Bad queries are refused, naming the query (its position in a batch) and the axis:
 // NOT_FINITE (a NaN or infinite coordinate, centre, radius, origin, direction or translation;
 // NaN max_fraction), MIN_GREATER_THAN_MAX (a query box), INVALID_ARGUMENT (negative radius or
-// max_fraction; a zero translation with max_fraction > 0; an unknown kind). max_fraction may be
+// max_fraction; a zero translation with max_fraction > 0; an unknown kind; negative half
+// extents; a rotation that is not orthonormal to 1e-3). max_fraction may be
 // +infinity (an unbounded ray). Denormal components are ordinary non-zero values.
 #pragma once
 
@@ -66,6 +74,7 @@ typedef enum bpx_query_kind {
     BPX_QUERY_SPHERE,  ///< boxes overlapping the sphere (centre, radius)
     BPX_QUERY_RAY,     ///< boxes hit by the ray origin + t * direction, t in [0, max_fraction]
     BPX_QUERY_SWEEP,   ///< boxes hit by box moving by t * direction, t in [0, max_fraction]
+    BPX_QUERY_ORIENTED, ///< boxes overlapping a rotated box (centre, half_extents, rotation)
     BPX_QUERY_KIND_COUNT
 } bpx_query_kind;
 
@@ -78,8 +87,10 @@ typedef struct bpx_query {
     bool any;
     bpx_query_filter filter;
     bpx_box box;         ///< BOX: the region; SWEEP: the moving box at t = 0
-    float centre[3];     ///< SPHERE
+    float centre[3];     ///< SPHERE, ORIENTED
     float radius;        ///< SPHERE
+    float half_extents[3]; ///< ORIENTED: half the box's size along each of its axes (>= 0)
+    float rotation[9];   ///< ORIENTED: row-major, orthonormal (to 1e-3): world = centre + R u
     float origin[3];     ///< RAY
     float direction[3];  ///< RAY: direction; SWEEP: translation. Need not be unit length: a
                          ///< unit direction makes fractions distances
@@ -101,6 +112,11 @@ BPX_API bpx_query bpx_query_ray(const float origin[3], const float direction[3],
                                 float max_fraction, bool closest);
 BPX_API bpx_query bpx_query_sweep(bpx_box box, const float translation[3], float max_fraction,
                                   bool closest);
+/// A point: the boxes that contain it (a box query of the point, closed intervals).
+BPX_API bpx_query bpx_query_point(const float point[3]);
+/// A rotated box: centre, half extents along its own axes, rotation (row-major 3x3).
+BPX_API bpx_query bpx_query_oriented(const float centre[3], const float half_extents[3],
+                                     const float rotation[9]);
 
 /// Runs one query on the calling thread. *count receives the number of hits. If it exceeds
 /// capacity, returns CAPACITY and writes nothing to hits; the hits are still readable with

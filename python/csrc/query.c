@@ -10,9 +10,11 @@
 //   SPHERE centre x, y, z, radius                                                   4
 //   RAY    origin x, y, z, direction x, y, z, max_fraction                          7
 //   SWEEP  box min x, y, z, max x, y, z, translation x, y, z, max_fraction          10
-static const Py_ssize_t query_floats[BPX_QUERY_KIND_COUNT] = {6, 4, 7, 10};
+// The kinds Python asks for (oriented boxes are C only for now).
+enum { PY_QUERY_KINDS = BPX_QUERY_SWEEP + 1 };
+static const Py_ssize_t query_floats[PY_QUERY_KINDS] = {6, 4, 7, 10};
 
-static const char *const query_names[2][BPX_QUERY_KIND_COUNT] = {
+static const char *const query_names[2][PY_QUERY_KINDS] = {
     {"World.query_box", "World.query_sphere", "World.ray_cast", "World.sweep"},
     {"World.query_box_batch", "World.query_sphere_batch", "World.ray_cast_batch",
      "World.sweep_batch"}};
@@ -90,7 +92,7 @@ PyObject *World_query(WorldObject *self, PyObject *args)
     if (!PyArg_ParseTuple(args, "ippOOOp", &kind, &closest, &any, &params_obj, &categories_obj,
                           &masks_obj, &batch))
         return NULL;
-    if (kind < 0 || kind >= BPX_QUERY_KIND_COUNT)
+    if (kind < 0 || kind >= PY_QUERY_KINDS)
         return raise_status("World.query", BPX_ERR_INVALID_ARGUMENT, "unknown query kind");
     const char *where = query_names[batch][kind];
     if (world_enter(self, where) != 0)

@@ -80,6 +80,24 @@ static bpx_prepared prepare(const bpx_query *q, bpx_query_hit_fn *visit, void *v
     }
     p.radius2 = (double)q->radius * (double)q->radius;
     p.max_fraction = q->max_fraction;
+    if (q->kind == BPX_QUERY_ORIENTED) {
+        // The walk prunes with the oriented box's bounding box, rounded outward.
+        for (int a = 0; a < 3; a++) {
+            p.o_centre[a] = q->centre[a];
+            p.o_half[a] = q->half_extents[a];
+            for (int b = 0; b < 3; b++) {
+                p.o_rot[a][b] = q->rotation[3 * a + b];
+                p.o_abs[a][b] = fabs(p.o_rot[a][b]);
+            }
+        }
+        for (int a = 0; a < 3; a++) {
+            double reach = p.o_abs[a][0] * p.o_half[0] + p.o_abs[a][1] * p.o_half[1] +
+                           p.o_abs[a][2] * p.o_half[2];
+            float lo = (float)(p.o_centre[a] - reach), hi = (float)(p.o_centre[a] + reach);
+            p.lo[a] = nextafterf(lo, -INFINITY);
+            p.hi[a] = nextafterf(hi, INFINITY);
+        }
+    }
     return p;
 }
 

@@ -66,6 +66,24 @@ bpx_query bpx_query_sweep(bpx_box box, const float translation[3], float max_fra
     return q;
 }
 
+bpx_query bpx_query_point(const float point[3])
+{
+    bpx_box b;
+    memcpy(b.min, point, sizeof b.min);
+    memcpy(b.max, point, sizeof b.max);
+    return bpx_query_box(b);
+}
+
+bpx_query bpx_query_oriented(const float centre[3], const float half_extents[3],
+                             const float rotation[9])
+{
+    bpx_query q = {.kind = BPX_QUERY_ORIENTED, .filter = bpx_default_query_filter()};
+    memcpy(q.centre, centre, sizeof q.centre);
+    memcpy(q.half_extents, half_extents, sizeof q.half_extents);
+    memcpy(q.rotation, rotation, sizeof q.rotation);
+    return q;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Checks: the first problem of query `index`, naming the field and the axis.
 
@@ -114,6 +132,32 @@ static bpx_status check_motion(const bpx_query *q, uint32_t index, bpx_error *e)
     return BPX_OK;
 }
 
+static bpx_status check_oriented(const bpx_query *q, uint32_t index, bpx_error *e)
+{
+    bpx_status s = check_finite(q->centre, "centre", index, e);
+    if (s == BPX_OK)
+        s = check_finite(q->half_extents, "half extent", index, e);
+    for (int r = 0; r < 3 && s == BPX_OK; r++)
+        s = check_finite(q->rotation + 3 * r, "rotation row", index, e);
+    for (int a = 0; a < 3 && s == BPX_OK; a++)
+        if (q->half_extents[a] < 0.0f)
+            s = bpx__error(e, BPX_ERR_INVALID_ARGUMENT, index, a,
+                           "query %u: half extent %c %g is negative", index, axis_name[a],
+                           (double)q->half_extents[a]);
+    // Orthonormal: R^T R = I to 1e-3, so that the box is a box and the test's axes its own.
+    for (int a = 0; a < 3 && s == BPX_OK; a++)
+        for (int b = 0; b < 3 && s == BPX_OK; b++) {
+            double dot = 0.0;
+            for (int r = 0; r < 3; r++)
+                dot += (double)q->rotation[3 * r + a] * (double)q->rotation[3 * r + b];
+            if (fabs(dot - (a == b ? 1.0 : 0.0)) > 1e-3)
+                s = bpx__error(e, BPX_ERR_INVALID_ARGUMENT, index, -1,
+                               "query %u: rotation is not orthonormal (columns %d . %d = %g)",
+                               index, a, b, dot);
+        }
+    return s;
+}
+
 static bpx_status check_query(const bpx_query *q, uint32_t index, bpx_error *e)
 {
     if (q->closest && q->any)
@@ -140,6 +184,8 @@ static bpx_status check_query(const bpx_query *q, uint32_t index, bpx_error *e)
         bpx_status s = check_box(&q->box, index, e);
         return s == BPX_OK ? check_motion(q, index, e) : s;
     }
+    case BPX_QUERY_ORIENTED:
+        return check_oriented(q, index, e);
     default:
         return bpx__error(e, BPX_ERR_INVALID_ARGUMENT, index, -1, "query %u: unknown kind %d",
                           index, (int)q->kind);

@@ -63,9 +63,16 @@ static bool region(const bpx_query_view *v, const bpx_prepared *p, bpx_hit_list 
         const bpx_bvh_node *node = &t->nodes[stack[--top]];
         uint32_t hit = sphere ? lanes_sphere(node, p) : lanes_box(node, p);
         for (uint32_t leaves = hit & node->leaves; leaves; leaves &= leaves - 1) {
-            uint32_t id = node->child[__builtin_ctz(leaves)];
+            int k = __builtin_ctz(leaves);
+            uint32_t id = node->child[k];
             if (!bpx__query_seen(v, p, id))
                 continue;
+            if (p->kind == BPX_QUERY_ORIENTED) { // a leaf lane is the box itself
+                const float lo[3] = {node->lo[0][k], node->lo[1][k], node->lo[2][k]};
+                const float hi[3] = {node->hi[0][k], node->hi[1][k], node->hi[2][k]};
+                if (!bpx__oriented_hits(p, lo, hi))
+                    continue;
+            }
             int step = take_hit(v, p, (bpx_hit){id, 0.0f}, &limit, out);
             if (step == FAIL) {
                 out->count = first;
@@ -182,6 +189,7 @@ bool BPX_TRAVERSE(const bpx_query_view *view, const bpx_prepared *p, bpx_hit_lis
     switch (p->kind) {
     case BPX_QUERY_BOX:
     case BPX_QUERY_SPHERE:
+    case BPX_QUERY_ORIENTED:
         return region(view, p, out);
     default:
         return p->closest && !p->visit ? cast_closest(view, p, out) : cast_all(view, p, out);
