@@ -343,6 +343,11 @@ int world_enter(WorldObject *self, const char *where)
         raise_status(where, BPX_ERR_BAD_STATE, "the world is not initialised");
         return -1;
     }
+    // From inside its own pair filter the lock is this thread's: waiting would never end.
+    if (self->filter_thread && self->filter_thread == PyThread_get_thread_ident()) {
+        raise_status(where, BPX_ERR_BAD_STATE, "called from the world's own pair filter");
+        return -1;
+    }
     if (!PyThread_acquire_lock(self->lock, NOWAIT_LOCK)) {
         Py_BEGIN_ALLOW_THREADS
         PyThread_acquire_lock(self->lock, WAIT_LOCK);
@@ -432,6 +437,9 @@ static void World_dealloc(WorldObject *self)
 {
     // No method can be running: each holds a reference to self.
     world_destroy_unlocked(self);
+    Py_CLEAR(self->pair_filter);
+    for (int k = 0; k < 3; k++)
+        Py_CLEAR(self->filter_error[k]);
     if (self->lock)
         PyThread_free_lock(self->lock);
     Py_TYPE(self)->tp_free((PyObject *)self);
@@ -833,7 +841,58 @@ static PyObject *World_collide(WorldObject *self, PyObject *unused)
         return NULL;
     PyObject *out = collide_to_bytes(where, self->world);
     world_leave(self);
+    if (self->filter_error[0]) { // the filter raised: the cycle is done, its exception goes up
+        Py_XDECREF(out);
+        PyErr_Restore(self->filter_error[0], self->filter_error[1], self->filter_error[2]);
+        self->filter_error[0] = self->filter_error[1] = self->filter_error[2] = NULL;
+        return NULL;
+    }
     return out;
+}
+
+// bpx_pair_filter_fn for a Python callable: collide runs without the GIL, on the calling
+// thread, so the GIL is taken back for each call. After an exception the cycle's other new
+// pairs are refused without asking, and collide raises it.
+static bool call_pair_filter(uint32_t i, uint32_t j, uint64_t data_i, uint64_t data_j,
+                             void *context)
+{
+    WorldObject *self = context;
+    PyGILState_STATE gil = PyGILState_Ensure();
+    bool accept = false;
+    if (!self->filter_error[0]) {
+        self->filter_thread = PyThread_get_thread_ident();
+        PyObject *answer =
+            PyObject_CallFunction(self->pair_filter, "IIKK", i, j, (unsigned long long)data_i,
+                                  (unsigned long long)data_j);
+        self->filter_thread = 0;
+        int truth = answer ? PyObject_IsTrue(answer) : -1;
+        Py_XDECREF(answer);
+        if (truth < 0)
+            PyErr_Fetch(&self->filter_error[0], &self->filter_error[1], &self->filter_error[2]);
+        accept = truth == 1;
+    }
+    PyGILState_Release(gil);
+    return accept;
+}
+
+static PyObject *World_set_pair_filter(WorldObject *self, PyObject *fn)
+{
+    static const char where[] = "World.set_pair_filter";
+    if (fn != Py_None && !PyCallable_Check(fn))
+        return raise_status(where, BPX_ERR_INVALID_ARGUMENT, "the filter must be callable or None");
+    if (world_enter(self, where) != 0)
+        return NULL;
+    bpx_status status = bpx_world_set_pair_filter(self->world, fn == Py_None ? NULL : call_pair_filter,
+                                                  fn == Py_None ? NULL : self);
+    PyObject *result = NULL;
+    if (status == BPX_OK) {
+        Py_XSETREF(self->pair_filter, fn == Py_None ? NULL : Py_NewRef(fn));
+        result = Py_NewRef(Py_None);
+    } else {
+        result = raise_error(where, bpx_world_error(self->world));
+    }
+    world_leave(self);
+    return result;
 }
 
 static PyObject *pairs_to_bytes(const bpx_pair *pairs, size_t count)
@@ -946,6 +1005,8 @@ static PyMethodDef World_methods[] = {
     {"user_data", (PyCFunction)World_user_data, METH_O,
      "bpx_world_user_data for each id -> bytearray of uint64"},
     {"collide", (PyCFunction)World_collide, METH_NOARGS, "bpx_world_collide -> pairs"},
+    {"set_pair_filter", (PyCFunction)World_set_pair_filter, METH_O,
+     "bpx_world_set_pair_filter(callable(i, j, user_data_i, user_data_j) -> bool, or None)"},
     {"pairs", (PyCFunction)World_pairs, METH_NOARGS, "bpx_world_pairs (a copy)"},
     {"events", (PyCFunction)World_events, METH_NOARGS, "bpx_world_pair_events (copies)"},
     {"stats", (PyCFunction)World_stats, METH_NOARGS, "bpx_world_stats as a dict"},

@@ -16,6 +16,10 @@ typedef struct {
     PyObject_HEAD
     bpx_world *world;
     PyThread_type_lock lock;
+    PyObject *pair_filter;  // the callable of set_pair_filter, or NULL
+    unsigned long filter_thread; // the thread running the pair filter now, else 0
+    PyObject *filter_error[3]; // an exception the filter raised in a collide (PyErr_Fetch's
+                               // type, value, traceback), raised after it
 } WorldObject;
 
 // _bpx.c

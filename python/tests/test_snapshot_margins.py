@@ -78,3 +78,48 @@ def test_margins_hold_a_pair_that_parts_a_little():
 def test_bad_margins_are_refused(begin, end):
     with pytest.raises(bpx.InvalidArgumentError, match="margin"):
         bpx.World(begin_margin=begin, end_margin=end)
+
+
+def test_pair_filter_is_asked_once_per_beginning_pair():
+    world = bpx.World(track_events=True)
+    boxes = np.array([[0, 0, 0, 1, 1, 1], [0.5, 0, 0, 2, 1, 1], [1.5, 0, 0, 3, 1, 1]], np.float32)
+    world.set_boxes(boxes)
+    world.set_user_data([1], [7])
+    asked = []
+
+    def keep_out_seven(i, j, data_i, data_j):
+        asked.append((i, j))
+        return data_j != 7
+
+    world.set_pair_filter(keep_out_seven)
+    for _ in range(3):
+        world.collide()
+    assert asked == [(0, 1), (1, 2)]  # once each, in (i, j) order
+    assert world.pairs.tolist() == [[1, 2]]
+    world.set_pair_filter(None)
+    assert world.collide().tolist() == [[0, 1], [1, 2]]
+
+
+def test_pair_filter_errors():
+    world = bpx.World()
+    world.set_boxes(np.array([[0, 0, 0, 1, 1, 1], [0, 0, 0, 1, 1, 1]], np.float32))
+    with pytest.raises(bpx.InvalidArgumentError):
+        world.set_pair_filter(42)
+
+    def meddle(i, j, di, dj):
+        world.set_boxes(np.zeros((1, 6), np.float32))  # the world is busy: refused
+        return True
+
+    world.set_pair_filter(meddle)
+    with pytest.raises(bpx.Error):
+        world.collide()
+    assert len(world) == 2
+
+    def broken(i, j, di, dj):
+        raise KeyError("no such body")
+
+    world.set_pair_filter(broken)
+    with pytest.raises(KeyError):
+        world.collide()
+    world.set_pair_filter(lambda i, j, di, dj: True)
+    assert world.collide().tolist() == [[0, 1]]

@@ -153,6 +153,18 @@ class World:
         self._threads = threads
         self._track_events = bool(track_events)
 
+    def set_pair_filter(self, fn: Any) -> None:
+        """A callable ``fn(i, j, user_data_i, user_data_j) -> bool`` asked once when a pair
+        would begin (``bpx_world_set_pair_filter``): False keeps it out while it persists. It
+        runs on the thread that calls ``collide``, pairs in (i, j) order. It must not use this
+        world (a call from inside raises ``StateError``). If it raises, that pair and the
+        cycle's other new pairs are refused and ``collide`` raises the exception after the
+        cycle. ``None`` removes it; setting one asks again about every pair. Cost: one walk
+        over the pairs a cycle, and a Python call per pair that begins."""
+        if fn is not None and not callable(fn):
+            raise InvalidArgumentError(f"World.set_pair_filter: {fn!r} is not callable")
+        self._c.set_pair_filter(fn)
+
     # -- snapshot and restore -----------------------------------------------------------------
 
     def snapshot(self) -> bytes:
