@@ -562,7 +562,8 @@ static inline bool may_pair(const bpx_world *w, uint32_t i, uint32_t j)
 
 void bpx__filter_blocks(bpx_world *w)
 {
-    if (!bpx__objects_filtering(w))
+    // Only the rules of may_pair: margins and the pair filter have passes of their own.
+    if (!w->category && !w->group && !w->excluded.count)
         return;
     for (int b = 0; b < w->emitter.block_count; b++) {
         bpx_pair_list *hits = &w->emitter.blocks[b].hits;
