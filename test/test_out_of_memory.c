@@ -454,6 +454,57 @@ static void test_failure_keeps_world(void)
     CHECK(bpx_allocated_bytes() == start);
 }
 
+// bpx_find_neighbors with every allocation failing in turn: OUT_OF_MEMORY, an empty list, nothing
+// held; the run that succeeds gives the pairs of an unhindered run (periodic points in a small
+// cell, so that images, pairs with images and distances are all allocated).
+static void test_neighbors_allocation_failure(void)
+{
+    enum { n = 300 };
+    static double points[3 * n];
+    uint64_t x = 77;
+    for (int k = 0; k < 3 * n; k++) {
+        x = x * 6364136223846793005ull + 1442695040888963407ull;
+        points[k] = (double)(x >> 40) / (double)(1u << 24) * 6.0;
+    }
+    bpx_neighbor_def def = bpx_default_neighbor_def();
+    def.format = BPX_POINTS_F64;
+    def.period[0] = def.period[1] = def.period[2] = 6.0;
+    def.cutoff = 1.5;
+    def.metric = BPX_METRIC_EUCLIDEAN;
+    def.want_distances = true;
+    bpx_neighbor_list want;
+    CHECK_STATUS(bpx_find_neighbors(&def, points, n, &want, NULL), BPX_OK);
+    int64_t start = bpx_allocated_bytes();
+    atomic_store(&fa_budget, -1);
+    bpx_set_allocator(fa_alloc, fa_free, &fa_tag);
+    long long budget = 0;
+    for (; budget < 100000; budget++) {
+        check_set_context("neighbors: allocation failure after %lld allocations", budget);
+        atomic_store(&fa_budget, budget);
+        bpx_neighbor_list list;
+        bpx_error err;
+        bpx_status status = bpx_find_neighbors(&def, points, n, &list, &err);
+        atomic_store(&fa_budget, -1);
+        if (status == BPX_OK) {
+            CHECK(list.count == want.count &&
+                  memcmp(list.pairs, want.pairs, want.count * sizeof *want.pairs) == 0 &&
+                  memcmp(list.distances, want.distances, want.count * sizeof(double)) == 0);
+            bpx_neighbor_list_free(&list);
+            break;
+        }
+        CHECK_STATUS(status, BPX_ERR_OUT_OF_MEMORY);
+        CHECK(list.count == 0 && list.pairs == NULL && list.distances == NULL);
+        CHECK_EQ_U64(atomic_load(&fa_live), 0);
+        CHECK(bpx_allocated_bytes() == start);
+    }
+    printf("  neighbors: a full run needs %lld allocations; every shorter budget failed "
+           "cleanly\n",
+           budget);
+    CHECK(budget > 3);
+    bpx_set_allocator(NULL, NULL, NULL);
+    bpx_neighbor_list_free(&want);
+}
+
 int main(void)
 {
     printf("test_out_of_memory: allocation scene dense n=400 seed 4242, twin scenes dense n=%d "
@@ -461,5 +512,6 @@ int main(void)
            keep_n);
     test_allocation_failure();
     test_failure_keeps_world();
+    test_neighbors_allocation_failure();
     return check_finish("test_out_of_memory", 1);
 }

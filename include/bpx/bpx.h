@@ -23,6 +23,7 @@
 #pragma once
 
 #include "base.h"
+#include "neighbors.h"
 #include "overlap.h"
 #include "query.h"
 #include "types.h"

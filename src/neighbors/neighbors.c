@@ -1,0 +1,561 @@
+// Periodic images, cutoffs and float64 input on top of any backend (include/bpx/neighbors.h).
+//
+// Every object is grown by cutoff / 2 and wrapped, per periodic axis, by w periods so that its
+// lower face lies in [0, L). Its images are the copies shifted by u periods, u = 0, -1, -2, ...
+// while the copy still reaches 0 (u = 0 only, for all but the objects that cross an upper face).
+// The comparator finds the overlapping image pairs on float32 boxes rounded outward. An image
+// pair (a, b) with shifts (u_a, u_b) stands for the pair of objects at relative shift
+// u_b - u_a; of all the image pairs that stand for the same one, exactly one has
+// max(u_a, u_b) == 0 on every periodic axis, and only that one is kept. That image pair exists
+// whenever the objects truly overlap: with the lower one's image at 0, the other's face is
+// within [0, L) and the first reaches it. Each kept pair is then decided on the input
+// coordinates (exact_sign), so the float32 pass only ever proposes.
+#include "bpx/bpx.h"
+#include "bpx/neighbors.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../core/alloc.h"
+#include "../core/validate.h"
+#include "exact.h"
+
+// Past this, an object is too far from the origin, or too large, counted in periods: shifts are
+// int32 and the sum of a wrap and an image shift must fit.
+#define MAX_PERIODS (1 << 29)
+// Coordinates, periods and the cutoff stay below this so that exact sums cannot overflow.
+#define MAX_MAGNITUDE 0x1p1000
+
+bpx_neighbor_def bpx_default_neighbor_def(void)
+{
+    return (bpx_neighbor_def){.format = BPX_BOXES_F32, .metric = BPX_METRIC_BOX,
+                              .backend = BPX_BACKEND_AUTO, .worker_count = 1};
+}
+
+void bpx_neighbor_list_free(bpx_neighbor_list *list)
+{
+    if (!list)
+        return;
+    bpx__free(list->pairs, list->capacity * sizeof *list->pairs);
+    if (list->distances)
+        bpx__free(list->distances, list->capacity * sizeof *list->distances);
+    *list = (bpx_neighbor_list){0};
+}
+
+// ---------------------------------------------------------------------------------------------
+// The objects, as double boxes whatever the input format
+
+typedef struct source {
+    const void *data;
+    bpx_input_format format;
+} source;
+
+static inline void object_box(const source *in, uint32_t k, double lo[3], double hi[3])
+{
+    switch (in->format) {
+    case BPX_BOXES_F32: {
+        const bpx_box *b = (const bpx_box *)in->data + k;
+        for (int a = 0; a < 3; a++) {
+            lo[a] = b->min[a];
+            hi[a] = b->max[a];
+        }
+        return;
+    }
+    case BPX_BOXES_F64: {
+        const bpx_box64 *b = (const bpx_box64 *)in->data + k;
+        for (int a = 0; a < 3; a++) {
+            lo[a] = b->min[a];
+            hi[a] = b->max[a];
+        }
+        return;
+    }
+    case BPX_POINTS_F32: {
+        const float *p = (const float *)in->data + 3 * (size_t)k;
+        for (int a = 0; a < 3; a++)
+            lo[a] = hi[a] = p[a];
+        return;
+    }
+    default: {
+        const double *p = (const double *)in->data + 3 * (size_t)k;
+        for (int a = 0; a < 3; a++)
+            lo[a] = hi[a] = p[a];
+        return;
+    }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The search's state
+
+typedef struct search {
+    const bpx_neighbor_def *def;
+    source in;
+    uint32_t n;
+    double period[3];  // 0 on open axes
+    bool periodic;     // any axis
+    int32_t (*wrap)[3]; // per object: w (0 on open axes); NULL when nothing is periodic
+    uint32_t ghost_count;
+    uint32_t *ghost_owner;    // per image past n: its object
+    int32_t (*ghost_shift)[3]; // per image past n: u (<= 0)
+    bpx_box *images;          // n + ghost_count float32 boxes, rounded outward
+    bpx_error *err;
+} search;
+
+static float round_down(double x)
+{
+    float f = (float)x;
+    if ((double)f > x)
+        f = nextafterf(f, -INFINITY);
+    return f < -FLT_MAX ? -FLT_MAX : (f > FLT_MAX ? FLT_MAX : f);
+}
+
+static float round_up(double x)
+{
+    float f = (float)x;
+    if ((double)f < x)
+        f = nextafterf(f, INFINITY);
+    return f < -FLT_MAX ? -FLT_MAX : (f > FLT_MAX ? FLT_MAX : f);
+}
+
+static bpx_status check_def(const bpx_neighbor_def *def, bpx_error *err)
+{
+    if ((unsigned)def->format > BPX_POINTS_F64)
+        return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "format %d is not a bpx_input_format", (int)def->format);
+    if ((unsigned)def->metric > BPX_METRIC_EUCLIDEAN)
+        return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "metric %d is not a bpx_metric", (int)def->metric);
+    if ((unsigned)def->backend >= BPX_BACKEND_COUNT)
+        return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "backend %d is not a bpx_backend", (int)def->backend);
+    if (def->worker_count < 0 || def->worker_count > 256)
+        return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "worker_count %d is outside 0..256", def->worker_count);
+    for (int a = 0; a < 3; a++) {
+        double p = def->period[a];
+        if (!(p >= 0 && p < MAX_MAGNITUDE))
+            return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, a,
+                              "period[%d] = %g: a period must be finite and >= 0 (0: open)", a, p);
+    }
+    if (!(def->cutoff >= 0 && def->cutoff < MAX_MAGNITUDE))
+        return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "cutoff = %g: it must be finite and >= 0", def->cutoff);
+    return BPX_OK;
+}
+
+// How many images below itself an object [lo, hi] wrapped by w periods gets on axis a: the
+// copies shifted down by 1, 2, ... periods that still reach 0 once grown by cutoff / 2. The
+// slack only adds images, which the exact test then drops, and covers the rounding of the wrap.
+static double images_below(const search *s, int a, double lo, double hi, double w)
+{
+    double L = s->period[a], half = s->def->cutoff / 2;
+    double grown_lo = lo - half, grown_hi = hi + half;
+    double slack = 0x1p-40 * (fabs(grown_lo) + fabs(grown_hi) + fabs(w * L) + L);
+    return floor((grown_hi - w * L + slack) / L);
+}
+
+// The input checks, then each object's wrap and image count. Fills s->wrap; returns the number of
+// ghost images in *ghosts.
+static bpx_status check_objects(search *s, uint64_t *ghosts)
+{
+    double half = s->def->cutoff / 2;
+    uint64_t total = 0;
+    for (uint32_t k = 0; k < s->n; k++) {
+        double lo[3], hi[3];
+        object_box(&s->in, k, lo, hi);
+        for (int a = 0; a < 3; a++) {
+            if (!isfinite(lo[a]) || !isfinite(hi[a]))
+                return bpx__error(s->err, BPX_ERR_NOT_FINITE, k, a,
+                                  "object %u: a coordinate on axis %c is not finite", k, "xyz"[a]);
+            if (!(fabs(lo[a]) < MAX_MAGNITUDE && fabs(hi[a]) < MAX_MAGNITUDE))
+                return bpx__error(s->err, BPX_ERR_INVALID_ARGUMENT, k, a,
+                                  "object %u: a coordinate on axis %c is beyond +-2^1000", k,
+                                  "xyz"[a]);
+        }
+        for (int a = 0; a < 3; a++)
+            if (lo[a] > hi[a])
+                return bpx__error(s->err, BPX_ERR_MIN_GREATER_THAN_MAX, k, a,
+                                  "object %u: min %g > max %g on axis %c", k, lo[a], hi[a],
+                                  "xyz"[a]);
+        if (!s->periodic)
+            continue;
+        uint64_t images = 1;
+        for (int a = 0; a < 3; a++) {
+            double L = s->period[a];
+            s->wrap[k][a] = 0;
+            if (L == 0)
+                continue;
+            double w = floor((lo[a] - half) / L);
+            double below = images_below(s, a, lo[a], hi[a], w);
+            if (!(fabs(w) < MAX_PERIODS && below < MAX_PERIODS))
+                return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
+                                  "object %u lies or reaches more than 2^29 periods (%g) from "
+                                  "the origin on axis %c",
+                                  k, L, "xyz"[a]);
+            s->wrap[k][a] = (int32_t)w;
+            images *= 1 + (uint64_t)(below > 0 ? below : 0);
+        }
+        total += images - 1;
+        if (total + s->n > BPX_MAX_BOXES)
+            return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, -1,
+                              "the objects with their periodic images pass BPX_MAX_BOXES (%u) at "
+                              "object %u: the cell is small for boxes and cutoff this large",
+                              BPX_MAX_BOXES, k);
+    }
+    *ghosts = total;
+    return BPX_OK;
+}
+
+// The float32 box of object k shifted by (u - w) periods, grown by cutoff / 2, rounded outward
+// past the error of computing it in double.
+static bpx_box image_box(const search *s, uint32_t k, const int32_t u[3])
+{
+    double lo[3], hi[3];
+    object_box(&s->in, k, lo, hi);
+    double half = s->def->cutoff / 2;
+    bpx_box b;
+    for (int a = 0; a < 3; a++) {
+        double t = s->wrap ? ((double)u[a] - s->wrap[k][a]) * s->period[a] : 0;
+        double error = 0x1p-48 * (fabs(lo[a]) + fabs(hi[a]) + half + fabs(t));
+        b.min[a] = round_down(lo[a] - half + t - error);
+        b.max[a] = round_up(hi[a] + half + t + error);
+    }
+    return b;
+}
+
+static bpx_status make_images(search *s)
+{
+    size_t count = (size_t)s->n + s->ghost_count;
+    s->images = bpx__alloc(count * sizeof *s->images);
+    if (s->ghost_count) {
+        s->ghost_owner = bpx__alloc((size_t)s->ghost_count * sizeof *s->ghost_owner);
+        s->ghost_shift = bpx__alloc((size_t)s->ghost_count * sizeof *s->ghost_shift);
+    }
+    if (!s->images || (s->ghost_count && (!s->ghost_owner || !s->ghost_shift)))
+        return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %zu periodic images", count);
+    static const int32_t zero[3] = {0, 0, 0};
+    uint32_t g = 0;
+    for (uint32_t k = 0; k < s->n; k++) {
+        s->images[k] = image_box(s, k, zero);
+        if (!s->ghost_count)
+            continue;
+        // Enumerate u on each axis from 0 down while the copy reaches 0 (as check_objects
+        // counted), skipping u == 0 on all axes (the object itself).
+        double lo[3], hi[3];
+        object_box(&s->in, k, lo, hi);
+        int32_t lowest[3] = {0, 0, 0};
+        for (int a = 0; a < 3; a++) {
+            if (s->period[a] == 0)
+                continue;
+            double below = images_below(s, a, lo[a], hi[a], s->wrap[k][a]);
+            lowest[a] = below > 0 ? -(int32_t)below : 0;
+        }
+        int32_t u[3];
+        for (u[0] = 0; u[0] >= lowest[0]; u[0]--)
+            for (u[1] = 0; u[1] >= lowest[1]; u[1]--)
+                for (u[2] = 0; u[2] >= lowest[2]; u[2]--) {
+                    if (!u[0] && !u[1] && !u[2])
+                        continue;
+                    s->ghost_owner[g] = k;
+                    memcpy(s->ghost_shift[g], u, sizeof u);
+                    s->images[s->n + g] = image_box(s, k, u);
+                    g++;
+                }
+    }
+    return BPX_OK;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Deciding a candidate
+
+typedef struct found {
+    bpx_image_pair pair;
+    double distance;
+} found;
+
+// Whether object i and object j shifted by shift periods are within the cutoff, on the input
+// coordinates; *distance receives the metric's distance when wanted.
+static bool within(const search *s, uint32_t i, uint32_t j, const int32_t shift[3],
+                   double *distance)
+{
+    double lo_i[3], hi_i[3], lo_j[3], hi_j[3];
+    object_box(&s->in, i, lo_i, hi_i);
+    object_box(&s->in, j, lo_j, hi_j);
+    double c = s->def->cutoff;
+    double gap_max = -INFINITY, sum_squares = 0;
+    for (int a = 0; a < 3; a++) {
+        // The shift in two parts, p_hi + p_lo == shift * L exactly.
+        double p_hi = (double)shift[a] * s->period[a];
+        double p_lo = fma((double)shift[a], s->period[a], -p_hi);
+        if (s->def->metric == BPX_METRIC_BOX) {
+            // j's image min - hi_i <= c and lo_i - j's image max <= c, as real numbers.
+            double above[5] = {c, hi_i[a], -lo_j[a], -p_hi, -p_lo};
+            double below[5] = {c, hi_j[a], p_hi, p_lo, -lo_i[a]};
+            if (bpx__exact_sign(above, 5) < 0 || bpx__exact_sign(below, 5) < 0)
+                return false;
+        }
+        double gap = fmax((lo_j[a] + p_hi) - hi_i[a], lo_i[a] - (hi_j[a] + p_hi));
+        gap_max = fmax(gap_max, gap);
+        if (gap > 0)
+            sum_squares += gap * gap;
+    }
+    if (s->def->metric == BPX_METRIC_EUCLIDEAN) {
+        if (!(sum_squares <= c * c))
+            return false;
+        *distance = sqrt(sum_squares);
+    } else {
+        *distance = gap_max > 0 ? gap_max : 0;
+    }
+    return true;
+}
+
+static int compare_found(const void *pa, const void *pb)
+{
+    const bpx_image_pair *a = &((const found *)pa)->pair, *b = &((const found *)pb)->pair;
+    if (a->i != b->i)
+        return a->i < b->i ? -1 : 1;
+    if (a->j != b->j)
+        return a->j < b->j ? -1 : 1;
+    for (int x = 0; x < 3; x++)
+        if (a->shift[x] != b->shift[x])
+            return a->shift[x] < b->shift[x] ? -1 : 1;
+    return 0;
+}
+
+// A growable list of found pairs, for the pairs with an image.
+typedef struct found_list {
+    found *items;
+    size_t count, capacity;
+} found_list;
+
+static bool push(found_list *list, found item)
+{
+    if (list->count == list->capacity) {
+        size_t grown = list->capacity ? 2 * list->capacity : 1024;
+        if (!bpx__grow((void **)&list->items, list->capacity * sizeof(found),
+                       grown * sizeof(found)))
+            return false;
+        list->capacity = grown;
+    }
+    list->items[list->count++] = item;
+    return true;
+}
+
+// Grows the result's arrays to hold at least `needed` pairs.
+static bool reserve(bpx_neighbor_list *list, size_t needed, bool want_distances)
+{
+    if (needed <= list->capacity)
+        return true;
+    size_t grown = list->capacity ? 2 * list->capacity : 4096;
+    if (grown < needed)
+        grown = needed;
+    bpx_image_pair *pairs = bpx__alloc(grown * sizeof *pairs);
+    double *distances = want_distances ? bpx__alloc(grown * sizeof *distances) : NULL;
+    if (!pairs || (want_distances && !distances)) {
+        bpx__free(pairs, grown * sizeof *pairs);
+        bpx__free(distances, grown * sizeof *distances);
+        return false;
+    }
+    if (list->count) {
+        memcpy(pairs, list->pairs, list->count * sizeof *pairs);
+        if (want_distances)
+            memcpy(distances, list->distances, list->count * sizeof *distances);
+    }
+    size_t count = list->count;
+    bpx_neighbor_list_free(list);
+    *list = (bpx_neighbor_list){count, pairs, distances, grown};
+    return true;
+}
+
+// Decides the candidates: pairs of objects themselves go straight to the result (already in
+// (i, j) order, as the backend emits them), pairs with an image to `imaged`, sorted at the end.
+static bpx_status decide(const search *s, const bpx_pair *candidates, size_t count,
+                         bpx_neighbor_list *list, found_list *imaged)
+{
+    bool want = s->def->want_distances;
+    for (size_t c = 0; c < count; c++) {
+        uint32_t a = candidates[c].i, b = candidates[c].j;
+        static const int32_t zero[3] = {0, 0, 0};
+        uint32_t i = a < s->n ? a : s->ghost_owner[a - s->n];
+        uint32_t j = b < s->n ? b : s->ghost_owner[b - s->n];
+        const int32_t *u_a = a < s->n ? zero : s->ghost_shift[a - s->n];
+        const int32_t *u_b = b < s->n ? zero : s->ghost_shift[b - s->n];
+        int32_t shift[3] = {0, 0, 0};
+        bool kept = true;
+        for (int x = 0; x < 3 && s->wrap; x++) {
+            if ((u_a[x] > u_b[x] ? u_a[x] : u_b[x]) != 0)
+                kept = false;
+            shift[x] = u_b[x] - u_a[x] + s->wrap[i][x] - s->wrap[j][x];
+        }
+        if (!kept)
+            continue;
+        bool flip = i > j;
+        if (i == j)
+            for (int x = 0; x < 3; x++)
+                if (shift[x] != 0) {
+                    flip = shift[x] < 0;
+                    break;
+                }
+        found f;
+        f.pair.i = flip ? j : i;
+        f.pair.j = flip ? i : j;
+        for (int x = 0; x < 3; x++)
+            f.pair.shift[x] = flip ? -shift[x] : shift[x];
+        if (!within(s, f.pair.i, f.pair.j, f.pair.shift, &f.distance))
+            continue;
+        bool stored;
+        if (a < s->n && b < s->n) {
+            stored = reserve(list, list->count + 1, want);
+            if (stored) {
+                list->pairs[list->count] = f.pair;
+                if (want)
+                    list->distances[list->count] = f.distance;
+                list->count++;
+            }
+        } else {
+            stored = push(imaged, f);
+        }
+        if (!stored)
+            return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for the pairs found");
+    }
+    return BPX_OK;
+}
+
+// Merges the sorted pairs with images into the result, from the back, in place.
+static bpx_status merge_imaged(const search *s, found_list *imaged, bpx_neighbor_list *list)
+{
+    if (imaged->count == 0)
+        return BPX_OK;
+    qsort(imaged->items, imaged->count, sizeof(found), compare_found);
+    bool want = s->def->want_distances;
+    size_t total = list->count + imaged->count;
+    if (!reserve(list, total, want))
+        return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %zu pairs", total);
+    size_t p = list->count, q = imaged->count, k = total;
+    while (q > 0) {
+        found last = imaged->items[q - 1];
+        found mine = {.pair = p > 0 ? list->pairs[p - 1] : last.pair};
+        if (p > 0 && compare_found(&mine, &last) > 0) {
+            p--;
+            list->pairs[--k] = list->pairs[p];
+            if (want)
+                list->distances[k] = list->distances[p];
+        } else {
+            q--;
+            list->pairs[--k] = last.pair;
+            if (want)
+                list->distances[k] = last.distance;
+        }
+    }
+    list->count = total;
+    return BPX_OK;
+}
+
+static void free_search(search *s)
+{
+    bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
+    bpx__free(s->ghost_owner, (size_t)s->ghost_count * sizeof *s->ghost_owner);
+    bpx__free(s->ghost_shift, (size_t)s->ghost_count * sizeof *s->ghost_shift);
+    bpx__free(s->images, ((size_t)s->n + s->ghost_count) * sizeof *s->images);
+}
+
+// The candidates from a world of the images, decided into the list.
+static bpx_status run(search *s, bpx_neighbor_list *list)
+{
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = s->def->backend;
+    def.worker_count = s->def->worker_count;
+    def.capacity_hint = s->n + s->ghost_count;
+    bpx_world *w;
+    bpx_status status = bpx_world_create(&def, &w);
+    if (status != BPX_OK)
+        return bpx__error(s->err, status, UINT32_MAX, -1, "%s (backend %s)",
+                          bpx_status_string(status), bpx_backend_name(def.backend));
+    status = bpx_world_set_boxes(w, s->images, s->n + s->ghost_count);
+    if (status == BPX_OK)
+        status = bpx_world_collide(w);
+    if (status != BPX_OK) {
+        if (s->err)
+            *s->err = *bpx_world_error(w);
+        bpx_world_destroy(w);
+        return status;
+    }
+    size_t count;
+    const bpx_pair *candidates = bpx_world_pairs(w, &count);
+    found_list imaged = {0};
+    status = decide(s, candidates, count, list, &imaged);
+    bpx_world_destroy(w);
+    if (status == BPX_OK)
+        status = merge_imaged(s, &imaged, list);
+    bpx__free(imaged.items, imaged.capacity * sizeof(found));
+    if (status != BPX_OK)
+        bpx_neighbor_list_free(list);
+    return status;
+}
+
+bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uint32_t n,
+                              bpx_neighbor_list *list, bpx_error *err)
+{
+    bpx__error_clear(err);
+    if (!list)
+        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "list is NULL");
+    *list = (bpx_neighbor_list){0};
+    if (!def || (!data && n > 0))
+        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
+                          "def is NULL, or data is NULL with n > 0");
+    if (n > BPX_MAX_BOXES)
+        return bpx__error(err, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
+                          "%u objects exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
+    bpx_status status = check_def(def, err);
+    if (status != BPX_OK || n == 0)
+        return status;
+    search s = {.def = def, .in = {data, def->format}, .n = n, .err = err};
+    for (int a = 0; a < 3; a++) {
+        s.period[a] = def->period[a];
+        s.periodic |= def->period[a] > 0;
+    }
+    if (s.periodic && !(s.wrap = bpx__alloc((size_t)n * sizeof *s.wrap)))
+        return bpx__error(err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u objects", n);
+    uint64_t ghosts = 0;
+    status = check_objects(&s, &ghosts);
+    if (status == BPX_OK) {
+        s.ghost_count = (uint32_t)ghosts;
+        status = make_images(&s);
+    }
+    if (status == BPX_OK)
+        status = run(&s, list);
+    free_search(&s);
+    return status;
+}
+
+bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend backend,
+                              bpx_pair *out, size_t capacity, size_t *count, bpx_error *err)
+{
+    bpx__error_clear(err);
+    if (!count || (!out && capacity > 0))
+        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
+                          "count is NULL, or out is NULL with capacity > 0");
+    *count = 0;
+    bpx_neighbor_def def = bpx_default_neighbor_def();
+    def.format = BPX_BOXES_F64;
+    def.backend = backend;
+    bpx_neighbor_list list;
+    bpx_status status = bpx_find_neighbors(&def, boxes, n, &list, err);
+    if (status != BPX_OK)
+        return status;
+    *count = list.count;
+    if (list.count > capacity) {
+        bpx_neighbor_list_free(&list);
+        return BPX_ERR_CAPACITY;
+    }
+    for (size_t k = 0; k < list.count; k++)
+        out[k] = (bpx_pair){list.pairs[k].i, list.pairs[k].j};
+    bpx_neighbor_list_free(&list);
+    return BPX_OK;
+}
