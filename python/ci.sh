@@ -9,6 +9,7 @@ trap 'rm -rf "$work"' EXIT
 export CMAKE_BUILD_PARALLEL_LEVEL="${CMAKE_BUILD_PARALLEL_LEVEL:-2}"
 export PIP_DISABLE_PIP_VERSION_CHECK=1
 python3 -m venv "$work/venv"
-"$work/venv/bin/python" -m pip install -q pytest scikit-build-core
+# scipy and ase: the neighbour lists are checked against cKDTree and ASE's neighbour list
+"$work/venv/bin/python" -m pip install -q pytest scikit-build-core scipy ase
 "$work/venv/bin/python" -m pip install -q .
 "$work/venv/bin/python" -m pytest -q -p no:cacheprovider tests

@@ -125,7 +125,7 @@ PyObject *new_bytes(size_t size, char **data)
     return out;
 }
 
-static int backend_from_name(const char *where, const char *name, bpx_backend *backend)
+int backend_from_name(const char *where, const char *name, bpx_backend *backend)
 {
     if (bpx_backend_from_name(name, backend) == BPX_OK)
         return 0;
@@ -1038,6 +1038,9 @@ static PyTypeObject WorldType = {
 
 static PyMethodDef module_methods[] = {
     {"find_pairs", py_find_pairs, METH_VARARGS, find_pairs_doc},
+    {"find_neighbors", py_find_neighbors, METH_VARARGS,
+     "find_neighbors(where, data, format, period, cutoff, metric, want_distances, pairs_only, "
+     "backend, threads) -> (pairs bytearray, distances bytearray or None)"},
     {"backends", py_backends, METH_NOARGS, "[(name, available, reason, detail)]"},
     {"simd_widths", py_simd_widths, METH_NOARGS, "[(name, supported, lanes)]"},
     {"_last_input_address", py_last_input_address, METH_NOARGS,

@@ -32,11 +32,20 @@ PyObject *raise_status(const char *where, bpx_status status, const char *message
 /// 'i' int32, 'Q' uint64); on failure raises and returns -1 with nothing held.
 int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_row, Py_buffer *view,
              uint32_t *rows);
+/// Parses a backend name; on failure raises UnknownBackendError listing the names, returns -1.
+int backend_from_name(const char *where, const char *name, bpx_backend *backend);
 /// A new uninitialised bytearray of size bytes; *data receives its memory.
 PyObject *new_bytes(size_t size, char **data);
 /// Takes the world's lock (StateError once closed); world_leave gives it back.
 int world_enter(WorldObject *self, const char *where);
 void world_leave(WorldObject *self);
+
+// neighbors.c
+
+/// find_neighbors(where, data, format, (px, py, pz), cutoff, metric, want_distances, pairs_only,
+/// backend, threads) -> (pairs, distances or None): bpx_find_neighbors over a float32 or float64
+/// buffer, pairs as bpx_image_pair rows (or bpx_pair rows when pairs_only), as bytearrays.
+PyObject *py_find_neighbors(PyObject *module, PyObject *args);
 
 // query.c
 

@@ -26,6 +26,11 @@ Queries on a world's boxes::
     world.ray_cast(origin, direction, any=True)   # some hit (the first found), or None
     world.ray_cast_batch(origins, directions, all=True)   # CSR: (offsets, ids, fractions)
 
+Neighbour lists over a periodic cell (points or boxes, float64 exact)::
+
+    nl = bpx.neighbor_pairs(positions, cutoff=1.2, cell=[10, 10, 10])
+    nl.i, nl.j, nl.shifts, nl.distances    # pairs i < j, image shifts, distances
+
 Filtering inside the broad phase: ``world.set_filters``, ``world.set_groups`` (Box2D's groups),
 ``world.exclude_pairs``; and a uint64 per box, ``world.set_user_data``.
 
@@ -58,12 +63,15 @@ from ._errors import (
     TooManyPairsError,
     UnknownBackendError,
 )
+from ._neighbors import Neighbors, neighbor_pairs
 from ._query import BatchHits, BatchIds, Hit, Hits, QueryStats
 from ._world import PairEvents, Stats, World
 
 __version__ = _c_version
 __all__ = [
     "find_pairs",
+    "neighbor_pairs",
+    "Neighbors",
     "World",
     "Stats",
     "PairEvents",

@@ -10,7 +10,7 @@ resolution may pair as touching.
 
 from __future__ import annotations
 
-from typing import Any, Optional, Tuple
+from typing import Any, Callable, Optional, Tuple
 
 import numpy as np
 
@@ -45,10 +45,15 @@ def as_float32(array: np.ndarray) -> Tuple[np.ndarray, bool]:
 
 
 def boxes_array(
-    boxes: Any, what: str = "boxes", mins: Any = None, maxs: Any = None
+    boxes: Any,
+    what: str = "boxes",
+    mins: Any = None,
+    maxs: Any = None,
+    convert: Callable[[np.ndarray], Tuple[np.ndarray, bool]] = as_float32,
 ) -> Tuple[np.ndarray, bool]:
-    """Boxes as an (n, 6) C-contiguous float32 array [min x, y, z, max x, y, z] (bpx_box's
-    layout), and whether it is a converted copy.
+    """Boxes as an (n, 6) C-contiguous array [min x, y, z, max x, y, z] (bpx_box's layout) of
+    what ``convert`` makes of them (float32 by default), and the bool it returns (for
+    as_float32: whether the array is a converted copy).
 
     Takes (n, 6), (n, 2, 3) (row 0 the minimum corner), or separate (n, 3) ``mins`` and
     ``maxs`` (always one copy: the two are interleaved).
@@ -58,35 +63,40 @@ def boxes_array(
             raise InvalidArgumentError(f"{what}: give boxes, or mins and maxs, not both")
         if mins is None or maxs is None:
             raise InvalidArgumentError(f"{what}: mins and maxs go together")
-        lo = vec3_array(mins, "mins")[0]
-        hi = vec3_array(maxs, "maxs")[0]
+        lo = _rows_of_3(mins, "mins")
+        hi = _rows_of_3(maxs, "maxs")
         if lo.shape != hi.shape:
             raise InvalidArgumentError(
                 f"{what}: mins has shape {lo.shape} but maxs has shape {hi.shape}"
             )
-        return np.concatenate([lo, hi], axis=1), True
+        out, flag = convert(np.concatenate([lo, hi], axis=1))
+        return out, flag or convert is as_float32
     if boxes is None:
         raise InvalidArgumentError(f"{what}: no boxes given")
     array = _asarray(boxes, what)
     _check_real(array, what, "coordinates")
     if array.ndim == 3 and array.shape[1:] == (2, 3):
         # Made contiguous first, so that the reshape is a view and the conversion one copy.
-        out, converted = as_float32(array)
-        return out.reshape(out.shape[0], 6), converted
+        out, flag = convert(array)
+        return out.reshape(out.shape[0], 6), flag
     if array.ndim != 2 or array.shape[1] != 6:
         raise InvalidArgumentError(
             f"{what}: expected shape (n, 6) or (n, 2, 3), got {array.shape}"
         )
-    return as_float32(array)
+    return convert(array)
 
 
-def vec3_array(values: Any, what: str) -> Tuple[np.ndarray, bool]:
-    """Three floats per object (extents, centres) as (n, 3) C-contiguous float32."""
+def _rows_of_3(values: Any, what: str) -> np.ndarray:
     array = _asarray(values, what)
     _check_real(array, what, "coordinates")
     if array.ndim != 2 or array.shape[1] != 3:
         raise InvalidArgumentError(f"{what}: expected shape (n, 3), got {array.shape}")
-    return as_float32(array)
+    return array
+
+
+def vec3_array(values: Any, what: str) -> Tuple[np.ndarray, bool]:
+    """Three floats per object (extents, centres) as (n, 3) C-contiguous float32."""
+    return as_float32(_rows_of_3(values, what))
 
 
 def uint32_array(values: Any, what: str, count: Optional[int] = None) -> np.ndarray:

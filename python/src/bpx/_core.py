@@ -85,9 +85,11 @@ def find_pairs(
 
     Args:
         boxes: (n, 6) [min x, min y, min z, max x, max y, max z] or (n, 2, 3) [[min], [max]].
-            A C-contiguous float32 array is read where it lies, without a copy; any other
-            real dtype or layout is converted to float32 once (rounding is monotone: no
-            float64 overlap is lost).
+            A C-contiguous float32 array is read where it lies, without a copy. float64 (and
+            integers wider than 16 bits, up to 2^53) are answered exactly on their own values:
+            the float32 comparator on boxes rounded outward, then each candidate decided in
+            float64, so boxes one float64 ulp apart do not pair. float16 and small integers
+            are converted to float32, exactly.
         backend: "auto" (default), "reference", "brute", "prune", "sap", "grid", "model",
             "opencl", "cuda", "hybrid", "rtl" (the chip's RTL simulated, at most 512 boxes; not
             in the wheel): see ``bpx.backends()``.
@@ -107,14 +109,16 @@ def find_pairs(
 
     The GIL is released while bpx works, so other Python threads run meanwhile.
     """
-    array, converted = boxes_array(boxes, "find_pairs: boxes", mins, maxs)
+    from ._neighbors import exact_array, exact_pairs
+
+    array, f64 = boxes_array(boxes, "find_pairs: boxes", mins, maxs, convert=exact_array)
     backend = check_backend(backend, "find_pairs")
     if threads is None:
         threads = usable_cpus() if array.shape[0] >= _THREADED_FROM else 1
     threads = check_threads(threads, "find_pairs")
-    with converted_note(converted):
-        data = _bpx.find_pairs(array, backend, threads)
-    return pairs_from_bytes(data)
+    if f64:
+        return exact_pairs(array, backend, threads)
+    return pairs_from_bytes(_bpx.find_pairs(array, backend, threads))
 
 
 @contextmanager

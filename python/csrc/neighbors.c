@@ -1,0 +1,114 @@
+// bpx for Python: bpx_find_neighbors (periodic images, cutoffs, float64 input) for the
+// package's neighbor_pairs and its exact float64 find_pairs. SPDX-License-Identifier: MIT
+#include "_bpx.h"
+
+#include <string.h>
+
+// Borrows obj as C-contiguous rows of `per_row` float32 ('f') or float64 ('d') items.
+static int get_float_rows(const char *where, PyObject *obj, char kind, Py_ssize_t per_row,
+                          Py_buffer *view, uint32_t *rows)
+{
+    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) != 0)
+        return -1;
+    const char *format = view->format ? view->format : "B";
+    if (format[0] == '<' || format[0] == '=' || format[0] == '@')
+        format++;
+    Py_ssize_t item_size = kind == 'd' ? 8 : 4;
+    Py_ssize_t row_bytes = per_row * item_size;
+    if (strlen(format) != 1 || format[0] != kind || view->itemsize != item_size ||
+        view->len % row_bytes != 0) {
+        char message[160];
+        snprintf(message, sizeof message,
+                 "expected a C-contiguous %s buffer of %zd items per row, got format '%s', "
+                 "%zd bytes",
+                 kind == 'd' ? "float64" : "float32", per_row, view->format, view->len);
+        PyBuffer_Release(view);
+        raise_status(where, BPX_ERR_INVALID_ARGUMENT, message);
+        return -1;
+    }
+    Py_ssize_t count = view->len / row_bytes;
+    if ((size_t)count > BPX_MAX_BOXES) {
+        char message[96];
+        snprintf(message, sizeof message, "%zd rows exceed BPX_MAX_BOXES (%u)", count,
+                 BPX_MAX_BOXES);
+        PyBuffer_Release(view);
+        raise_status(where, BPX_ERR_TOO_MANY_BOXES, message);
+        return -1;
+    }
+    *rows = (uint32_t)count;
+    return 0;
+}
+
+// The list's pairs as a bytearray: bpx_image_pair rows (20 bytes), or just (i, j) (8 bytes).
+static PyObject *pairs_bytes(const bpx_neighbor_list *list, int pairs_only)
+{
+    char *data = NULL;
+    size_t row = pairs_only ? sizeof(bpx_pair) : sizeof(bpx_image_pair);
+    PyObject *out = new_bytes(list->count * row, &data);
+    if (!out || list->count == 0)
+        return out;
+    if (!pairs_only) {
+        memcpy(data, list->pairs, list->count * row);
+        return out;
+    }
+    bpx_pair *pairs = (bpx_pair *)data;
+    for (size_t k = 0; k < list->count; k++)
+        pairs[k] = (bpx_pair){list->pairs[k].i, list->pairs[k].j};
+    return out;
+}
+
+PyObject *py_find_neighbors(PyObject *module, PyObject *args)
+{
+    (void)module;
+    const char *where;
+    PyObject *obj;
+    bpx_neighbor_def def = bpx_default_neighbor_def();
+    int format, metric, want_distances, pairs_only;
+    const char *backend_name;
+    if (!PyArg_ParseTuple(args, "sOi(ddd)dippsi", &where, &obj, &format, &def.period[0],
+                          &def.period[1], &def.period[2], &def.cutoff, &metric, &want_distances,
+                          &pairs_only, &backend_name, &def.worker_count))
+        return NULL;
+    if (format < BPX_BOXES_F32 || format > BPX_POINTS_F64)
+        return raise_status(where, BPX_ERR_INVALID_ARGUMENT, "unknown input format");
+    def.format = (bpx_input_format)format;
+    def.metric = (bpx_metric)metric;
+    def.want_distances = want_distances != 0;
+    if (backend_from_name(where, backend_name, &def.backend) != 0)
+        return NULL;
+    bool f64 = format == BPX_BOXES_F64 || format == BPX_POINTS_F64;
+    bool points = format == BPX_POINTS_F32 || format == BPX_POINTS_F64;
+    Py_buffer view;
+    uint32_t n;
+    if (get_float_rows(where, obj, f64 ? 'd' : 'f', points ? 3 : 6, &view, &n) != 0)
+        return NULL;
+    bpx_neighbor_list list;
+    bpx_error err = {0};
+    bpx_status status;
+    Py_BEGIN_ALLOW_THREADS
+    status = bpx_find_neighbors(&def, view.buf, n, &list, &err);
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&view);
+    if (status != BPX_OK)
+        return raise_error(where, &err);
+    PyObject *pairs = pairs_bytes(&list, pairs_only);
+    PyObject *distances = NULL;
+    if (pairs && want_distances) {
+        char *data = NULL;
+        distances = new_bytes(list.count * sizeof(double), &data);
+        if (distances && list.count)
+            memcpy(data, list.distances, list.count * sizeof(double));
+    } else if (pairs) {
+        distances = Py_NewRef(Py_None);
+    }
+    bpx_neighbor_list_free(&list);
+    if (!pairs || !distances) {
+        Py_XDECREF(pairs);
+        Py_XDECREF(distances);
+        return NULL;
+    }
+    PyObject *out = PyTuple_Pack(2, pairs, distances);
+    Py_DECREF(pairs);
+    Py_DECREF(distances);
+    return out;
+}

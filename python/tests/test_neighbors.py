@@ -1,0 +1,169 @@
+"""neighbor_pairs and exact float64 find_pairs, against a NumPy brute force over every image,
+scipy's cKDTree with boxsize and ASE's neighbour list on the same atoms."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+import bpx
+
+
+def brute_force(points, cutoff, period):
+    """Every (i <= j, shift) with |p_j + shift * L - p_i| <= cutoff, in float64."""
+    points = np.asarray(points, dtype=np.float64)
+    period = np.asarray(period, dtype=np.float64)
+    reach = [int(np.ceil(cutoff / L)) + 1 if L > 0 else 0 for L in period]
+    # the points need not be in the cell: shifts cover where they are too
+    span = np.ptp(points, axis=0) if len(points) else np.zeros(3)
+    reach = [r + (int(np.ceil(s / L)) if L > 0 else 0) for r, s, L in zip(reach, span, period)]
+    out = {}
+    for shift in itertools.product(*[range(-r, r + 1) for r in reach]):
+        shift = np.array(shift)
+        image = points + shift * period
+        d = np.linalg.norm(image[None, :, :] - points[:, None, :], axis=2)
+        for i, j in zip(*np.nonzero(d <= cutoff)):
+            if i > j or (i == j and tuple(shift) <= (0, 0, 0)):
+                continue
+            out[(int(i), int(j), *map(int, shift))] = d[i, j]
+    return out
+
+
+def as_dict(nl):
+    return {
+        (int(i), int(j), *map(int, s)): d
+        for i, j, s, d in zip(nl.i, nl.j, nl.shifts, nl.distances)
+    }
+
+
+@pytest.mark.parametrize("cutoff", [0.0, 0.7, 2.5, 4.0, 7.0])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_against_brute_force(cutoff, dtype):
+    rng = np.random.default_rng(int(cutoff * 10))
+    period = np.array([5.0, 5.0, 0.0])  # z open; cutoffs up to past the cell
+    points = rng.uniform(-6, 11, size=(40, 3)).astype(dtype)  # not wrapped
+    points[:5, 0] = 0.0  # on a face
+    points[5:8, 0] = 5.0
+    nl = bpx.neighbor_pairs(points, cutoff, cell=[5, 5, 1], pbc=[True, True, False], vectors=True)
+    want = brute_force(points, cutoff, period)
+    got = as_dict(nl)
+    assert got.keys() == want.keys()
+    for key, d in want.items():
+        assert got[key] == pytest.approx(d, rel=1e-12, abs=1e-12)
+    # sorted by (i, j, shift), vectors consistent with the distances
+    keys = list(zip(nl.i, nl.j, *nl.shifts.T))
+    assert keys == sorted(keys)
+    assert np.allclose(np.linalg.norm(nl.vectors, axis=1), nl.distances)
+
+
+def test_against_ckdtree():
+    spatial = pytest.importorskip("scipy.spatial")
+    rng = np.random.default_rng(3)
+    L = 12.0
+    points = rng.uniform(0, L, size=(3000, 3))
+    cutoff = 1.3
+    nl = bpx.neighbor_pairs(points, cutoff, cell=L)
+    tree = spatial.cKDTree(points, boxsize=L)
+    want = tree.query_pairs(cutoff, output_type="ndarray")
+    want = want[np.lexsort((want[:, 1], want[:, 0]))]
+    assert np.array_equal(nl.pairs.astype(np.int64), want)
+    # The distances are the minimum-image ones (the cutoff is under half the cell).
+    diff = points[want[:, 1]] - points[want[:, 0]]
+    diff -= L * np.round(diff / L)
+    assert np.allclose(nl.distances, np.linalg.norm(diff, axis=1), rtol=1e-12, atol=1e-12)
+
+
+def test_against_ase():
+    ase = pytest.importorskip("ase")
+    from ase.neighborlist import neighbor_list
+
+    rng = np.random.default_rng(5)
+    cell = np.diag([4.0, 5.0, 6.0])
+    atoms = ase.Atoms("H" * 60, positions=rng.uniform(0, 1, (60, 3)) @ cell, cell=cell, pbc=True)
+    for cutoff in (1.5, 3.0, 7.5):  # past half the cell and past the cell: several images
+        i, j, S, d = neighbor_list("ijSd", atoms, cutoff)
+        keep = (i < j) | ((i == j) & [tuple(s) > (0, 0, 0) for s in S])
+        want = {(a, b, *map(int, s)): x for a, b, s, x in zip(i[keep], j[keep], S[keep], d[keep])}
+        nl = bpx.neighbor_pairs(atoms.positions, cutoff, cell=atoms.cell.array)
+        got = as_dict(nl)
+        # ASE keeps pairs strictly below the cutoff; bpx keeps those at it too.
+        assert {k for k, v in got.items() if v < cutoff} == want.keys()
+        for key, x in want.items():
+            assert got[key] == pytest.approx(x, rel=1e-12)
+
+
+def test_boxes_box_metric():
+    rng = np.random.default_rng(9)
+    lo = rng.uniform(0, 8, size=(50, 3))
+    boxes = np.concatenate([lo, lo + rng.uniform(0, 1.5, size=(50, 3))], axis=1)
+    nl = bpx.neighbor_pairs(boxes, 0.25, cell=8)
+    got = {(int(i), int(j), *map(int, s)) for i, j, s in zip(nl.i, nl.j, nl.shifts)}
+    want = set()
+    for i in range(50):
+        for j in range(i, 50):
+            for s in itertools.product(range(-2, 3), repeat=3):
+                if i == j and s <= (0, 0, 0):
+                    continue
+                sh = np.array(s) * 8.0
+                gap = np.maximum(boxes[j, :3] + sh - boxes[i, 3:], boxes[i, :3] - boxes[j, 3:] - sh)
+                if gap.max() <= 0.25:
+                    want.add((i, j, *s))
+    assert got == want
+    assert np.all(nl.distances <= 0.25)
+
+
+def test_float64_exact():
+    x = 1e6
+    up = np.nextafter(x, 2 * x)
+    boxes = np.array([[x / 2, 0, 0, x, 1, 1], [up, 0, 0, 2 * x, 1, 1]])
+    assert bpx.find_pairs(boxes).shape == (0, 2)  # one float64 ulp apart
+    assert bpx.find_pairs(boxes.astype(np.float32)).tolist() == [[0, 1]]  # float32 merges them
+    tiny = np.array([[0, 0, 0, 1e-30, 1, 1], [np.nextafter(1e-30, 1), 0, 0, 1, 1, 1]])
+    assert bpx.find_pairs(tiny).shape == (0, 2)
+    ints = np.array([[16777217, 0, 0, 16777217, 0, 0], [0, 0, 0, 16777216, 0, 0]])
+    assert bpx.find_pairs(ints).shape == (0, 2)  # 2^24 + 1 is not 2^24
+    touching = np.array([[0, 0, 0, 2**40, 1, 1], [2**40, 0, 0, 2**41, 1, 1]], dtype=np.int64)
+    assert bpx.find_pairs(touching).tolist() == [[0, 1]]
+    with pytest.raises(bpx.InvalidArgumentError, match="2\\^53"):
+        bpx.find_pairs(np.array([[0, 0, 0, 2**53 + 1, 1, 1]], dtype=np.int64))
+    # points one ulp across a periodic face
+    L = 1e6
+    points = np.array([[np.nextafter(L, 0), 0, 0], [0, 0, 0]])
+    assert len(bpx.neighbor_pairs(points, 0.0, cell=[L, 0, 0], pbc=[True, False, False]).i) == 0
+    nl = bpx.neighbor_pairs(points, L - np.nextafter(L, 0), cell=[L, 1, 1], pbc=[1, 0, 0],
+                            metric="box")
+    assert nl.pairs.tolist() == [[0, 1]] and nl.shifts.tolist() == [[1, 0, 0]]
+
+
+def test_empty_and_open():
+    nl = bpx.neighbor_pairs(np.zeros((0, 3)), 1.0, cell=5)
+    assert nl.pairs.shape == (0, 2) and nl.shifts.shape == (0, 3) and len(nl.distances) == 0
+    nl = bpx.neighbor_pairs([[0, 0, 0], [1, 0, 0], [3, 0, 0]], 1.0)  # no cell: open
+    assert nl.pairs.tolist() == [[0, 1]] and nl.shifts.tolist() == [[0, 0, 0]]
+    assert nl.distances.tolist() == [1.0]
+
+
+@pytest.mark.parametrize(
+    "cell, match",
+    [(0.0, "length"), (-1.0, "length"), (float("nan"), "length"),
+     ([[1, 0.5, 0], [0, 1, 0], [0, 0, 1]], "triclinic"), ([1, 2], "shape")],
+)
+def test_bad_cells(cell, match):
+    with pytest.raises(bpx.InvalidArgumentError, match=match):
+        bpx.neighbor_pairs([[0, 0, 0]], 1.0, cell=cell)
+
+
+def test_bad_arguments():
+    with pytest.raises(bpx.InvalidArgumentError, match="cutoff"):
+        bpx.neighbor_pairs([[0, 0, 0]], -1.0, cell=2)
+    with pytest.raises(bpx.InvalidArgumentError, match="cutoff"):
+        bpx.neighbor_pairs([[0, 0, 0]], float("nan"))
+    with pytest.raises(bpx.InvalidArgumentError, match="no cell"):
+        bpx.neighbor_pairs([[0, 0, 0]], 1.0, pbc=[True, False, False])
+    with pytest.raises(bpx.InvalidArgumentError, match="metric"):
+        bpx.neighbor_pairs([[0, 0, 0]], 1.0, metric="manhattan")
+    with pytest.raises(bpx.NotFiniteError) as info:
+        bpx.neighbor_pairs([[0, 0, 0], [0, np.inf, 0]], 1.0)
+    assert info.value.index == 1 and info.value.axis == 1
+    with pytest.raises(bpx.TooManyBoxesError):
+        bpx.neighbor_pairs(np.array([[0, 0, 0, 1, 1, 1.0]]), 0.0, cell=1e-12)
