@@ -20,7 +20,7 @@
 
 #include "../core/alloc.h"
 #include "../core/validate.h"
-#include "exact.h"
+#include "search.h"
 
 // Past this, an object is too far from the origin, or too large, counted in periods: shifts are
 // int32 and the sum of a wrap and an image shift must fit.
@@ -43,65 +43,6 @@ void bpx_neighbor_list_free(bpx_neighbor_list *list)
         bpx__free(list->distances, list->capacity * sizeof *list->distances);
     *list = (bpx_neighbor_list){0};
 }
-
-// ---------------------------------------------------------------------------------------------
-// The objects, as double boxes whatever the input format
-
-typedef struct source {
-    const void *data;
-    bpx_input_format format;
-} source;
-
-static inline void object_box(const source *in, uint32_t k, double lo[3], double hi[3])
-{
-    switch (in->format) {
-    case BPX_BOXES_F32: {
-        const bpx_box *b = (const bpx_box *)in->data + k;
-        for (int a = 0; a < 3; a++) {
-            lo[a] = b->min[a];
-            hi[a] = b->max[a];
-        }
-        return;
-    }
-    case BPX_BOXES_F64: {
-        const bpx_box64 *b = (const bpx_box64 *)in->data + k;
-        for (int a = 0; a < 3; a++) {
-            lo[a] = b->min[a];
-            hi[a] = b->max[a];
-        }
-        return;
-    }
-    case BPX_POINTS_F32: {
-        const float *p = (const float *)in->data + 3 * (size_t)k;
-        for (int a = 0; a < 3; a++)
-            lo[a] = hi[a] = p[a];
-        return;
-    }
-    default: {
-        const double *p = (const double *)in->data + 3 * (size_t)k;
-        for (int a = 0; a < 3; a++)
-            lo[a] = hi[a] = p[a];
-        return;
-    }
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// The search's state
-
-typedef struct search {
-    const bpx_neighbor_def *def;
-    source in;
-    uint32_t n;
-    double period[3];  // 0 on open axes
-    bool periodic;     // any axis
-    int32_t (*wrap)[3]; // per object: w (0 on open axes); NULL when nothing is periodic
-    uint32_t ghost_count;
-    uint32_t *ghost_owner;    // per image past n: its object
-    int32_t (*ghost_shift)[3]; // per image past n: u (<= 0)
-    bpx_box *images;          // n + ghost_count float32 boxes, rounded outward
-    bpx_error *err;
-} search;
 
 static float round_down(double x)
 {
@@ -276,40 +217,30 @@ typedef struct found {
     double distance;
 } found;
 
-// Whether object i and object j shifted by shift periods are within the cutoff, on the input
-// coordinates; *distance receives the metric's distance when wanted.
-static bool within(const search *s, uint32_t i, uint32_t j, const int32_t shift[3],
-                   double *distance)
+// within() on objects i and j as the input holds them.
+static bool within_objects(const search *s, uint32_t i, uint32_t j, const int32_t shift[3],
+                           double *distance)
 {
     double lo_i[3], hi_i[3], lo_j[3], hi_j[3];
     object_box(&s->in, i, lo_i, hi_i);
     object_box(&s->in, j, lo_j, hi_j);
-    double c = s->def->cutoff;
-    double gap_max = -INFINITY, sum_squares = 0;
-    for (int a = 0; a < 3; a++) {
-        // The shift in two parts, p_hi + p_lo == shift * L exactly.
-        double p_hi = (double)shift[a] * s->period[a];
-        double p_lo = fma((double)shift[a], s->period[a], -p_hi);
-        if (s->def->metric == BPX_METRIC_BOX) {
-            // j's image min - hi_i <= c and lo_i - j's image max <= c, as real numbers.
-            double above[5] = {c, hi_i[a], -lo_j[a], -p_hi, -p_lo};
-            double below[5] = {c, hi_j[a], p_hi, p_lo, -lo_i[a]};
-            if (bpx__exact_sign(above, 5) < 0 || bpx__exact_sign(below, 5) < 0)
-                return false;
-        }
-        double gap = fmax((lo_j[a] + p_hi) - hi_i[a], lo_i[a] - (hi_j[a] + p_hi));
-        gap_max = fmax(gap_max, gap);
-        if (gap > 0)
-            sum_squares += gap * gap;
-    }
-    if (s->def->metric == BPX_METRIC_EUCLIDEAN) {
-        if (!(sum_squares <= c * c))
-            return false;
-        *distance = sqrt(sum_squares);
-    } else {
-        *distance = gap_max > 0 ? gap_max : 0;
-    }
-    return true;
+    return bpx__within(s, lo_i, hi_i, lo_j, hi_j, shift, distance);
+}
+
+enum { PREFETCH_AHEAD = 16 };
+
+static inline void prefetch_object(const search *s, uint32_t image)
+{
+    uint32_t k = image < s->n ? image : s->ghost_owner[image - s->n];
+    size_t item = s->in.format == BPX_BOXES_F32 ? sizeof(bpx_box)
+                  : s->in.format == BPX_BOXES_F64 ? sizeof(bpx_box64)
+                  : s->in.format == BPX_POINTS_F32 ? 3 * sizeof(float)
+                                                   : 3 * sizeof(double);
+    const char *object = (const char *)s->in.data + item * k;
+    __builtin_prefetch(object);
+    __builtin_prefetch(object + item - 1);
+    if (s->wrap)
+        __builtin_prefetch(&s->wrap[k]);
 }
 
 static int compare_found(const void *pa, const void *pb)
@@ -345,7 +276,7 @@ static bool push(found_list *list, found item)
 }
 
 // Grows the result's arrays to hold at least `needed` pairs.
-static bool reserve(bpx_neighbor_list *list, size_t needed, bool want_distances)
+bool bpx__neighbors_reserve(bpx_neighbor_list *list, size_t needed, bool want_distances)
 {
     if (needed <= list->capacity)
         return true;
@@ -377,6 +308,10 @@ static bpx_status decide(const search *s, const bpx_pair *candidates, size_t cou
 {
     bool want = s->def->want_distances;
     for (size_t c = 0; c < count; c++) {
+        // The objects of a candidate a little ahead: its j is anywhere in memory, and waiting
+        // for each in turn was most of this loop's time.
+        if (c + PREFETCH_AHEAD < count)
+            prefetch_object(s, candidates[c + PREFETCH_AHEAD].j);
         uint32_t a = candidates[c].i, b = candidates[c].j;
         static const int32_t zero[3] = {0, 0, 0};
         uint32_t i = a < s->n ? a : s->ghost_owner[a - s->n];
@@ -404,11 +339,11 @@ static bpx_status decide(const search *s, const bpx_pair *candidates, size_t cou
         f.pair.j = flip ? i : j;
         for (int x = 0; x < 3; x++)
             f.pair.shift[x] = flip ? -shift[x] : shift[x];
-        if (!within(s, f.pair.i, f.pair.j, f.pair.shift, &f.distance))
+        if (!within_objects(s, f.pair.i, f.pair.j, f.pair.shift, &f.distance))
             continue;
         bool stored;
         if (a < s->n && b < s->n) {
-            stored = reserve(list, list->count + 1, want);
+            stored = bpx__neighbors_reserve(list, list->count + 1, want);
             if (stored) {
                 list->pairs[list->count] = f.pair;
                 if (want)
@@ -433,7 +368,7 @@ static bpx_status merge_imaged(const search *s, found_list *imaged, bpx_neighbor
     qsort(imaged->items, imaged->count, sizeof(found), compare_found);
     bool want = s->def->want_distances;
     size_t total = list->count + imaged->count;
-    if (!reserve(list, total, want))
+    if (!bpx__neighbors_reserve(list, total, want))
         return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %zu pairs", total);
     size_t p = list->count, q = imaged->count, k = total;
@@ -524,12 +459,20 @@ bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uin
                           "no memory for %u objects", n);
     uint64_t ghosts = 0;
     status = check_objects(&s, &ghosts);
-    if (status == BPX_OK) {
+    bool cells = false; // points with the auto backend: the cell list, where the cell allows
+    if (status == BPX_OK && def->backend == BPX_BACKEND_AUTO &&
+        (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64)) {
+        status = bpx__neighbors_cells(&s, list);
+        cells = status != BPX_ERR_BAD_STATE;
+        if (!cells)
+            status = BPX_OK;
+    }
+    if (status == BPX_OK && !cells) {
         s.ghost_count = (uint32_t)ghosts;
         status = make_images(&s);
+        if (status == BPX_OK)
+            status = run(&s, list);
     }
-    if (status == BPX_OK)
-        status = run(&s, list);
     free_search(&s);
     return status;
 }
