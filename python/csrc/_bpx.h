@@ -1,8 +1,8 @@
 // bpx for Python: what the extension module's C files share. SPDX-License-Identifier: MIT
 //
-// _bpx.c holds the errors, the buffers, the World type and the module; query.c the query
-// methods of World and the QUERY_* constants. Everything here has hidden visibility (the module
-// exports PyInit__bpx alone).
+// _bpx.c holds the errors, the buffers, the World type and the module; pairs.c what returns
+// pairs; query.c the query methods of World and the QUERY_* constants. Everything here has
+// hidden visibility (the module exports PyInit__bpx alone).
 #pragma once
 
 #define PY_SSIZE_T_CLEAN
@@ -37,6 +37,18 @@ PyObject *new_bytes(size_t size, char **data);
 /// Takes the world's lock (StateError once closed); world_leave gives it back.
 int world_enter(WorldObject *self, const char *where);
 void world_leave(WorldObject *self);
+
+// pairs.c
+
+/// Runs a cycle into a new bytearray of pairs (the world's lock held; the GIL released around
+/// bpx's work); TooManyPairsError when the count is past what one array can hold.
+PyObject *collide_to_bytes(const char *where, bpx_world *world);
+/// World.collide(), World.pairs(), World.events().
+PyObject *World_collide(WorldObject *self, PyObject *unused);
+PyObject *World_pairs(WorldObject *self, PyObject *unused);
+PyObject *World_events(WorldObject *self, PyObject *unused);
+/// _set_max_pairs(count) -> previous: lowers the pair limit for the tests (0: the real one).
+PyObject *py_set_max_pairs(PyObject *module, PyObject *arg);
 
 // query.c
 

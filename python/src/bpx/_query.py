@@ -12,7 +12,7 @@ from typing import Any, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from ._arrays import _asarray, _check_real, uint32_array
+from ._arrays import _asarray, _check_real, _no_rows, uint32_array
 from ._errors import InvalidArgumentError
 
 #: A query's category and mask when none are given: it sees every box whose mask is not 0
@@ -148,8 +148,8 @@ def one_scalar(value: Any, what: str) -> np.ndarray:
 
 
 def many_boxes(value: Any, what: str) -> np.ndarray:
-    """Boxes as (k, 6), from (k, 6) or (k, 2, 3), in their own dtype."""
-    array = _real(value, what)
+    """Boxes as (k, 6), from (k, 6) or (k, 2, 3), in their own dtype ([]: no boxes)."""
+    array = _no_rows(_real(value, what), 6)
     if array.ndim == 3 and array.shape[1:] == (2, 3):
         return array.reshape(array.shape[0], 6)
     if array.ndim != 2 or array.shape[1] != 6:
@@ -160,8 +160,8 @@ def many_boxes(value: Any, what: str) -> np.ndarray:
 
 
 def many_vec3(value: Any, what: str, count: Optional[int] = None) -> np.ndarray:
-    """(k, 3) vectors in their own dtype; count: the k they must have."""
-    array = _real(value, what)
+    """(k, 3) vectors in their own dtype ([]: none); count: the k they must have."""
+    array = _no_rows(_real(value, what), 3)
     if array.ndim != 2 or array.shape[1] != 3:
         raise InvalidArgumentError(f"{what}: expected shape (k, 3), got {array.shape}")
     if count is not None and array.shape[0] != count:
