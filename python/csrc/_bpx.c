@@ -9,8 +9,8 @@
 // a time (bpx.h), so each World holds a lock that its methods take; a second Python thread
 // calling the same World waits for the first instead of racing it.
 //
-// What returns pairs is in pairs.c, the query methods of World in query.c; _bpx.h is what the
-// files share.
+// The lock is in access.c, what returns pairs in pairs.c, the query methods of World in query.c
+// and prepared.c; _bpx.h is what the files share.
 #include "_bpx.h"
 
 #include <stdio.h>
@@ -308,37 +308,6 @@ static PyObject *py_simd_widths(PyObject *module, PyObject *unused)
 // ---------------------------------------------------------------------------------------------
 // World
 
-// Takes the world's lock, waiting with the GIL released if another thread has it. Fails with
-// bpx.StateError once the world is closed.
-int world_enter(WorldObject *self, const char *where)
-{
-    if (!self->lock) {
-        raise_status(where, BPX_ERR_BAD_STATE, "the world is not initialised");
-        return -1;
-    }
-    // From inside its own pair filter the lock is this thread's: waiting would never end.
-    if (self->filter_thread && self->filter_thread == PyThread_get_thread_ident()) {
-        raise_status(where, BPX_ERR_BAD_STATE, "called from the world's own pair filter");
-        return -1;
-    }
-    if (!PyThread_acquire_lock(self->lock, NOWAIT_LOCK)) {
-        Py_BEGIN_ALLOW_THREADS
-        PyThread_acquire_lock(self->lock, WAIT_LOCK);
-        Py_END_ALLOW_THREADS
-    }
-    if (!self->world) {
-        PyThread_release_lock(self->lock);
-        raise_status(where, BPX_ERR_BAD_STATE, "the world is closed");
-        return -1;
-    }
-    return 0;
-}
-
-void world_leave(WorldObject *self)
-{
-    PyThread_release_lock(self->lock);
-}
-
 static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
 {
     static const char where[] = "World";
@@ -413,8 +382,7 @@ static void World_dealloc(WorldObject *self)
     Py_CLEAR(self->pair_filter);
     for (int k = 0; k < 3; k++)
         Py_CLEAR(self->filter_error[k]);
-    if (self->lock)
-        PyThread_free_lock(self->lock);
+    world_access_free(self);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -424,6 +392,8 @@ static PyObject *World_close(WorldObject *self, PyObject *unused)
     if (!self->lock || !self->world)
         Py_RETURN_NONE;
     if (world_enter(self, "World.close") != 0) {
+        if (self->world)
+            return NULL; // from one of the world's own callbacks
         PyErr_Clear(); // closed by another thread meanwhile: closing twice is fine
         Py_RETURN_NONE;
     }
@@ -917,6 +887,12 @@ static PyMethodDef World_methods[] = {
      "query(kind, closest, any, params, categories, masks, batch): bpx_world_query(_batch)"},
     {"query_stats", (PyCFunction)World_query_stats, METH_NOARGS,
      "bpx_world_query_stats as a dict"},
+    {"prepare_queries", (PyCFunction)World_prepare_queries, METH_NOARGS,
+     "bpx_world_prepare_queries"},
+    {"query_shared", (PyCFunction)World_query_shared, METH_VARARGS,
+     "query_shared(kind, closest, any, params, category, mask): bpx_world_query_shared"},
+    {"query_each", (PyCFunction)World_query_each, METH_VARARGS,
+     "query_each(kind, params, category, mask, fn, shared): bpx_world_query_each"},
     {NULL, NULL, 0, NULL}};
 
 static PyGetSetDef World_getset[] = {

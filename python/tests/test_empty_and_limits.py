@@ -74,6 +74,43 @@ def test_events_go_empty_when_every_box_leaves():
         assert all(is_empty_pairs(p) for p in world.events)
 
 
+def test_queries_on_and_of_nothing():
+    with bpx.World() as world:
+        world.set_boxes([])
+        ids = world.query_box([0, 0, 0, 1, 1, 1])
+        assert ids.shape == (0,) and ids.dtype == np.uint32
+        assert world.query_sphere([0, 0, 0], 1.0).shape == (0,)
+        assert world.query_point([0, 0, 0]).shape == (0,)
+        assert world.query_oriented([0, 0, 0], [1, 1, 1], np.eye(3)).shape == (0,)
+        assert world.ray_cast([0, 0, 0], [1, 0, 0]) is None
+        hits = world.ray_cast([0, 0, 0], [1, 0, 0], all=True)
+        assert hits.ids.shape == (0,) and hits.fractions.dtype == np.float32
+        assert world.sweep([0, 0, 0, 1, 1, 1], [1, 0, 0]) is None
+        world.prepare_queries()
+        assert world.query_box([0, 0, 0, 1, 1, 1], shared=True).shape == (0,)
+        seen = []
+        world.query_box([0, 0, 0, 1, 1, 1], each=lambda *hit: seen.append(hit))
+        assert seen == []
+    with bpx.World() as world:
+        world.set_boxes([[0, 0, 0, 1, 1, 1]])
+        for batch in (
+            world.query_box_batch([]),
+            world.query_box_batch(np.zeros((0, 2, 3))),
+            world.query_sphere_batch([], 1.0),
+            world.query_point_batch([]),
+            world.query_oriented_batch([], [], np.zeros((0, 3, 3))),
+        ):
+            assert batch.offsets.tolist() == [0] and batch.ids.shape == (0,)
+            assert batch.ids.dtype == np.uint32 and batch.split() == []
+        for batch in (
+            world.ray_cast_batch([], []),
+            world.sweep_batch([], np.zeros((0, 3))),
+            world.ray_cast_batch([], [], all=True),
+        ):
+            assert batch.offsets.tolist() == [0] and batch.ids.shape == (0,)
+            assert batch.fractions.shape == (0,) and batch.fractions.dtype == np.float32
+
+
 # -- TooManyPairsError ---------------------------------------------------------------------------
 
 
