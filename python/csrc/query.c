@@ -251,10 +251,12 @@ PyObject *hits_result(const bpx_hit *hits, size_t count, int kind)
         Py_DECREF(ids_out);
         return NULL;
     }
+    Py_BEGIN_ALLOW_THREADS
     for (size_t h = 0; h < count; h++)
         ((uint32_t *)ids)[h] = hits[h].id;
     for (size_t h = 0; fractions && h < count; h++)
         ((float *)fractions)[h] = hits[h].fraction;
+    Py_END_ALLOW_THREADS
     PyObject *result = PyTuple_Pack(2, ids_out, fractions_out ? fractions_out : Py_None);
     Py_DECREF(ids_out);
     Py_XDECREF(fractions_out);

@@ -348,6 +348,38 @@ def test_shared_readers_run_together_and_a_change_waits_for_them():
             world.query_box([0, 0, 0, 1, 1, 1], shared=True)
 
 
+def test_gil_is_released_during_a_shared_query():
+    import time
+
+    boxes = uniform_density(300_000, seed=1)
+    everything = [-1e3, -1e3, -1e3, 1e3, 1e3, 1e3]
+    with bpx.World() as world:
+        world.set_boxes(boxes)
+        world.prepare_queries()
+        start = time.perf_counter()
+        assert len(world.query_box(everything, shared=True)) == len(boxes)
+        call = time.perf_counter() - start
+        done, started = threading.Event(), threading.Event()
+
+        def work():
+            started.set()
+            for _ in range(3):
+                world.query_box(everything, shared=True)
+            done.set()
+
+        thread = threading.Thread(target=work)
+        thread.start()
+        started.wait()
+        gaps, last = [], time.perf_counter()
+        while not done.is_set():
+            now = time.perf_counter()
+            gaps.append(now - last)
+            last = now
+        thread.join()
+    assert len(gaps) > 100
+    assert max(gaps) < 0.5 * call, (max(gaps), call)
+
+
 def test_readers_and_writers_under_load():
     a = uniform_density(1500, seed=5)
     b = a + np.float32(0.25)
