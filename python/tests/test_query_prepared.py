@@ -120,7 +120,8 @@ def test_oriented_queries_match_the_oracle(scene_world):
         got = world.query_oriented(centres[k], half[k], rots[k])
         assert got.dtype == np.uint32 and got.tolist() == want.tolist(), k
         assert batch.query(k).tolist() == want.tolist()
-        assert world.query_oriented(centres[k], half[k], rots[k].reshape(9)).tolist() == want.tolist()
+        flat = rots[k].reshape(9)
+        assert world.query_oriented(centres[k], half[k], flat).tolist() == want.tolist()
         some = world.query_oriented(centres[k], half[k], rots[k], any=True)
         assert len(some) == min(1, len(want)) and set(some) <= set(want)
         hits += len(want)

@@ -480,7 +480,9 @@ class World:
         what = "World.query_box"
         columns = (one_box(box, f"{what}: box"),)
         return _ids(
-            self._query(_bpx.QUERY_BOX, True, any, what, columns, category, mask, False, shared, each)
+            self._query(
+                _bpx.QUERY_BOX, True, any, what, columns, category, mask, False, shared, each
+            )
         )
 
     def query_point(
@@ -503,7 +505,9 @@ class World:
         what = "World.query_point"
         columns = (one_vec3(point, f"{what}: point"),)
         return _ids(
-            self._query(_bpx.QUERY_POINT, True, any, what, columns, category, mask, False, shared, each)
+            self._query(
+                _bpx.QUERY_POINT, True, any, what, columns, category, mask, False, shared, each
+            )
         )
 
     def query_oriented(
