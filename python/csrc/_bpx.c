@@ -9,7 +9,8 @@
 // a time (bpx.h), so each World holds a lock that its methods take; a second Python thread
 // calling the same World waits for the first instead of racing it.
 //
-// The query methods of World are in query.c; _bpx.h is what the two files share.
+// The lock is in access.c, what returns pairs in pairs.c, the query methods of World in query.c
+// and prepared.c; _bpx.h is what the files share.
 #include "_bpx.h"
 
 #include <stdio.h>
@@ -163,34 +164,6 @@ static bpx_status create_world(const bpx_world_def *def, bpx_world **world, bpx_
     return status;
 }
 
-// Runs a cycle and returns its pairs as a new bytearray: the comparator first, without a
-// buffer, to learn the count; then the emitter merges the blocks straight into the bytearray,
-// the one copy of the pairs that the C call bpx_world_collide makes too. Called with the
-// world's lock held and the GIL held; releases the GIL around bpx's work.
-static PyObject *collide_to_bytes(const char *where, bpx_world *world)
-{
-    size_t count = 0;
-    bpx_status status;
-    Py_BEGIN_ALLOW_THREADS
-    status = bpx_world_collide_into(world, NULL, 0, &count);
-    Py_END_ALLOW_THREADS
-    if (status != BPX_OK && status != BPX_ERR_CAPACITY)
-        return raise_error(where, bpx_world_error(world));
-    char *data = NULL;
-    PyObject *out = new_bytes(count * sizeof(bpx_pair), &data);
-    if (!out || count == 0)
-        return out;
-    size_t copied = 0;
-    Py_BEGIN_ALLOW_THREADS
-    status = bpx_world_copy_pairs(world, (bpx_pair *)data, count, &copied);
-    Py_END_ALLOW_THREADS
-    if (status != BPX_OK || copied != count) {
-        Py_DECREF(out);
-        return raise_status(where, status, "the pairs could not be read back");
-    }
-    return out;
-}
-
 // ---------------------------------------------------------------------------------------------
 // One-shot
 
@@ -335,37 +308,6 @@ static PyObject *py_simd_widths(PyObject *module, PyObject *unused)
 // ---------------------------------------------------------------------------------------------
 // World
 
-// Takes the world's lock, waiting with the GIL released if another thread has it. Fails with
-// bpx.StateError once the world is closed.
-int world_enter(WorldObject *self, const char *where)
-{
-    if (!self->lock) {
-        raise_status(where, BPX_ERR_BAD_STATE, "the world is not initialised");
-        return -1;
-    }
-    // From inside its own pair filter the lock is this thread's: waiting would never end.
-    if (self->filter_thread && self->filter_thread == PyThread_get_thread_ident()) {
-        raise_status(where, BPX_ERR_BAD_STATE, "called from the world's own pair filter");
-        return -1;
-    }
-    if (!PyThread_acquire_lock(self->lock, NOWAIT_LOCK)) {
-        Py_BEGIN_ALLOW_THREADS
-        PyThread_acquire_lock(self->lock, WAIT_LOCK);
-        Py_END_ALLOW_THREADS
-    }
-    if (!self->world) {
-        PyThread_release_lock(self->lock);
-        raise_status(where, BPX_ERR_BAD_STATE, "the world is closed");
-        return -1;
-    }
-    return 0;
-}
-
-void world_leave(WorldObject *self)
-{
-    PyThread_release_lock(self->lock);
-}
-
 static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
 {
     static const char where[] = "World";
@@ -440,8 +382,7 @@ static void World_dealloc(WorldObject *self)
     Py_CLEAR(self->pair_filter);
     for (int k = 0; k < 3; k++)
         Py_CLEAR(self->filter_error[k]);
-    if (self->lock)
-        PyThread_free_lock(self->lock);
+    world_access_free(self);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -451,6 +392,8 @@ static PyObject *World_close(WorldObject *self, PyObject *unused)
     if (!self->lock || !self->world)
         Py_RETURN_NONE;
     if (world_enter(self, "World.close") != 0) {
+        if (self->world)
+            return NULL; // from one of the world's own callbacks
         PyErr_Clear(); // closed by another thread meanwhile: closing twice is fine
         Py_RETURN_NONE;
     }
@@ -833,23 +776,6 @@ static PyObject *World_restore(WorldObject *self, PyObject *arg)
     return result;
 }
 
-static PyObject *World_collide(WorldObject *self, PyObject *unused)
-{
-    (void)unused;
-    static const char where[] = "World.collide";
-    if (world_enter(self, where) != 0)
-        return NULL;
-    PyObject *out = collide_to_bytes(where, self->world);
-    world_leave(self);
-    if (self->filter_error[0]) { // the filter raised: the cycle is done, its exception goes up
-        Py_XDECREF(out);
-        PyErr_Restore(self->filter_error[0], self->filter_error[1], self->filter_error[2]);
-        self->filter_error[0] = self->filter_error[1] = self->filter_error[2] = NULL;
-        return NULL;
-    }
-    return out;
-}
-
 // bpx_pair_filter_fn for a Python callable: collide runs without the GIL, on the calling
 // thread, so the GIL is taken back for each call. After an exception the cycle's other new
 // pairs are refused without asking, and collide raises it.
@@ -890,60 +816,6 @@ static PyObject *World_set_pair_filter(WorldObject *self, PyObject *fn)
         result = Py_NewRef(Py_None);
     } else {
         result = raise_error(where, bpx_world_error(self->world));
-    }
-    world_leave(self);
-    return result;
-}
-
-static PyObject *pairs_to_bytes(const bpx_pair *pairs, size_t count)
-{
-    char *data = NULL;
-    PyObject *out = new_bytes(count * sizeof(bpx_pair), &data);
-    if (out && count)
-        memcpy(data, pairs, count * sizeof(bpx_pair));
-    return out;
-}
-
-static PyObject *World_pairs(WorldObject *self, PyObject *unused)
-{
-    (void)unused;
-    static const char where[] = "World.pairs";
-    if (world_enter(self, where) != 0)
-        return NULL;
-    size_t count = 0;
-    const bpx_pair *pairs = bpx_world_pairs(self->world, &count);
-    PyObject *out;
-    if (!pairs && bpx_world_error(self->world)->status == BPX_ERR_OUT_OF_MEMORY)
-        out = raise_error(where, bpx_world_error(self->world));
-    else
-        out = pairs_to_bytes(pairs, count);
-    world_leave(self);
-    return out;
-}
-
-static PyObject *World_events(WorldObject *self, PyObject *unused)
-{
-    (void)unused;
-    static const char where[] = "World.events";
-    if (world_enter(self, where) != 0)
-        return NULL;
-    bpx_pair_events events;
-    PyObject *result = NULL;
-    bpx_status status = bpx_world_pair_events(self->world, &events);
-    if (status != BPX_OK) {
-        // pair_events leaves the (const) world's error as it was: say here why there are none.
-        raise_status(where, status,
-                     status == BPX_ERR_BAD_STATE
-                         ? "no events: the world was made without track_events, or its last "
-                           "collide failed or has not run"
-                         : bpx_status_string(status));
-    } else {
-        PyObject *began = pairs_to_bytes(events.began, events.began_count);
-        PyObject *ended = began ? pairs_to_bytes(events.ended, events.ended_count) : NULL;
-        if (began && ended)
-            result = PyTuple_Pack(2, began, ended);
-        Py_XDECREF(began);
-        Py_XDECREF(ended);
     }
     world_leave(self);
     return result;
@@ -1015,6 +887,12 @@ static PyMethodDef World_methods[] = {
      "query(kind, closest, any, params, categories, masks, batch): bpx_world_query(_batch)"},
     {"query_stats", (PyCFunction)World_query_stats, METH_NOARGS,
      "bpx_world_query_stats as a dict"},
+    {"prepare_queries", (PyCFunction)World_prepare_queries, METH_NOARGS,
+     "bpx_world_prepare_queries"},
+    {"query_shared", (PyCFunction)World_query_shared, METH_VARARGS,
+     "query_shared(kind, closest, any, params, category, mask): bpx_world_query_shared"},
+    {"query_each", (PyCFunction)World_query_each, METH_VARARGS,
+     "query_each(kind, params, category, mask, fn, shared): bpx_world_query_each"},
     {NULL, NULL, 0, NULL}};
 
 static PyGetSetDef World_getset[] = {
@@ -1047,6 +925,7 @@ static PyMethodDef module_methods[] = {
      "Address of the last float buffer handed to bpx (for zero-copy tests)."},
     {"_allocated_bytes", py_allocated_bytes, METH_NOARGS,
      "Bytes bpx holds over all worlds (bpx_allocated_bytes; for leak tests)."},
+    {"_set_max_pairs", py_set_max_pairs, METH_O, "_set_max_pairs(count) -> previous (tests)."},
     {"_time_c_find_pairs", py_time_c_find_pairs, METH_VARARGS,
      "_time_c_find_pairs(boxes, backend, repeats) -> ns: fastest bpx_find_pairs call in C."},
     {NULL, NULL, 0, NULL}};

@@ -1,8 +1,9 @@
 // bpx for Python: what the extension module's C files share. SPDX-License-Identifier: MIT
 //
-// _bpx.c holds the errors, the buffers, the World type and the module; query.c the query
-// methods of World and the QUERY_* constants. Everything here has hidden visibility (the module
-// exports PyInit__bpx alone).
+// _bpx.c holds the errors, the buffers, the World type and the module; access.c the world's
+// lock and its shared readers; pairs.c what returns pairs; query.c the query methods of World
+// and the QUERY_* constants; prepared.c the queries of a prepared world. Everything here has
+// hidden visibility (the module exports PyInit__bpx alone).
 #pragma once
 
 #define PY_SSIZE_T_CLEAN
@@ -20,7 +21,15 @@ typedef struct {
     unsigned long filter_thread; // the thread running the pair filter now, else 0
     PyObject *filter_error[3]; // an exception the filter raised in a collide (PyErr_Fetch's
                                // type, value, traceback), raised after it
+    Py_ssize_t readers;        // shared queries running now (access.c; read and written with
+                               // the GIL held)
+    PyThread_type_lock drained; // held while readers > 0: what a call that changes the world
+                                // waits on
 } WorldObject;
+
+/// The query kinds of World.query: bpx's (BOX .. ORIENTED) and a point, which bpx runs as the
+/// box [point, point] (bpx_query_point).
+enum { PY_QUERY_POINT = BPX_QUERY_KIND_COUNT, PY_QUERY_KINDS };
 
 // _bpx.c
 
@@ -36,9 +45,40 @@ int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_r
 int backend_from_name(const char *where, const char *name, bpx_backend *backend);
 /// A new uninitialised bytearray of size bytes; *data receives its memory.
 PyObject *new_bytes(size_t size, char **data);
-/// Takes the world's lock (StateError once closed); world_leave gives it back.
+
+// access.c: who may use a world when
+
+/// Takes the world's lock for a call that may change the world, waiting (GIL released) for
+/// another thread's call and for the shared queries running; StateError once closed or from
+/// one of the world's own callbacks. world_leave gives it back.
 int world_enter(WorldObject *self, const char *where);
 void world_leave(WorldObject *self);
+/// Joins the shared queries (which read the world only, any number at once, the GIL released):
+/// waits for a call that holds the lock, never for another shared query. reader_leave ends it.
+int reader_enter(WorldObject *self, const char *where);
+void reader_leave(WorldObject *self);
+/// A Python callback of self running on this thread (query_each's): world_enter and
+/// reader_enter from it raise StateError instead of waiting on a call that waits on them.
+typedef struct callback_frame {
+    const WorldObject *world;
+    struct callback_frame *outer;
+} callback_frame;
+void callback_begin(callback_frame *frame, const WorldObject *world);
+void callback_end(callback_frame *frame);
+/// Frees what access.c allocated for the world (World's dealloc).
+void world_access_free(WorldObject *self);
+
+// pairs.c
+
+/// Runs a cycle into a new bytearray of pairs (the world's lock held; the GIL released around
+/// bpx's work); TooManyPairsError when the count is past what one array can hold.
+PyObject *collide_to_bytes(const char *where, bpx_world *world);
+/// World.collide(), World.pairs(), World.events().
+PyObject *World_collide(WorldObject *self, PyObject *unused);
+PyObject *World_pairs(WorldObject *self, PyObject *unused);
+PyObject *World_events(WorldObject *self, PyObject *unused);
+/// _set_max_pairs(count) -> previous: lowers the pair limit for the tests (0: the real one).
+PyObject *py_set_max_pairs(PyObject *module, PyObject *arg);
 
 // neighbors.c
 
@@ -52,5 +92,24 @@ PyObject *py_find_neighbors(PyObject *module, PyObject *args);
 /// World.query(kind, closest, any, params, categories, masks, batch) and World.query_stats().
 PyObject *World_query(WorldObject *self, PyObject *args);
 PyObject *World_query_stats(WorldObject *self, PyObject *unused);
-/// Adds QUERY_BOX, QUERY_SPHERE, QUERY_RAY and QUERY_SWEEP to the module; -1 on failure.
+/// Adds the QUERY_* kinds to the module; -1 on failure.
 int add_query_constants(PyObject *module);
+/// "World.query_box" and the like, for a kind (batch: "..._batch").
+const char *query_name(int kind, int batch);
+/// One query of a kind from Python's buffers (one row of floats, one category, one mask);
+/// -1 with an exception raised.
+int one_query(const char *where, int kind, int closest, int any, PyObject *params,
+              PyObject *category, PyObject *mask, bpx_query *query);
+/// (ids as uint32 bytes, fractions as float32 bytes or None for kinds without fractions).
+PyObject *hits_result(const bpx_hit *hits, size_t count, int kind);
+/// Raises a query's error; a single query's message drops bpx's "query 0: ".
+PyObject *raise_query_error(const char *where, const bpx_error *error, int batch);
+
+// prepared.c: the prepared world's queries (bpx_world_prepare_queries, bpx_world_query_shared,
+// bpx_world_query_each)
+
+PyObject *World_prepare_queries(WorldObject *self, PyObject *unused);
+/// query_shared(kind, closest, any, params, category, mask) -> (ids, fractions or None)
+PyObject *World_query_shared(WorldObject *self, PyObject *args);
+/// query_each(kind, params, category, mask, fn, shared) -> None
+PyObject *World_query_each(WorldObject *self, PyObject *args);

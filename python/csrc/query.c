@@ -6,36 +6,45 @@
 #include <string.h>
 
 // The floats of one query, per kind, in the buffer the Python layer builds (bpx/_world.py):
-//   BOX    box min x, y, z, max x, y, z                                             6
-//   SPHERE centre x, y, z, radius                                                   4
-//   RAY    origin x, y, z, direction x, y, z, max_fraction                          7
-//   SWEEP  box min x, y, z, max x, y, z, translation x, y, z, max_fraction          10
-// The kinds Python asks for (oriented boxes are C only for now).
-enum { PY_QUERY_KINDS = BPX_QUERY_SWEEP + 1 };
-static const Py_ssize_t query_floats[PY_QUERY_KINDS] = {6, 4, 7, 10};
+//   BOX      box min x, y, z, max x, y, z                                           6
+//   SPHERE   centre x, y, z, radius                                                 4
+//   RAY      origin x, y, z, direction x, y, z, max_fraction                        7
+//   SWEEP    box min x, y, z, max x, y, z, translation x, y, z, max_fraction        10
+//   ORIENTED centre x, y, z, half extents x, y, z, rotation (row-major 3x3)         15
+//   POINT    point x, y, z (Python's kind QUERY_POINT: bpx_query_point, a box query) 3
+static const Py_ssize_t query_floats[PY_QUERY_KINDS] = {6, 4, 7, 10, 15, 3};
 
 static const char *const query_names[2][PY_QUERY_KINDS] = {
-    {"World.query_box", "World.query_sphere", "World.ray_cast", "World.sweep"},
+    {"World.query_box", "World.query_sphere", "World.ray_cast", "World.sweep",
+     "World.query_oriented", "World.query_point"},
     {"World.query_box_batch", "World.query_sphere_batch", "World.ray_cast_batch",
-     "World.sweep_batch"}};
+     "World.sweep_batch", "World.query_oriented_batch", "World.query_point_batch"}};
+
+const char *query_name(int kind, int batch)
+{
+    return kind >= 0 && kind < PY_QUERY_KINDS ? query_names[batch != 0][kind] : "World.query";
+}
 
 // Raises a query's error. bpx names the query by its index ("query 5: origin x is nan"); a
-// single query's message drops "query 0: " and its index, the method's name being enough.
-static PyObject *raise_query_error(const char *where, const bpx_error *error, int batch)
+// single query's message drops "query 0: " ("query: " from the shared queries) and its index,
+// the method's name being enough.
+PyObject *raise_query_error(const char *where, const bpx_error *error, int batch)
 {
     bpx_error err = *error;
-    static const char prefix[] = "query 0: ";
-    if (!batch && err.index == 0) {
+    static const char *const prefixes[] = {"query 0: ", "query: "};
+    if (!batch && (err.index == 0 || err.index == UINT32_MAX)) {
         err.index = UINT32_MAX;
-        if (strncmp(err.message, prefix, sizeof prefix - 1) == 0)
-            memmove(err.message, err.message + sizeof prefix - 1,
-                    strlen(err.message) - (sizeof prefix - 1) + 1);
+        for (int k = 0; k < 2; k++) {
+            size_t length = strlen(prefixes[k]);
+            if (strncmp(err.message, prefixes[k], length) == 0)
+                memmove(err.message, err.message + length, strlen(err.message) - length + 1);
+        }
     }
     return raise_error(where, &err);
 }
 
 typedef struct query_fill {
-    bpx_query_kind kind;
+    int kind; // a Python kind: bpx's, or PY_QUERY_POINT
     bool closest, any;
     const float *params;
     const uint32_t *categories, *masks; // 1 value (for every query) or one per query
@@ -45,11 +54,12 @@ typedef struct query_fill {
 static void fill_queries(const query_fill *f, bpx_query *queries, uint32_t count)
 {
     Py_ssize_t stride = query_floats[f->kind];
+    // fill's kind is the Python kind (PY_QUERY_POINT among them); each query gets bpx's.
     for (uint32_t k = 0; k < count; k++) {
         const float *p = f->params + (size_t)k * (size_t)stride;
         bpx_query *q = &queries[k];
         memset(q, 0, sizeof *q);
-        q->kind = f->kind;
+        q->kind = (bpx_query_kind)f->kind;
         q->closest = f->closest;
         q->any = f->any;
         q->filter.category = f->categories[f->category_count == 1 ? 0 : k];
@@ -67,10 +77,20 @@ static void fill_queries(const query_fill *f, bpx_query *queries, uint32_t count
             memcpy(q->direction, p + 3, sizeof q->direction);
             q->max_fraction = p[6];
             break;
-        default: // BPX_QUERY_SWEEP
+        case BPX_QUERY_SWEEP:
             memcpy(&q->box, p, sizeof q->box);
             memcpy(q->direction, p + 6, sizeof q->direction);
             q->max_fraction = p[9];
+            break;
+        case BPX_QUERY_ORIENTED:
+            memcpy(q->centre, p, sizeof q->centre);
+            memcpy(q->half_extents, p + 3, sizeof q->half_extents);
+            memcpy(q->rotation, p + 6, sizeof q->rotation);
+            break;
+        default: // PY_QUERY_POINT: bpx_query_point's box [point, point]
+            q->kind = BPX_QUERY_BOX;
+            memcpy(q->box.min, p, sizeof q->box.min);
+            memcpy(q->box.max, p, sizeof q->box.max);
             break;
         }
     }
@@ -94,7 +114,7 @@ PyObject *World_query(WorldObject *self, PyObject *args)
         return NULL;
     if (kind < 0 || kind >= PY_QUERY_KINDS)
         return raise_status("World.query", BPX_ERR_INVALID_ARGUMENT, "unknown query kind");
-    const char *where = query_names[batch][kind];
+    const char *where = query_name(kind, batch);
     if (world_enter(self, where) != 0)
         return NULL;
     Py_buffer views[3];
@@ -140,7 +160,7 @@ PyObject *World_query(WorldObject *self, PyObject *args)
             goto done;
         offsets = (size_t *)data;
     }
-    query_fill fill = {(bpx_query_kind)kind, closest != 0, any != 0, views[0].buf, views[1].buf,
+    query_fill fill = {kind, closest != 0, any != 0, views[0].buf, views[1].buf,
                        views[2].buf, counts[1], counts[2]};
     size_t total = 0;
     bpx_status status;
@@ -190,6 +210,59 @@ done:
     return result;
 }
 
+int one_query(const char *where, int kind, int closest, int any, PyObject *params_obj,
+              PyObject *category_obj, PyObject *mask_obj, bpx_query *query)
+{
+    if (kind < 0 || kind >= PY_QUERY_KINDS) {
+        raise_status(where, BPX_ERR_INVALID_ARGUMENT, "unknown query kind");
+        return -1;
+    }
+    Py_buffer views[3];
+    uint32_t counts[3];
+    PyObject *objs[3] = {params_obj, category_obj, mask_obj};
+    int got = 0;
+    for (; got < 3; got++)
+        if (get_rows(where, objs[got], got ? 'I' : 'f', got ? 1 : query_floats[kind], &views[got],
+                     &counts[got]) != 0)
+            break;
+    int result = -1;
+    if (got == 3 && (counts[0] != 1 || counts[1] != 1 || counts[2] != 1)) {
+        raise_status(where, BPX_ERR_INVALID_ARGUMENT,
+                     "expected one query, one category and one mask");
+    } else if (got == 3) {
+        query_fill fill = {kind, closest != 0, any != 0, views[0].buf, views[1].buf,
+                           views[2].buf, 1, 1};
+        fill_queries(&fill, query, 1);
+        result = 0;
+    }
+    for (int k = 0; k < got; k++)
+        PyBuffer_Release(&views[k]);
+    return result;
+}
+
+PyObject *hits_result(const bpx_hit *hits, size_t count, int kind)
+{
+    char *ids = NULL, *fractions = NULL;
+    PyObject *ids_out = new_bytes(count * sizeof(uint32_t), &ids), *fractions_out = NULL;
+    if (!ids_out)
+        return NULL;
+    if ((kind == BPX_QUERY_RAY || kind == BPX_QUERY_SWEEP) &&
+        !(fractions_out = new_bytes(count * sizeof(float), &fractions))) {
+        Py_DECREF(ids_out);
+        return NULL;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    for (size_t h = 0; h < count; h++)
+        ((uint32_t *)ids)[h] = hits[h].id;
+    for (size_t h = 0; fractions && h < count; h++)
+        ((float *)fractions)[h] = hits[h].fraction;
+    Py_END_ALLOW_THREADS
+    PyObject *result = PyTuple_Pack(2, ids_out, fractions_out ? fractions_out : Py_None);
+    Py_DECREF(ids_out);
+    Py_XDECREF(fractions_out);
+    return result;
+}
+
 PyObject *World_query_stats(WorldObject *self, PyObject *unused)
 {
     (void)unused;
@@ -208,7 +281,9 @@ int add_query_constants(PyObject *module)
     if (PyModule_AddIntConstant(module, "QUERY_BOX", BPX_QUERY_BOX) < 0 ||
         PyModule_AddIntConstant(module, "QUERY_SPHERE", BPX_QUERY_SPHERE) < 0 ||
         PyModule_AddIntConstant(module, "QUERY_RAY", BPX_QUERY_RAY) < 0 ||
-        PyModule_AddIntConstant(module, "QUERY_SWEEP", BPX_QUERY_SWEEP) < 0)
+        PyModule_AddIntConstant(module, "QUERY_SWEEP", BPX_QUERY_SWEEP) < 0 ||
+        PyModule_AddIntConstant(module, "QUERY_ORIENTED", BPX_QUERY_ORIENTED) < 0 ||
+        PyModule_AddIntConstant(module, "QUERY_POINT", PY_QUERY_POINT) < 0)
         return -1;
     return 0;
 }

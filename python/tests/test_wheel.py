@@ -1,9 +1,12 @@
-"""The wheel builds from the clone and installs into a clean virtual environment, where bpx
-imports from site-packages with its stubs and works."""
+"""`python -m build` makes an sdist that carries the C library and a wheel built from that sdist
+alone (unpacked outside the clone, where the repository is out of reach); the wheel installs
+into a clean virtual environment, where bpx imports from site-packages with its stubs and
+works."""
 
 import os
 import subprocess
 import sys
+import tarfile
 import textwrap
 
 import pytest
@@ -18,18 +21,32 @@ def run(*cmd, **kwargs):
 
 
 @pytest.mark.skipif(os.environ.get("BPX_SKIP_WHEEL_TEST") == "1", reason="BPX_SKIP_WHEEL_TEST=1")
-def test_wheel_builds_and_installs_in_a_clean_venv(tmp_path):
+def test_sdist_and_wheel_build_and_install_in_a_clean_venv(tmp_path):
+    pytest.importorskip("build", reason="needs the build package (python/ci.sh installs it)")
     try:
         import scikit_build_core  # noqa: F401
 
-        isolation = ["--no-build-isolation"]  # the build backend is here already: no download
+        isolation = ["--no-isolation"]  # the build backend is here already: no download
     except ImportError:
         isolation = []
     env = dict(os.environ, CMAKE_BUILD_PARALLEL_LEVEL="2")
-    run(sys.executable, "-m", "pip", "wheel", "--no-deps", *isolation, "-w", str(tmp_path / "dist"),
-        PYTHON_DIR, env=env)
-    wheels = list((tmp_path / "dist").glob("bpx-*.whl"))
-    assert len(wheels) == 1
+    dist = tmp_path / "dist"
+    # The sdist first, then the wheel from the sdist unpacked in a temporary folder: the
+    # wheel's build sees nothing of the clone.
+    run(sys.executable, "-m", "build", *isolation, "--outdir", str(dist), PYTHON_DIR,
+        env=env, cwd=str(tmp_path))
+    sdists = list(dist.glob("bpx-*.tar.gz"))
+    wheels = list(dist.glob("bpx-*.whl"))
+    assert len(sdists) == 1 and len(wheels) == 1
+    with tarfile.open(sdists[0]) as tar:
+        members = {m.name.split("/", 1)[1]: m for m in tar.getmembers() if "/" in m.name}
+    links = [name for name, m in members.items() if m.issym() or m.islnk()]
+    assert links == [], f"the sdist holds links, which dangle once unpacked: {links}"
+    for needed in ("LICENSE", "CMakeLists.txt", "csrc/_bpx.c", "libbpx/CMakeLists.txt",
+                   "libbpx/LICENSE", "libbpx/include/bpx/bpx.h", "libbpx/include/bpx/query.h",
+                   "libbpx/src/core/world.c", "libbpx/src/query/query.c",
+                   "libbpx/cmake/bpxConfig.cmake.in", "libbpx/rtl/bpx_board.sv"):
+        assert needed in members and members[needed].isfile(), f"{needed} is not in the sdist"
     venv = tmp_path / "venv"
     run(sys.executable, "-m", "venv", str(venv))
     python = str(venv / "bin" / "python")
@@ -46,6 +63,11 @@ def test_wheel_builds_and_installs_in_a_clean_venv(tmp_path):
         assert [r.split(">")[0].split(";")[0].strip() for r in requires if "extra" not in r] == ["numpy"], requires
         boxes = np.array([[0, 0, 0, 1, 1, 1], [1, 1, 1, 2, 2, 2]], np.float32)
         assert bpx.find_pairs(boxes).tolist() == [[0, 1]]
+        with bpx.World() as world:
+            world.set_boxes(boxes)
+            assert world.collide().tolist() == [[0, 1]]
+            assert world.query_box([0, 0, 0, 0.5, 0.5, 0.5]).tolist() == [0]
+        assert any(f.name == "LICENSE" for f in md.files("bpx")), "no LICENSE in the wheel"
         print("ok", bpx.__version__)
         """
     )

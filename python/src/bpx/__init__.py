@@ -25,6 +25,16 @@ Queries on a world's boxes::
     world.ray_cast(origin, direction)      # Hit(id, fraction) of the closest hit, or None
     world.ray_cast(origin, direction, any=True)   # some hit (the first found), or None
     world.ray_cast_batch(origins, directions, all=True)   # CSR: (offsets, ids, fractions)
+    world.query_point(p); world.query_oriented(centre, half_extents, rotation)
+
+Many Python threads on one world's queries at once (each with the GIL released)::
+
+    world.prepare_queries()                # after the boxes change
+    world.query_box(box, shared=True)      # from any number of threads
+
+A callback per hit, that accepts, ignores or stops, and can end a ray early::
+
+    world.ray_cast(origin, direction, each=lambda id, fraction, user_data: fraction)
 
 Neighbour lists over a periodic cell (points or boxes, float64 exact)::
 

@@ -27,6 +27,14 @@ def _asarray(value: Any, what: str) -> np.ndarray:
     return array
 
 
+def _no_rows(array: np.ndarray, width: int) -> np.ndarray:
+    """An empty 1-D array ([], np.empty(0)) as (0, width): no rows, as an empty list of pairs
+    is no pairs. Anything else as it is."""
+    if array.ndim == 1 and array.size == 0:
+        return array.reshape(0, width)
+    return array
+
+
 def _check_real(array: np.ndarray, what: str, expected: str) -> None:
     if array.dtype.kind not in "fiu":
         raise DTypeError(
@@ -73,7 +81,7 @@ def boxes_array(
         return out, flag or convert is as_float32
     if boxes is None:
         raise InvalidArgumentError(f"{what}: no boxes given")
-    array = _asarray(boxes, what)
+    array = _no_rows(_asarray(boxes, what), 6)
     _check_real(array, what, "coordinates")
     if array.ndim == 3 and array.shape[1:] == (2, 3):
         # Made contiguous first, so that the reshape is a view and the conversion one copy.
@@ -87,7 +95,7 @@ def boxes_array(
 
 
 def _rows_of_3(values: Any, what: str) -> np.ndarray:
-    array = _asarray(values, what)
+    array = _no_rows(_asarray(values, what), 3)
     _check_real(array, what, "coordinates")
     if array.ndim != 2 or array.shape[1] != 3:
         raise InvalidArgumentError(f"{what}: expected shape (n, 3), got {array.shape}")

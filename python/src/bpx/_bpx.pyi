@@ -11,12 +11,15 @@ QUERY_BOX: int
 QUERY_SPHERE: int
 QUERY_RAY: int
 QUERY_SWEEP: int
+QUERY_ORIENTED: int
+QUERY_POINT: int  # bpx_query_point: a box query of [point, point]
 
 def find_pairs(boxes: NDArray[np.float32], backend: str, threads: int) -> bytearray: ...
 def backends() -> List[Tuple[str, bool, str, str]]: ...
 def simd_widths() -> List[Tuple[str, bool, int]]: ...
 def _last_input_address() -> int: ...
 def _allocated_bytes() -> int: ...
+def _set_max_pairs(count: int) -> int: ...
 def _time_c_find_pairs(boxes: NDArray[np.float32], backend: str, repeats: int) -> int: ...
 
 class World:
@@ -65,7 +68,7 @@ class World:
     def events(self) -> Tuple[bytearray, bytearray]: ...
     def stats(self) -> Dict[str, Any]: ...
     def box_count(self) -> int: ...
-    # params: (k, 6 | 4 | 7 | 10) float32 rows by kind (csrc/query.c); categories and masks
+    # params: (k, 6 | 4 | 7 | 10 | 15 | 3) float32 rows by kind (csrc/query.c); categories and masks
     # uint32, 1 or k each; closest and any not both. Returns (ids, fractions or None), or with
     # batch (offsets as size_t, ids, fractions or None).
     def query(
@@ -79,3 +82,26 @@ class World:
         batch: bool,
     ) -> Tuple[bytearray, ...]: ...
     def query_stats(self) -> Dict[str, int]: ...
+    def prepare_queries(self) -> None: ...
+    # One query (params one row; category and mask one value each) on a prepared world, as one
+    # of its readers: (ids, fractions or None).
+    def query_shared(
+        self,
+        kind: int,
+        closest: bool,
+        any: bool,
+        params: NDArray[np.float32],
+        category: NDArray[np.uint32],
+        mask: NDArray[np.uint32],
+    ) -> Tuple[bytearray, Optional[bytearray]]: ...
+    # fn(id, fraction, user_data) -> None or a number for each hit; shared: as a reader of a
+    # prepared world, else with the lock held, preparing the world first.
+    def query_each(
+        self,
+        kind: int,
+        params: NDArray[np.float32],
+        category: NDArray[np.uint32],
+        mask: NDArray[np.uint32],
+        fn: Callable[[int, float, int], Optional[float]],
+        shared: bool,
+    ) -> None: ...

@@ -92,8 +92,11 @@ class OutOfMemoryError(Error, MemoryError):
 
 
 class TooManyPairsError(Error, OverflowError):
-    """The pair set passed what the backend can count (2^32 - 1 pairs for prune, sap, grid and
-    opencl's sweep); brute and reference count further."""
+    """More pairs than can be returned (BPX_ERR_TOO_MANY_PAIRS): past what the backend can
+    count (2^32 - 1 pairs for prune, sap, grid and opencl's sweep; brute and reference count
+    further), or past what one array can hold (PY_SSIZE_T_MAX bytes, 8 a pair: reachable on
+    32-bit hosts only). Raised once the count is known, before the pairs' memory is
+    allocated, rather than a MemoryError after."""
 
 
 class DeviceError(Error, RuntimeError):

@@ -12,7 +12,7 @@ from typing import Any, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from ._arrays import _asarray, _check_real, uint32_array
+from ._arrays import _asarray, _check_real, _no_rows, uint32_array
 from ._errors import InvalidArgumentError
 
 #: A query's category and mask when none are given: it sees every box whose mask is not 0
@@ -53,7 +53,9 @@ class BatchIds(NamedTuple):
         return self.ids[self.offsets[k] : self.offsets[k + 1]]
 
     def split(self) -> List[np.ndarray]:
-        """Every query's ids, as a list of views."""
+        """Every query's ids, as a list of views (one per query: none for no queries)."""
+        if self.offsets.shape[0] <= 1:
+            return []
         return np.split(self.ids, self.offsets[1:-1])
 
 
@@ -148,8 +150,8 @@ def one_scalar(value: Any, what: str) -> np.ndarray:
 
 
 def many_boxes(value: Any, what: str) -> np.ndarray:
-    """Boxes as (k, 6), from (k, 6) or (k, 2, 3), in their own dtype."""
-    array = _real(value, what)
+    """Boxes as (k, 6), from (k, 6) or (k, 2, 3), in their own dtype ([]: no boxes)."""
+    array = _no_rows(_real(value, what), 6)
     if array.ndim == 3 and array.shape[1:] == (2, 3):
         return array.reshape(array.shape[0], 6)
     if array.ndim != 2 or array.shape[1] != 6:
@@ -159,14 +161,43 @@ def many_boxes(value: Any, what: str) -> np.ndarray:
     return array
 
 
-def many_vec3(value: Any, what: str, count: Optional[int] = None) -> np.ndarray:
-    """(k, 3) vectors in their own dtype; count: the k they must have."""
-    array = _real(value, what)
+def many_vec3(
+    value: Any, what: str, count: Optional[int] = None, broadcast: bool = False
+) -> np.ndarray:
+    """(k, 3) vectors in their own dtype ([]: none); count: the k they must have; broadcast:
+    a (3,) vector stands for count copies of it."""
+    array = _no_rows(_real(value, what), 3)
+    if broadcast and count is not None and array.shape == (3,):
+        return np.broadcast_to(array, (count, 3))
     if array.ndim != 2 or array.shape[1] != 3:
         raise InvalidArgumentError(f"{what}: expected shape (k, 3), got {array.shape}")
     if count is not None and array.shape[0] != count:
         raise InvalidArgumentError(
             f"{what}: expected shape ({count}, 3) (one per query), got {array.shape}"
+        )
+    return array
+
+
+def one_rotation(value: Any, what: str) -> np.ndarray:
+    """A rotation as (1, 9) row-major: (3, 3) or (9,)."""
+    array = _real(value, what)
+    if array.shape not in ((3, 3), (9,)):
+        raise InvalidArgumentError(f"{what}: expected shape (3, 3) or (9,), got {array.shape}")
+    return array.reshape(1, 9)
+
+
+def many_rotations(value: Any, what: str, count: int) -> np.ndarray:
+    """count rotations as (count, 9) row-major: (count, 3, 3) or (count, 9), or one (3, 3)
+    for all."""
+    array = _real(value, what)
+    if array.shape == (3, 3):
+        return np.broadcast_to(array.reshape(1, 9), (count, 9))
+    if array.ndim == 3 and array.shape[1:] == (3, 3):
+        array = array.reshape(array.shape[0], 9)
+    if array.ndim != 2 or array.shape != (count, 9):
+        raise InvalidArgumentError(
+            f"{what}: expected shape ({count}, 3, 3) or ({count}, 9) (one per query), or "
+            f"(3, 3) for all, got {array.shape}"
         )
     return array
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any, NamedTuple, Optional, Tuple, Union
+from typing import Any, Callable, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
@@ -29,12 +29,19 @@ from ._query import (
     QueryStats,
     filter_arrays,
     many_boxes,
+    many_rotations,
     many_scalars,
     many_vec3,
     one_box,
+    one_rotation,
     one_scalar,
     one_vec3,
 )
+
+#: A query_each callback: ``fn(id, fraction, user_data)`` -> None (go on) or a number that
+#: steers the walk (< 0 or NaN: ignore this hit; 0: stop; > 0: go on, a ray or sweep ending at
+#: that fraction).
+HitCallback = Callable[[int, float, int], Optional[float]]
 
 
 @dataclass(frozen=True)
@@ -89,12 +96,14 @@ class World:
     thread count. ``set_user_data(ids, values)`` / ``user_data(ids)``: a uint64 per box.
 
     Queries, over the current boxes (removed ids never come back), with a filter of their own:
-    ``query_box`` and ``query_sphere`` (sorted uint32 ids), ``ray_cast`` and ``sweep`` (the
-    closest ``Hit(id, fraction)`` or None, or with ``all=True`` every hit as
-    ``Hits(ids, fractions)``), and each ``*_batch`` form for many queries at once on the
-    world's threads, in CSR form. ``any=True`` (every kind) stops at the first hit the tree's
-    walk meets: at most one, none exactly when there is none. The answers are exact, as
-    include/bpx/query.h defines them.
+    ``query_box``, ``query_sphere``, ``query_point`` and ``query_oriented`` (sorted uint32
+    ids), ``ray_cast`` and ``sweep`` (the closest ``Hit(id, fraction)`` or None, or with
+    ``all=True`` every hit as ``Hits(ids, fractions)``), and each ``*_batch`` form for many
+    queries at once on the world's threads, in CSR form. ``any=True`` (every kind) stops at the
+    first hit the tree's walk meets: at most one, none exactly when there is none. The answers
+    are exact, as include/bpx/query.h defines them. ``shared=True`` (single queries, after
+    ``prepare_queries()``): many Python threads query the world at once. ``each=fn``: a
+    callback per hit that steers the walk (accept, ignore, stop, end a ray early).
 
     Events: with ``track_events=True``, ``events`` holds the pairs that began and ended with
     the last collide.
@@ -377,14 +386,28 @@ class World:
         category: Any,
         mask: Any,
         batch: bool,
-    ) -> tuple:
+        shared: bool = False,
+        each: Optional[HitCallback] = None,
+    ) -> Any:
         """Runs one query, or a batch of k, of one kind. every: every hit (always, for regions
         and spheres), else the closest; any_hit: at most one hit, the first the tree's walk
         meets. columns are its floats, side by side: (k, m) or (k,) arrays in the kind's order,
-        k = 1 for one query. category and mask: a number, or with a batch (k,). Returns the C
-        layer's (ids, fractions), or with a batch (offsets, ids, fractions)."""
-        if every and any_hit and kind in (_bpx.QUERY_RAY, _bpx.QUERY_SWEEP):
+        k = 1 for one query. category and mask: a number, or with a batch (k,). shared: as one
+        of the readers of a prepared world (bpx_world_query_shared); each: a callback for
+        every hit (bpx_world_query_each; returns None). Returns the C layer's (ids,
+        fractions), or with a batch (offsets, ids, fractions)."""
+        rays = kind in (_bpx.QUERY_RAY, _bpx.QUERY_SWEEP)
+        if every and any_hit and rays:
             raise InvalidArgumentError(f"{what}: all and any exclude each other")
+        if each is not None:
+            if not callable(each):
+                raise InvalidArgumentError(f"{what}: each={each!r} is not callable")
+            if any_hit or (every and rays):
+                what_else = "any" if any_hit else "all"
+                raise InvalidArgumentError(
+                    f"{what}: each and {what_else} exclude each other (the callback decides "
+                    "which hits count)"
+                )
         closest = not every and not any_hit
         count = columns[0].shape[0]
         params = Params(count, sum(1 if c.ndim == 1 else c.shape[1] for c in columns))
@@ -392,10 +415,32 @@ class World:
             params.put(column)
         cat, msk = filter_arrays(category, mask, what, count if batch else None)
         with converted_note(params.overflowed):
+            if each is not None:
+                return self._c.query_each(kind, params.rows, cat, msk, each, bool(shared))
+            if shared:
+                return self._c.query_shared(kind, closest, bool(any_hit), params.rows, cat, msk)
             return self._c.query(kind, closest, bool(any_hit), params.rows, cat, msk, batch)
 
+    def prepare_queries(self) -> None:
+        """Brings the query tree up to date with the boxes (``bpx_world_prepare_queries``: a
+        refit or a rebuild, as the first query after a change does), so that queries with
+        ``shared=True`` may run: they read the world only, any number of Python threads at
+        once, each with the GIL released (the other queries and calls take the world one
+        at a time). Call it again after the boxes change (set, add, move, remove, filters,
+        update_centres...): until then a shared query raises ``StateError``. A call that
+        changes the world waits for the shared queries running to finish; shared queries
+        that come meanwhile wait for it."""
+        self._c.prepare_queries()
+
     def query_box(
-        self, box: Any, *, any: bool = False, category: Any = ALL, mask: Any = ALL
+        self,
+        box: Any,
+        *,
+        any: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
+        shared: bool = False,
+        each: Optional[HitCallback] = None,
     ) -> np.ndarray:
         """Ids of the boxes that overlap a box region, sorted: (k,) uint32.
 
@@ -412,16 +457,100 @@ class World:
             category, mask: the query's filter; it sees box b iff
                 ``(category & mask_b) and (category_b & mask)``, the rule between two boxes.
                 The default (all ones) sees every box whose mask is not 0.
+            shared: True: run on the world as ``prepare_queries`` left it, reading it only:
+                any number of threads may query at once (the GIL released); StateError if
+                the world was not prepared or changed since.
+            each: a callable ``each(id, fraction, user_data)`` called for every hit instead
+                of returning them (``bpx_world_query_each``), in the order the tree's walk
+                meets them (not sorted); fraction 0.0 for regions, user_data the box's
+                ``set_user_data`` value. Its return steers the walk: None or a number > 0
+                goes on (for a ray or sweep a number also ends the cast there: hits entering
+                later are skipped; return ``fraction`` for closer hits only), < 0 or NaN
+                ignores this hit and goes on, 0 stops. It runs on the calling thread, with
+                the GIL; an exception it raises stops the query and propagates; a call into
+                this world from inside it raises StateError. Returns None. Not with ``any``
+                (or, for rays and sweeps, ``all``).
 
         Raises:
             NotFiniteError, MinGreaterThanMaxError: a bad box (``.axis`` names the axis);
             InvalidArgumentError: a wrong shape, a category or mask out of 0 .. 2**32 - 1;
-            StateError: a closed world, or boxes in a device buffer.
+            StateError: a closed world, or boxes in a device buffer; with shared=True, a world
+            not prepared since its last change.
         """
         what = "World.query_box"
         columns = (one_box(box, f"{what}: box"),)
-        ids, _ = self._query(_bpx.QUERY_BOX, True, any, what, columns, category, mask, False)
-        return np.frombuffer(ids, np.uint32)
+        return _ids(
+            self._query(
+                _bpx.QUERY_BOX, True, any, what, columns, category, mask, False, shared, each
+            )
+        )
+
+    def query_point(
+        self,
+        point: Any,
+        *,
+        any: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
+        shared: bool = False,
+        each: Optional[HitCallback] = None,
+    ) -> np.ndarray:
+        """Ids of the boxes that contain a point, sorted: (k,) uint32 (``bpx_query_point``:
+        the box query of [point, point], closed intervals, so a point on a face is inside).
+
+        Args:
+            point: (3,).
+            any, category, mask, shared, each: as in ``query_box``.
+        """
+        what = "World.query_point"
+        columns = (one_vec3(point, f"{what}: point"),)
+        return _ids(
+            self._query(
+                _bpx.QUERY_POINT, True, any, what, columns, category, mask, False, shared, each
+            )
+        )
+
+    def query_oriented(
+        self,
+        centre: Any,
+        half_extents: Any,
+        rotation: Any,
+        *,
+        any: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
+        shared: bool = False,
+        each: Optional[HitCallback] = None,
+    ) -> np.ndarray:
+        """Ids of the boxes that overlap an oriented box, sorted: (k,) uint32
+        (``bpx_query_oriented``).
+
+        The query box is ``{centre + rotation @ u : |u_k| <= half_extents_k}``: the columns of
+        rotation are its axes. Exactly (include/bpx/query.h): box b is a hit iff none of the
+        15 axes of the separating-axis test (x, y, z, rotation's columns and their 9 cross
+        products) separates the two, in double precision, touching counting as overlap.
+
+        Args:
+            centre: (3,). half_extents: (3,), each >= 0.
+            rotation: (3, 3) or (9,) row-major, orthonormal to 1e-3 (e.g. scipy's
+                ``Rotation.as_matrix()``).
+            any, category, mask, shared, each: as in ``query_box``.
+
+        Raises:
+            NotFiniteError: a NaN or infinite value; InvalidArgumentError: negative half
+            extents, a rotation that is not orthonormal, a wrong shape.
+        """
+        what = "World.query_oriented"
+        columns = (
+            one_vec3(centre, f"{what}: centre"),
+            one_vec3(half_extents, f"{what}: half_extents"),
+            one_rotation(rotation, f"{what}: rotation"),
+        )
+        return _ids(
+            self._query(
+                _bpx.QUERY_ORIENTED, True, any, what, columns, category, mask, False, shared, each
+            )
+        )
 
     def query_sphere(
         self,
@@ -431,6 +560,8 @@ class World:
         any: bool = False,
         category: Any = ALL,
         mask: Any = ALL,
+        shared: bool = False,
+        each: Optional[HitCallback] = None,
     ) -> np.ndarray:
         """Ids of the boxes that overlap a sphere, sorted: (k,) uint32.
 
@@ -440,7 +571,7 @@ class World:
 
         Args:
             centre: (3,). radius: a number >= 0.
-            any, category, mask: as in ``query_box``.
+            any, category, mask, shared, each: as in ``query_box``.
 
         Raises:
             NotFiniteError: a NaN or infinite centre (``.axis``) or radius;
@@ -448,8 +579,11 @@ class World:
         """
         what = "World.query_sphere"
         columns = (one_vec3(centre, f"{what}: centre"), one_scalar(radius, f"{what}: radius"))
-        ids, _ = self._query(_bpx.QUERY_SPHERE, True, any, what, columns, category, mask, False)
-        return np.frombuffer(ids, np.uint32)
+        return _ids(
+            self._query(
+                _bpx.QUERY_SPHERE, True, any, what, columns, category, mask, False, shared, each
+            )
+        )
 
     def ray_cast(
         self,
@@ -461,6 +595,8 @@ class World:
         any: bool = False,
         category: Any = ALL,
         mask: Any = ALL,
+        shared: bool = False,
+        each: Optional[HitCallback] = None,
     ) -> Union[Optional[Hit], Hits]:
         """What the ray ``origin + t * direction``, t in [0, max_fraction], hits.
 
@@ -481,6 +617,9 @@ class World:
                 the same boxes and calls give the same one, for any thread count. Not with
                 all=True.
             category, mask: the query's filter, as in ``query_box``.
+            shared, each: as in ``query_box``; each's fraction is the hit's, and a number it
+                returns ends the ray there (Box2D's ray-cast callback): ``lambda id, f, data:
+                f`` keeps only closer hits coming. Not with all or any.
 
         Returns:
             all=False: ``Hit(id, fraction)`` with the least fraction (ties to the lowest id), or
@@ -499,10 +638,10 @@ class World:
             one_vec3(direction, f"{what}: direction"),
             one_scalar(max_fraction, f"{what}: max_fraction"),
         )
-        ids, fractions = self._query(
-            _bpx.QUERY_RAY, all, any, what, columns, category, mask, False
+        result = self._query(
+            _bpx.QUERY_RAY, all, any, what, columns, category, mask, False, shared, each
         )
-        return _hits(ids, fractions, bool(all))
+        return None if each is not None else _hits(*result, bool(all))
 
     def sweep(
         self,
@@ -514,6 +653,8 @@ class World:
         any: bool = False,
         category: Any = ALL,
         mask: Any = ALL,
+        shared: bool = False,
+        each: Optional[HitCallback] = None,
     ) -> Union[Optional[Hit], Hits]:
         """What a box q moving by ``t * translation``, t in [0, max_fraction], hits.
 
@@ -529,7 +670,7 @@ class World:
             box: the box at t = 0, (6,) or (2, 3) as in ``query_box``.
             translation: (3,); zero needs max_fraction 0.
             max_fraction: the largest t, >= 0 (default 1: the whole translation; +inf allowed).
-            all, any, category, mask: as in ``ray_cast``.
+            all, any, category, mask, shared, each: as in ``ray_cast``.
 
         Returns:
             As ``ray_cast``: ``Hit(id, fraction)`` or None, or with all=True ``Hits``.
@@ -543,10 +684,10 @@ class World:
             one_vec3(translation, f"{what}: translation"),
             one_scalar(max_fraction, f"{what}: max_fraction"),
         )
-        ids, fractions = self._query(
-            _bpx.QUERY_SWEEP, all, any, what, columns, category, mask, False
+        result = self._query(
+            _bpx.QUERY_SWEEP, all, any, what, columns, category, mask, False, shared, each
         )
-        return _hits(ids, fractions, bool(all))
+        return None if each is not None else _hits(*result, bool(all))
 
     # Batches: many queries of one kind in one call, on the world's threads
     # (bpx_world_query_batch). Results are CSR: query k's hits are [offsets[k], offsets[k + 1])
@@ -590,6 +731,44 @@ class World:
         columns = (centre_array, many_scalars(radii, f"{what}: radii", count))
         offsets, ids, _ = self._query(
             _bpx.QUERY_SPHERE, True, any, what, columns, category, mask, True
+        )
+        return BatchIds(np.frombuffer(offsets, np.intp), np.frombuffer(ids, np.uint32))
+
+    def query_point_batch(
+        self, points: Any, *, any: bool = False, category: Any = ALL, mask: Any = ALL
+    ) -> BatchIds:
+        """``query_point`` for k points ((k, 3)) at once; any, category and mask as in
+        ``query_box_batch``. Returns ``BatchIds(offsets, ids)``."""
+        what = "World.query_point_batch"
+        columns = (many_vec3(points, f"{what}: points"),)
+        offsets, ids, _ = self._query(
+            _bpx.QUERY_POINT, True, any, what, columns, category, mask, True
+        )
+        return BatchIds(np.frombuffer(offsets, np.intp), np.frombuffer(ids, np.uint32))
+
+    def query_oriented_batch(
+        self,
+        centres: Any,
+        half_extents: Any,
+        rotations: Any,
+        *,
+        any: bool = False,
+        category: Any = ALL,
+        mask: Any = ALL,
+    ) -> BatchIds:
+        """``query_oriented`` for k oriented boxes at once: centres (k, 3); half_extents (k, 3)
+        or (3,) for all; rotations (k, 3, 3) or (k, 9), or one (3, 3) for all. any, category
+        and mask as in ``query_box_batch``. Returns ``BatchIds(offsets, ids)``."""
+        what = "World.query_oriented_batch"
+        centre_array = many_vec3(centres, f"{what}: centres")
+        count = centre_array.shape[0]
+        columns = (
+            centre_array,
+            many_vec3(half_extents, f"{what}: half_extents", count, broadcast=True),
+            many_rotations(rotations, f"{what}: rotations", count),
+        )
+        offsets, ids, _ = self._query(
+            _bpx.QUERY_ORIENTED, True, any, what, columns, category, mask, True
         )
         return BatchIds(np.frombuffer(offsets, np.intp), np.frombuffer(ids, np.uint32))
 
@@ -687,6 +866,11 @@ class World:
             f"<bpx.World backend={self._requested!r} threads={self._threads} "
             f"boxes={len(self)} track_events={self._track_events}>"
         )
+
+
+def _ids(result: Optional[tuple]) -> Optional[np.ndarray]:
+    """A region query's ids as (k,) uint32, or None (each=)."""
+    return None if result is None else np.frombuffer(result[0], np.uint32)
 
 
 def _hits(ids: bytearray, fractions: bytearray, every: bool) -> Union[Optional[Hit], Hits]:
