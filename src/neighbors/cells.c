@@ -16,6 +16,7 @@
 #define MAX_CELLS_PER_AXIS (1 << 20)
 
 typedef struct grid {
+    int reach;         // cells searched each way: 2 (cells half the cutoff), else 1
     int count[3];      // cells on each axis
     double origin[3];  // open axes: the least coordinate; periodic: 0
     double inverse[3]; // cells per unit of length
@@ -36,28 +37,11 @@ typedef struct hit {
     double distance;
 } hit;
 
-// Lays out the cells; false when a periodic axis cannot have 3 cells of the cutoff (then two
-// cells around a point would be one, and the image search is the one to use).
-static bool plan(const search *s, grid *g)
+// The cells for g->reach (g->slack set); false when a periodic axis is too short for them.
+static bool lay_out(const search *s, grid *g, const double least[3], const double most[3])
 {
-    const double *points64 = s->in.format == BPX_POINTS_F64 ? s->in.data : NULL;
-    const float *points32 = points64 ? NULL : s->in.data;
-    double least[3] = {INFINITY, INFINITY, INFINITY}, most[3] = {-INFINITY, -INFINITY, -INFINITY};
-    double magnitude = 0;
-    for (size_t k = 0; k < 3 * (size_t)s->n; k++) {
-        double v = points64 ? points64[k] : points32[k];
-        least[k % 3] = v < least[k % 3] ? v : least[k % 3];
-        most[k % 3] = v > most[k % 3] ? v : most[k % 3];
-    }
-    for (int a = 0; a < 3; a++) {
-        magnitude = fmax(magnitude, fmax(fabs(least[a]), fabs(most[a])));
-        magnitude = fmax(magnitude, s->period[a]);
-    }
-    double c = s->def->cutoff;
-    // Wrapping and scaling round by a few ulps of the largest magnitude; cells wider than the
-    // cutoff by far more than that keep every pair within adjacent cells.
-    g->slack = 0x1p-40 * (magnitude + c);
-    double width = c + 4 * g->slack;
+    int fewest = 2 * g->reach + 1;
+    double width = (s->def->cutoff + 4 * g->slack) / g->reach;
     if (!(width > 0)) // every point at 0 and no cutoff: any width will do
         width = 1;
     double cells = 1;
@@ -66,7 +50,7 @@ static bool plan(const search *s, grid *g)
         g->origin[a] = L > 0 ? 0 : least[a];
         if (L > 0) {
             double count = fmin(floor(L / width), MAX_CELLS_PER_AXIS);
-            if (count < 3)
+            if (count < fewest)
                 return false;
             g->count[a] = (int)count;
             g->inverse[a] = count / L;
@@ -84,14 +68,45 @@ static bool plan(const search *s, grid *g)
             if (g->count[b] > g->count[a])
                 a = b;
         double L = s->period[a];
-        int fewer = L > 0 ? g->count[a] / 2 : (int)floor((most[a] - least[a]) * g->inverse[a] / 2) + 1;
-        if (fewer >= g->count[a] || (L > 0 && fewer < 3))
+        int fewer = L > 0 ? g->count[a] / 2
+                          : (int)floor((most[a] - least[a]) * g->inverse[a] / 2) + 1;
+        if (fewer >= g->count[a] || (L > 0 && fewer < fewest))
             break;
         cells = cells / g->count[a] * fewer;
         g->count[a] = fewer;
         g->inverse[a] = L > 0 ? fewer / L : g->inverse[a] / 2;
     }
     return true;
+}
+
+// Lays out the cells; false when a periodic axis cannot have 3 cells of the cutoff (then two
+// cells around a point would be one cell, and the image search is the one to use).
+static bool plan(const search *s, grid *g)
+{
+    const double *points64 = s->in.format == BPX_POINTS_F64 ? s->in.data : NULL;
+    const float *points32 = points64 ? NULL : s->in.data;
+    double least[3] = {INFINITY, INFINITY, INFINITY}, most[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double magnitude = 0;
+    for (size_t k = 0; k < 3 * (size_t)s->n; k++) {
+        double v = points64 ? points64[k] : points32[k];
+        least[k % 3] = v < least[k % 3] ? v : least[k % 3];
+        most[k % 3] = v > most[k % 3] ? v : most[k % 3];
+    }
+    for (int a = 0; a < 3; a++) {
+        magnitude = fmax(magnitude, fmax(fabs(least[a]), fabs(most[a])));
+        magnitude = fmax(magnitude, s->period[a]);
+    }
+    // Wrapping and scaling round by a few ulps of the largest magnitude; cells wider (all
+    // `reach` of them together) than the cutoff by far more than that keep every pair within
+    // `reach` cells of each other on each axis.
+    g->slack = 0x1p-40 * (magnitude + s->def->cutoff);
+    // Cells half the cutoff wide, searched 2 each way, hold fewer points that are too far than
+    // cells as wide as the cutoff searched 1 each way (a 2.5 by 2.5 by 2.5 cutoff block
+    // against 3 by 3 by 3); a periodic axis needs 2 * reach + 1 distinct cells.
+    for (g->reach = 2; g->reach >= 1; g->reach--)
+        if (lay_out(s, g, least, most))
+            return true;
+    return false;
 }
 
 static void point_of(const search *s, uint32_t k, double x[3])
@@ -140,99 +155,152 @@ static bpx_status no_memory(const search *s)
 }
 
 // Appends point i's hits, sorted by j, to the list.
-static bool append(const search *s, hit *hits, size_t count, uint32_t i, bpx_neighbor_list *list)
+static bool append(const search *s, const hit *hits, uint64_t *keys, size_t count, uint32_t i,
+                   bpx_neighbor_list *list)
 {
-    for (size_t a = 1; a < count; a++) { // a handful each: insertion sort
-        hit h = hits[a];
+    // Sorted as (j, position) keys, a handful each: insertion sort of 8 bytes, not of the hits.
+    for (size_t a = 0; a < count; a++) {
+        uint64_t key = (uint64_t)hits[a].j << 32 | a;
         size_t b = a;
-        for (; b > 0 && hits[b - 1].j > h.j; b--)
-            hits[b] = hits[b - 1];
-        hits[b] = h;
+        for (; b > 0 && keys[b - 1] > key; b--)
+            keys[b] = keys[b - 1];
+        keys[b] = key;
     }
     bool want = s->def->want_distances;
     if (!bpx__neighbors_reserve(list, list->count + count, want))
         return false;
     for (size_t a = 0; a < count; a++) {
+        const hit *h = &hits[(uint32_t)keys[a]];
         bpx_image_pair *p = &list->pairs[list->count + a];
         p->i = i;
-        p->j = hits[a].j;
-        memcpy(p->shift, hits[a].shift, sizeof p->shift);
+        p->j = h->j;
+        memcpy(p->shift, h->shift, sizeof p->shift);
         if (want)
-            list->distances[list->count + a] = hits[a].distance;
+            list->distances[list->count + a] = h->distance;
     }
     list->count += count;
     return true;
 }
 
-// A neighbour cell of the cell being searched: its slots, and the periods it is moved by.
-typedef struct neighbour {
+// A run of points to search for the points of one cell: neighbour cells next to each other in
+// slot order (x - 1 .. x + 1 on a row, when no face of the cell is crossed between them), and
+// the periods they are moved by.
+typedef struct run {
     uint32_t begin, end;
     int32_t t[3];
-} neighbour;
+} run;
 
-// The (up to 27) cells around cell (x, y, z), each once.
-static int neighbours_of(const search *s, const grid *g, const uint32_t *start, const int cell[3],
-                         neighbour out[27])
+// Most runs around a cell: (2 reach + 1)^2 rows, each split in at most 2 reach + 1 cells.
+enum { MAX_RUNS = 125 };
+
+// The runs covering the cells within g->reach of cell (x, y, z), each cell once.
+static int runs_around(const search *s, const grid *g, const uint32_t *start, const int cell[3],
+                       run out[MAX_RUNS])
 {
-    int count = 0;
-    for (int dz = -1; dz <= 1; dz++)
-        for (int dy = -1; dy <= 1; dy++)
-            for (int dx = -1; dx <= 1; dx++) {
-                int offset[3] = {dx, dy, dz}, at[3];
-                neighbour nb = {0};
-                bool inside = true;
-                for (int a = 0; a < 3; a++) {
-                    at[a] = cell[a] + offset[a];
-                    if (at[a] < 0 || at[a] >= g->count[a]) {
-                        if (s->period[a] == 0) {
-                            inside = false;
-                            break;
-                        }
-                        nb.t[a] = at[a] < 0 ? -1 : 1;
-                        at[a] -= nb.t[a] * g->count[a];
-                    }
+    int count = 0, R = g->reach;
+    for (int dz = -R; dz <= R; dz++)
+        for (int dy = -R; dy <= R; dy++) {
+            int row[3] = {0, cell[1] + dy, cell[2] + dz};
+            int32_t t[3] = {0, 0, 0};
+            bool inside = true;
+            for (int a = 1; a < 3; a++)
+                if (row[a] < 0 || row[a] >= g->count[a]) {
+                    if (s->period[a] == 0)
+                        inside = false;
+                    t[a] = row[a] < 0 ? -1 : 1;
+                    row[a] -= t[a] * g->count[a];
                 }
-                if (!inside)
-                    continue;
-                size_t index = ((size_t)at[2] * g->count[1] + at[1]) * g->count[0] + at[0];
-                nb.begin = start[index];
-                nb.end = start[index + 1];
-                if (nb.begin < nb.end)
-                    out[count++] = nb;
+            if (!inside)
+                continue;
+            size_t row_start = ((size_t)row[2] * g->count[1] + row[1]) * g->count[0];
+            int lo = cell[0] - R, hi = cell[0] + R;
+            if (lo >= 0 && hi < g->count[0]) { // one run, no face crossed
+                run r = {start[row_start + lo], start[row_start + hi + 1], {0, t[1], t[2]}};
+                if (r.begin < r.end)
+                    out[count++] = r;
+                continue;
             }
+            for (int x = lo; x <= hi; x++) {
+                run r = {0, 0, {0, t[1], t[2]}};
+                int at = x;
+                if (at < 0 || at >= g->count[0]) {
+                    if (s->period[0] == 0)
+                        continue;
+                    r.t[0] = at < 0 ? -1 : 1;
+                    at -= r.t[0] * g->count[0];
+                }
+                r.begin = start[row_start + at];
+                r.end = start[row_start + at + 1];
+                if (r.begin < r.end)
+                    out[count++] = r;
+            }
+        }
     return count;
 }
 
-// Point i's hits among the neighbour cells' points j > i.
-static size_t search_point(const search *s, const grid *g, const slot *i, const slot *slots,
-                           const neighbour *near, int near_count, hit *hits)
+// The points in cell order: wrapped coordinates for the quick test (structure of arrays), and
+// the slots, with the input coordinates, for the exact one.
+typedef struct cell_points {
+    double *wrapped[3];
+    slot *slots;
+} cell_points;
+
+// bpx__within for two points and the Euclidean metric, the same operations in the same order
+// (for a point the gap is |j + shift L - i|, and squaring drops the sign), without the box
+// metric's exact sums.
+static inline bool points_within(const search *s, const double xi[3], const double xj[3],
+                                 const int32_t shift[3], double *distance)
+{
+    double squares = 0;
+    for (int a = 0; a < 3; a++) {
+        double gap = (xj[a] + (double)shift[a] * s->period[a]) - xi[a];
+        squares += gap * gap;
+    }
+    double c = s->def->cutoff;
+    if (!(squares <= c * c))
+        return false;
+    *distance = sqrt(squares);
+    return true;
+}
+
+// Point k's hits among the runs' points j > i.
+static size_t search_point(const search *s, const grid *g, const cell_points *p, uint32_t k,
+                           const run *runs, int run_count, hit *hits)
 {
     double c = s->def->cutoff;
     double reach = c + g->slack; // the quick test's cutoff: never below the exact one's
+    double reach2 = reach * reach;
     bool euclidean = s->def->metric == BPX_METRIC_EUCLIDEAN;
+    const slot *i = &p->slots[k];
     size_t count = 0;
-    for (int n = 0; n < near_count; n++) {
-        double base[3]; // the periods between i and this cell's points, but for their wraps
+    for (int r = 0; r < run_count; r++) {
+        // j's wrapped position plus these is its offset from i, as the real numbers say to
+        // within rounding.
+        double o[3];
         for (int a = 0; a < 3; a++)
-            base[a] = near[n].t[a] + i->wrap[a];
-        for (uint32_t k = near[n].begin; k < near[n].end; k++) {
-            const slot *j = &slots[k];
-            if (j->id <= i->id)
-                continue;
-            // The gap as bpx__within computes it, against the widened cutoff.
-            double far = 0, squares = 0;
-            for (int a = 0; a < 3; a++) {
-                double d = (j->x[a] + (base[a] - j->wrap[a]) * s->period[a]) - i->x[a];
-                d = d < 0 ? -d : d;
-                far = d > far ? d : far;
-                squares += d * d;
+            o[a] = runs[r].t[a] * s->period[a] - p->wrapped[a][k];
+        const double *x = p->wrapped[0], *y = p->wrapped[1], *z = p->wrapped[2];
+        for (uint32_t m = runs[r].begin; m < runs[r].end; m++) {
+            double dx = x[m] + o[0], dy = y[m] + o[1], dz = z[m] + o[2];
+            bool near;
+            if (euclidean) {
+                near = dx * dx + dy * dy + dz * dz <= reach2;
+            } else {
+                double far = fabs(dx);
+                far = fabs(dy) > far ? fabs(dy) : far;
+                far = fabs(dz) > far ? fabs(dz) : far;
+                near = far <= reach;
             }
-            if (euclidean ? squares > reach * reach : far > reach)
+            if (!near)
+                continue;
+            const slot *j = &p->slots[m];
+            if (j->id <= i->id)
                 continue;
             hit h = {.j = j->id};
             for (int a = 0; a < 3; a++)
-                h.shift[a] = near[n].t[a] + i->wrap[a] - j->wrap[a];
-            if (bpx__within(s, i->x, i->x, j->x, j->x, h.shift, &h.distance))
+                h.shift[a] = runs[r].t[a] + i->wrap[a] - j->wrap[a];
+            if (euclidean ? points_within(s, i->x, j->x, h.shift, &h.distance)
+                          : bpx__within(s, i->x, i->x, j->x, j->x, h.shift, &h.distance))
                 hits[count++] = h;
         }
     }
@@ -248,12 +316,14 @@ bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list)
     uint32_t *start = bpx__alloc((cells + 1) * sizeof *start);
     uint32_t *home = bpx__alloc((size_t)s->n * sizeof *home); // each point's cell
     slot *slots = bpx__alloc((size_t)s->n * sizeof *slots);
+    double *wrapped = bpx__alloc(3 * (size_t)s->n * sizeof *wrapped);
     size_t *first = bpx__alloc((size_t)s->n * sizeof *first); // each point's hits in `found`
     bpx_neighbor_list found = {0}; // the hits in cell order, gathered into id order at the end
     bpx_status status = BPX_OK;
     hit *hits = NULL;
+    uint64_t *keys = NULL;
     size_t hits_capacity = 0;
-    if (!start || !home || !slots || !first) {
+    if (!start || !home || !slots || !wrapped || !first) {
         status = no_memory(s);
         goto done;
     }
@@ -272,18 +342,24 @@ bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list)
         fullest = start[c + 1] > fullest ? start[c + 1] : fullest;
         start[c + 1] += start[c];
     }
+    cell_points points = {{wrapped, wrapped + s->n, wrapped + 2 * (size_t)s->n}, slots};
     for (uint32_t k = 0; k < s->n; k++) {
         int cell[3];
-        slot *to = &slots[start[home[k]]++];
+        uint32_t at = start[home[k]]++;
+        slot *to = &slots[at];
         locate(s, &g, k, cell, to->x, to->wrap);
         to->id = k;
+        for (int a = 0; a < 3; a++)
+            points.wrapped[a][at] = to->x[a] - (double)to->wrap[a] * s->period[a];
     }
     for (size_t c = cells; c > 0; c--) // start[c] ran to the end of cell c: shift back
         start[c] = start[c - 1];
     start[0] = 0;
-    hits_capacity = 27 * (size_t)fullest;
+    int side = 2 * g.reach + 1;
+    hits_capacity = (size_t)side * side * side * fullest;
     hits = bpx__alloc(hits_capacity * sizeof *hits);
-    if (!hits) {
+    keys = bpx__alloc(hits_capacity * sizeof *keys);
+    if (!hits || !keys) {
         status = no_memory(s);
         goto done;
     }
@@ -295,13 +371,13 @@ bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list)
                 size_t index = ((size_t)cell[2] * g.count[1] + cell[1]) * g.count[0] + cell[0];
                 if (start[index] == start[index + 1])
                     continue;
-                neighbour near[27];
-                int near_count = neighbours_of(s, &g, start, cell, near);
+                run runs[MAX_RUNS];
+                int run_count = runs_around(s, &g, start, cell, runs);
                 for (uint32_t k = start[index]; k < start[index + 1]; k++) {
-                    size_t count = search_point(s, &g, &slots[k], slots, near, near_count, hits);
+                    size_t count = search_point(s, &g, &points, k, runs, run_count, hits);
                     first[slots[k].id] = found.count;
                     home[slots[k].id] = (uint32_t)count; // home is free now: the hit counts
-                    if (!append(s, hits, count, slots[k].id, &found)) {
+                    if (!append(s, hits, keys, count, slots[k].id, &found)) {
                         status = no_memory(s);
                         goto done;
                     }
@@ -324,8 +400,10 @@ done:
     bpx__free(start, (cells + 1) * sizeof *start);
     bpx__free(home, (size_t)s->n * sizeof *home);
     bpx__free(slots, (size_t)s->n * sizeof *slots);
+    bpx__free(wrapped, 3 * (size_t)s->n * sizeof *wrapped);
     bpx__free(first, (size_t)s->n * sizeof *first);
     bpx__free(hits, hits_capacity * sizeof *hits);
+    bpx__free(keys, hits_capacity * sizeof *keys);
     bpx_neighbor_list_free(&found);
     if (status != BPX_OK)
         bpx_neighbor_list_free(list);
