@@ -477,30 +477,33 @@ static void test_neighbors_allocation_failure(void)
     int64_t start = bpx_allocated_bytes();
     atomic_store(&fa_budget, -1);
     bpx_set_allocator(fa_alloc, fa_free, &fa_tag);
-    long long budget = 0;
-    for (; budget < 100000; budget++) {
-        check_set_context("neighbors: allocation failure after %lld allocations", budget);
-        atomic_store(&fa_budget, budget);
-        bpx_neighbor_list list;
-        bpx_error err;
-        bpx_status status = bpx_find_neighbors(&def, points, n, &list, &err);
-        atomic_store(&fa_budget, -1);
-        if (status == BPX_OK) {
-            CHECK(list.count == want.count &&
-                  memcmp(list.pairs, want.pairs, want.count * sizeof *want.pairs) == 0 &&
-                  memcmp(list.distances, want.distances, want.count * sizeof(double)) == 0);
-            bpx_neighbor_list_free(&list);
-            break;
+    for (def.worker_count = 1; def.worker_count <= 3; def.worker_count += 2) {
+        long long budget = 0;
+        for (; budget < 100000; budget++) {
+            check_set_context("neighbors: allocation failure after %lld allocations, %d workers",
+                              budget, def.worker_count);
+            atomic_store(&fa_budget, budget);
+            bpx_neighbor_list list;
+            bpx_error err;
+            bpx_status status = bpx_find_neighbors(&def, points, n, &list, &err);
+            atomic_store(&fa_budget, -1);
+            if (status == BPX_OK) {
+                CHECK(list.count == want.count &&
+                      memcmp(list.pairs, want.pairs, want.count * sizeof *want.pairs) == 0 &&
+                      memcmp(list.distances, want.distances, want.count * sizeof(double)) == 0);
+                bpx_neighbor_list_free(&list);
+                break;
+            }
+            CHECK_STATUS(status, BPX_ERR_OUT_OF_MEMORY);
+            CHECK(list.count == 0 && list.pairs == NULL && list.distances == NULL);
+            CHECK_EQ_U64(atomic_load(&fa_live), 0);
+            CHECK(bpx_allocated_bytes() == start);
         }
-        CHECK_STATUS(status, BPX_ERR_OUT_OF_MEMORY);
-        CHECK(list.count == 0 && list.pairs == NULL && list.distances == NULL);
-        CHECK_EQ_U64(atomic_load(&fa_live), 0);
-        CHECK(bpx_allocated_bytes() == start);
+        printf("  neighbors, %d workers: a full run needs %lld allocations; every shorter "
+               "budget failed cleanly\n",
+               def.worker_count, budget);
+        CHECK(budget > 3);
     }
-    printf("  neighbors: a full run needs %lld allocations; every shorter budget failed "
-           "cleanly\n",
-           budget);
-    CHECK(budget > 3);
     bpx_set_allocator(NULL, NULL, NULL);
     bpx_neighbor_list_free(&want);
 }

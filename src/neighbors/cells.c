@@ -9,6 +9,7 @@
 
 #include "../core/alloc.h"
 #include "../core/validate.h"
+#include "../parallel/pool.h"
 #include "search.h"
 
 // Cells per axis at most, and in all at most about two per point (a tiny cutoff would make
@@ -307,23 +308,92 @@ static size_t search_point(const search *s, const grid *g, const cell_points *p,
     return count;
 }
 
+// One share of the search: rows of cells (a row: the cells along x at one y and z), their
+// points' hits in cell order in `found`, each point's place in it in `first` and `counts`.
+typedef struct share {
+    bpx_neighbor_list found;
+    bpx_status status;
+} share;
+
+typedef struct search_job {
+    const search *s;
+    const grid *g;
+    const uint32_t *start;
+    const cell_points *points;
+    size_t hits_capacity;
+    int share_count;
+    share *shares;
+    size_t *first;    // per point: where its hits begin in its share's list
+    uint32_t *counts; // per point: how many
+    uint16_t *owner;  // per point: its share
+} search_job;
+
+static void search_share(int begin, int end, int worker, void *context)
+{
+    (void)worker;
+    const search_job *job = context;
+    const search *s = job->s;
+    const grid *g = job->g;
+    size_t rows = (size_t)g->count[1] * g->count[2];
+    hit *hits = bpx__alloc(job->hits_capacity * sizeof *hits);
+    uint64_t *keys = bpx__alloc(job->hits_capacity * sizeof *keys);
+    for (int k = begin; k < end; k++) {
+        share *sh = &job->shares[k];
+        if (!hits || !keys) {
+            sh->status = BPX_ERR_OUT_OF_MEMORY;
+            continue;
+        }
+        size_t row_end = rows * (size_t)(k + 1) / job->share_count;
+        for (size_t row = rows * (size_t)k / job->share_count; row < row_end; row++) {
+            int cell[3] = {0, (int)(row % g->count[1]), (int)(row / g->count[1])};
+            for (cell[0] = 0; cell[0] < g->count[0]; cell[0]++) {
+                size_t index = row * g->count[0] + cell[0];
+                if (job->start[index] == job->start[index + 1])
+                    continue;
+                run runs[MAX_RUNS];
+                int run_count = runs_around(s, g, job->start, cell, runs);
+                for (uint32_t m = job->start[index]; m < job->start[index + 1]; m++) {
+                    size_t count = search_point(s, g, job->points, m, runs, run_count, hits);
+                    uint32_t id = job->points->slots[m].id;
+                    job->first[id] = sh->found.count;
+                    job->counts[id] = (uint32_t)count;
+                    job->owner[id] = (uint16_t)k;
+                    if (!append(s, hits, keys, count, id, &sh->found)) {
+                        sh->status = BPX_ERR_OUT_OF_MEMORY;
+                        goto next_share;
+                    }
+                }
+            }
+        }
+    next_share:;
+    }
+    bpx__free(hits, job->hits_capacity * sizeof *hits);
+    bpx__free(keys, job->hits_capacity * sizeof *keys);
+}
+
 bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list)
 {
     grid g;
     if (!plan(s, &g))
         return BPX_ERR_BAD_STATE;
     size_t cells = (size_t)g.count[0] * g.count[1] * g.count[2];
+    size_t rows = (size_t)g.count[1] * g.count[2];
+    int workers = s->def->worker_count > 1 ? s->def->worker_count : 1;
+    // Shares: a few per worker, for balance; one on one thread.
+    int share_count = workers == 1 ? 1 : (int)(rows < 8u * workers ? rows : 8u * workers);
     uint32_t *start = bpx__alloc((cells + 1) * sizeof *start);
     uint32_t *home = bpx__alloc((size_t)s->n * sizeof *home); // each point's cell
     slot *slots = bpx__alloc((size_t)s->n * sizeof *slots);
     double *wrapped = bpx__alloc(3 * (size_t)s->n * sizeof *wrapped);
-    size_t *first = bpx__alloc((size_t)s->n * sizeof *first); // each point's hits in `found`
-    bpx_neighbor_list found = {0}; // the hits in cell order, gathered into id order at the end
+    size_t *first = bpx__alloc((size_t)s->n * sizeof *first);
+    uint32_t *counts = bpx__alloc((size_t)s->n * sizeof *counts);
+    uint16_t *owner = bpx__alloc((size_t)s->n * sizeof *owner);
+    share *shares = bpx__alloc((size_t)share_count * sizeof *shares);
+    bpx_pool *pool = NULL;
     bpx_status status = BPX_OK;
-    hit *hits = NULL;
-    uint64_t *keys = NULL;
-    size_t hits_capacity = 0;
-    if (!start || !home || !slots || !wrapped || !first) {
+    if (shares)
+        memset(shares, 0, (size_t)share_count * sizeof *shares);
+    if (!start || !home || !slots || !wrapped || !first || !counts || !owner || !shares) {
         status = no_memory(s);
         goto done;
     }
@@ -355,56 +425,58 @@ bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list)
     for (size_t c = cells; c > 0; c--) // start[c] ran to the end of cell c: shift back
         start[c] = start[c - 1];
     start[0] = 0;
+    // The search, share by share; cells in order within one, so that the points searched stay
+    // in cache from one point to the next.
     int side = 2 * g.reach + 1;
-    hits_capacity = (size_t)side * side * side * fullest;
-    hits = bpx__alloc(hits_capacity * sizeof *hits);
-    keys = bpx__alloc(hits_capacity * sizeof *keys);
-    if (!hits || !keys) {
-        status = no_memory(s);
-        goto done;
+    search_job job = {s, &g, start, &points, (size_t)side * side * side * fullest, share_count,
+                      shares, first, counts, owner};
+    bpx_executor executor = {.worker_count = 1};
+    if (workers > 1) {
+        if (!(pool = bpx__pool_create(workers - 1, -1))) {
+            status = bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                                "no memory or threads for %d workers", workers);
+            goto done;
+        }
+        executor = (bpx_executor){.pool = pool, .worker_count = workers};
     }
-    // Cell by cell, so that the points searched stay in cache from one point to the next.
-    int cell[3];
-    for (cell[2] = 0; cell[2] < g.count[2]; cell[2]++)
-        for (cell[1] = 0; cell[1] < g.count[1]; cell[1]++)
-            for (cell[0] = 0; cell[0] < g.count[0]; cell[0]++) {
-                size_t index = ((size_t)cell[2] * g.count[1] + cell[1]) * g.count[0] + cell[0];
-                if (start[index] == start[index + 1])
-                    continue;
-                run runs[MAX_RUNS];
-                int run_count = runs_around(s, &g, start, cell, runs);
-                for (uint32_t k = start[index]; k < start[index + 1]; k++) {
-                    size_t count = search_point(s, &g, &points, k, runs, run_count, hits);
-                    first[slots[k].id] = found.count;
-                    home[slots[k].id] = (uint32_t)count; // home is free now: the hit counts
-                    if (!append(s, hits, keys, count, slots[k].id, &found)) {
-                        status = no_memory(s);
-                        goto done;
-                    }
-                }
-            }
+    bpx__parallel_for(&executor, search_share, share_count, &job);
+    for (int k = 0; k < share_count; k++)
+        if (shares[k].status != BPX_OK) {
+            status = no_memory(s);
+            goto done;
+        }
     // Gathered into (i, j) order.
+    size_t total = 0;
+    for (int k = 0; k < share_count; k++)
+        total += shares[k].found.count;
     bool want = s->def->want_distances;
-    if (found.count && !bpx__neighbors_reserve(list, found.count, want)) {
+    if (total && !bpx__neighbors_reserve(list, total, want)) {
         status = no_memory(s);
         goto done;
     }
     for (uint32_t i = 0; i < s->n; i++) {
-        memcpy(list->pairs + list->count, found.pairs + first[i], home[i] * sizeof *list->pairs);
+        if (counts[i] == 0)
+            continue;
+        const bpx_neighbor_list *from = &shares[owner[i]].found;
+        memcpy(list->pairs + list->count, from->pairs + first[i], counts[i] * sizeof *list->pairs);
         if (want)
-            memcpy(list->distances + list->count, found.distances + first[i],
-                   home[i] * sizeof *list->distances);
-        list->count += home[i];
+            memcpy(list->distances + list->count, from->distances + first[i],
+                   counts[i] * sizeof *list->distances);
+        list->count += counts[i];
     }
 done:
+    bpx__pool_destroy(pool);
     bpx__free(start, (cells + 1) * sizeof *start);
     bpx__free(home, (size_t)s->n * sizeof *home);
     bpx__free(slots, (size_t)s->n * sizeof *slots);
     bpx__free(wrapped, 3 * (size_t)s->n * sizeof *wrapped);
     bpx__free(first, (size_t)s->n * sizeof *first);
-    bpx__free(hits, hits_capacity * sizeof *hits);
-    bpx__free(keys, hits_capacity * sizeof *keys);
-    bpx_neighbor_list_free(&found);
+    bpx__free(counts, (size_t)s->n * sizeof *counts);
+    bpx__free(owner, (size_t)s->n * sizeof *owner);
+    if (shares)
+        for (int k = 0; k < share_count; k++)
+            bpx_neighbor_list_free(&shares[k].found);
+    bpx__free(shares, (size_t)share_count * sizeof *shares);
     if (status != BPX_OK)
         bpx_neighbor_list_free(list);
     return status;
