@@ -84,7 +84,8 @@ PyObject *py_set_max_pairs(PyObject *module, PyObject *arg);
 
 /// find_neighbors(where, data, format, (px, py, pz), cutoff, metric, want_distances, pairs_only,
 /// backend, threads) -> (pairs, distances or None): bpx_find_neighbors over a float32 or float64
-/// buffer, pairs as bpx_image_pair rows (or bpx_pair rows when pairs_only), as bytearrays.
+/// buffer; pairs a bytearray of bpx_pair rows when pairs_only, else a tuple of bytearrays
+/// (i, j, shifts); distances a bytearray of doubles.
 PyObject *py_find_neighbors(PyObject *module, PyObject *args);
 
 // query.c

@@ -39,21 +39,36 @@ static int get_float_rows(const char *where, PyObject *obj, char kind, Py_ssize_
     return 0;
 }
 
-// The list's pairs as a bytearray: bpx_image_pair rows (20 bytes), or just (i, j) (8 bytes).
+// The list's pairs as bytearrays: (i, j) rows of bpx_pair when pairs_only, else the columns
+// i, j (uint32) and the shifts (3 int32 a pair), split here so that NumPy takes them as they are.
 static PyObject *pairs_bytes(const bpx_neighbor_list *list, int pairs_only)
 {
-    char *data = NULL;
-    size_t row = pairs_only ? sizeof(bpx_pair) : sizeof(bpx_image_pair);
-    PyObject *out = new_bytes(list->count * row, &data);
-    if (!out || list->count == 0)
-        return out;
-    if (!pairs_only) {
-        memcpy(data, list->pairs, list->count * row);
+    if (pairs_only) {
+        char *data = NULL;
+        PyObject *out = new_bytes(list->count * sizeof(bpx_pair), &data);
+        if (out)
+            for (size_t k = 0; k < list->count; k++)
+                ((bpx_pair *)data)[k] = (bpx_pair){list->pairs[k].i, list->pairs[k].j};
         return out;
     }
-    bpx_pair *pairs = (bpx_pair *)data;
-    for (size_t k = 0; k < list->count; k++)
-        pairs[k] = (bpx_pair){list->pairs[k].i, list->pairs[k].j};
+    char *i = NULL, *j = NULL, *shifts = NULL;
+    PyObject *columns[3] = {new_bytes(list->count * sizeof(uint32_t), &i),
+                            new_bytes(list->count * sizeof(uint32_t), &j),
+                            new_bytes(list->count * 3 * sizeof(int32_t), &shifts)};
+    if (!columns[0] || !columns[1] || !columns[2]) {
+        for (int c = 0; c < 3; c++)
+            Py_XDECREF(columns[c]);
+        return NULL;
+    }
+    for (size_t k = 0; k < list->count; k++) {
+        const bpx_image_pair *p = &list->pairs[k];
+        ((uint32_t *)i)[k] = p->i;
+        ((uint32_t *)j)[k] = p->j;
+        memcpy((int32_t *)shifts + 3 * k, p->shift, sizeof p->shift);
+    }
+    PyObject *out = PyTuple_Pack(3, columns[0], columns[1], columns[2]);
+    for (int c = 0; c < 3; c++)
+        Py_DECREF(columns[c]);
     return out;
 }
 

@@ -15,6 +15,18 @@ QUERY_ORIENTED: int
 QUERY_POINT: int  # bpx_query_point: a box query of [point, point]
 
 def find_pairs(boxes: NDArray[np.float32], backend: str, threads: int) -> bytearray: ...
+def find_neighbors(
+    where: str,
+    data: NDArray[Any],
+    format: int,
+    period: Tuple[float, float, float],
+    cutoff: float,
+    metric: int,
+    want_distances: bool,
+    pairs_only: bool,
+    backend: str,
+    threads: int,
+) -> Tuple[Any, Optional[bytearray]]: ...
 def backends() -> List[Tuple[str, bool, str, str]]: ...
 def simd_widths() -> List[Tuple[str, bool, int]]: ...
 def _last_input_address() -> int: ...

@@ -173,10 +173,9 @@ def neighbor_pairs(
         what, data, fmt, period, cutoff, _METRICS[metric], bool(distances), False, backend,
         _threads(threads, len(data)),
     )
-    rows = np.frombuffer(raw, dtype=np.dtype([("i", "<u4"), ("j", "<u4"), ("s", "<i4", (3,))]))
-    i = np.ascontiguousarray(rows["i"])
-    j = np.ascontiguousarray(rows["j"])
-    shifts = np.ascontiguousarray(rows["s"]).reshape(-1, 3)
+    i = np.frombuffer(raw[0], dtype=np.uint32)
+    j = np.frombuffer(raw[1], dtype=np.uint32)
+    shifts = np.frombuffer(raw[2], dtype=np.int32).reshape(-1, 3)
     d = np.frombuffer(raw_distances, dtype=np.float64) if distances else None
     v = None
     if vectors:
