@@ -14,13 +14,14 @@
 //   if (bpx_find_neighbors(&def, xyz, n, &list, &err) == BPX_OK) { ... }
 //   bpx_neighbor_list_free(&list);
 //
-// How: the boxes are wrapped into the cell, grown by cutoff / 2 and rounded outward to float32
-// (so no pair is ever missed), boxes that reach past the cell's upper faces get images below
-// its lower faces, and a backend (any: auto by default) finds the candidate pairs among them;
-// each candidate is kept once (the image pair whose shifts are 0 or less, with one of them 0 on
-// every periodic axis) and then decided exactly on the input coordinates in double. The cost
-// over a plain bpx_find_pairs: the images (boxes within their size of an upper face), a pass
-// over the candidates, and a sort of the pairs that involve images.
+// How: points with the auto backend go to a cell list (cells half the cutoff wide, each point
+// against the points of the cells around it, in cell order, on the workers). Everything else
+// (boxes, another backend, a periodic axis shorter than 3 cutoffs) goes through a backend: the
+// objects are wrapped into the cell, grown by cutoff / 2 and rounded outward to float32 (so no
+// pair is ever missed), objects that reach past the cell's upper faces get images below its
+// lower faces, and the backend finds the candidate pairs among them; each candidate is kept once
+// (the image pair whose shifts are 0 or less, with one of them 0 on every periodic axis). Both
+// decide each pair on the input coordinates in double, the same way (docs/neighbors.md).
 #pragma once
 
 #include "types.h"
@@ -69,8 +70,9 @@ typedef struct bpx_neighbor_def {
     bpx_metric metric; ///< default BPX_METRIC_BOX
     /// Fill bpx_neighbor_list.distances (the metric's distance of each pair). Default false.
     bool want_distances;
-    /// Comparator for the candidates (default BPX_BACKEND_AUTO) and its threads (as
-    /// bpx_world_def.worker_count).
+    /// Comparator for the candidates (default BPX_BACKEND_AUTO: the cell list for points, the
+    /// auto backend for boxes) and the threads of either search (as bpx_world_def.worker_count;
+    /// the output does not depend on it).
     bpx_backend backend;
     int worker_count;
 } bpx_neighbor_def;
