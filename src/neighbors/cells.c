@@ -17,11 +17,13 @@
 #define MAX_CELLS_PER_AXIS (1 << 20)
 
 typedef struct grid {
-    int reach;         // cells searched each way: 2 (cells half the cutoff), else 1
+    int cells_each_way; // cells searched each way: 2 (cells half the cutoff), else 1
     int count[3];      // cells on each axis
     double origin[3];  // open axes: the least coordinate; periodic: 0
     double inverse[3]; // cells per unit of length
-    double slack;      // added to the cutoff in the quick test: more than its rounding
+    double slack;      // more than the rounding of wrapping and cell indices
+    float reach;       // the quick test's cutoff in float: past the cutoff by its rounding
+    float reach2;      // reach squared, rounded up
 } grid;
 
 // One point in cell order: its coordinates as given, which it is, and its wrap.
@@ -38,11 +40,11 @@ typedef struct hit {
     double distance;
 } hit;
 
-// The cells for g->reach (g->slack set); false when a periodic axis is too short for them.
+// The cells for g->cells_each_way (g->slack set); false when a periodic axis is too short for them.
 static bool lay_out(const search *s, grid *g, const double least[3], const double most[3])
 {
-    int fewest = 2 * g->reach + 1;
-    double width = (s->def->cutoff + 4 * g->slack) / g->reach;
+    int fewest = 2 * g->cells_each_way + 1;
+    double width = (s->def->cutoff + 4 * g->slack) / g->cells_each_way;
     if (!(width > 0)) // every point at 0 and no cutoff: any width will do
         width = 1;
     double cells = 1;
@@ -101,10 +103,18 @@ static bool plan(const search *s, grid *g)
     // `reach` of them together) than the cutoff by far more than that keep every pair within
     // `reach` cells of each other on each axis.
     g->slack = 0x1p-40 * (magnitude + s->def->cutoff);
+    // The quick test runs in float on wrapped coordinates (at most `magnitude`): its error is a
+    // few float ulps of that, far under 2^-18 of it. Past 2^60 float's range gets near.
+    if (!(magnitude < 0x1p60))
+        return false;
+    double reach = s->def->cutoff + 0x1p-18 * (magnitude + s->def->cutoff);
+    g->reach2 = (float)(reach * reach);
+    g->reach2 = nextafterf(g->reach2, INFINITY);
+    g->reach = nextafterf((float)reach, INFINITY);
     // Cells half the cutoff wide, searched 2 each way, hold fewer points that are too far than
     // cells as wide as the cutoff searched 1 each way (a 2.5 by 2.5 by 2.5 cutoff block
     // against 3 by 3 by 3); a periodic axis needs 2 * reach + 1 distinct cells.
-    for (g->reach = 2; g->reach >= 1; g->reach--)
+    for (g->cells_each_way = 2; g->cells_each_way >= 1; g->cells_each_way--)
         if (lay_out(s, g, least, most))
             return true;
     return false;
@@ -194,11 +204,11 @@ typedef struct run {
 // Most runs around a cell: (2 reach + 1)^2 rows, each split in at most 2 reach + 1 cells.
 enum { MAX_RUNS = 125 };
 
-// The runs covering the cells within g->reach of cell (x, y, z), each cell once.
+// The runs covering the cells within g->cells_each_way of cell (x, y, z), each cell once.
 static int runs_around(const search *s, const grid *g, const uint32_t *start, const int cell[3],
                        run out[MAX_RUNS])
 {
-    int count = 0, R = g->reach;
+    int count = 0, R = g->cells_each_way;
     for (int dz = -R; dz <= R; dz++)
         for (int dy = -R; dy <= R; dy++) {
             int row[3] = {0, cell[1] + dy, cell[2] + dz};
@@ -242,7 +252,7 @@ static int runs_around(const search *s, const grid *g, const uint32_t *start, co
 // The points in cell order: wrapped coordinates for the quick test (structure of arrays), and
 // the slots, with the input coordinates, for the exact one.
 typedef struct cell_points {
-    double *wrapped[3];
+    float *wrapped[3];
     slot *slots;
 } cell_points;
 
@@ -264,37 +274,48 @@ static inline bool points_within(const search *s, const double xi[3], const doub
     return true;
 }
 
-// Point k's hits among the runs' points j > i.
+// Point k's hits among the runs' points j > i. near, passed: room for a run's points.
 static size_t search_point(const search *s, const grid *g, const cell_points *p, uint32_t k,
-                           const run *runs, int run_count, hit *hits)
+                           const run *runs, int run_count, float *near, uint32_t *passed,
+                           hit *hits)
 {
-    double c = s->def->cutoff;
-    double reach = c + g->slack; // the quick test's cutoff: never below the exact one's
-    double reach2 = reach * reach;
     bool euclidean = s->def->metric == BPX_METRIC_EUCLIDEAN;
     const slot *i = &p->slots[k];
+    const float *x = p->wrapped[0], *y = p->wrapped[1], *z = p->wrapped[2];
     size_t count = 0;
     for (int r = 0; r < run_count; r++) {
-        // j's wrapped position plus these is its offset from i, as the real numbers say to
-        // within rounding.
-        double o[3];
+        // j's wrapped position plus these is its offset from i, to within float rounding.
+        float o[3];
         for (int a = 0; a < 3; a++)
-            o[a] = runs[r].t[a] * s->period[a] - p->wrapped[a][k];
-        const double *x = p->wrapped[0], *y = p->wrapped[1], *z = p->wrapped[2];
-        for (uint32_t m = runs[r].begin; m < runs[r].end; m++) {
-            double dx = x[m] + o[0], dy = y[m] + o[1], dz = z[m] + o[2];
-            bool near;
-            if (euclidean) {
-                near = dx * dx + dy * dy + dz * dz <= reach2;
-            } else {
-                double far = fabs(dx);
-                far = fabs(dy) > far ? fabs(dy) : far;
-                far = fabs(dz) > far ? fabs(dz) : far;
-                near = far <= reach;
+            o[a] = (float)(runs[r].t[a] * s->period[a]) - p->wrapped[a][k];
+        uint32_t begin = runs[r].begin, length = runs[r].end - runs[r].begin;
+        // The quick test over the whole run first: a loop the compiler turns into SIMD.
+        float limit;
+        if (euclidean) {
+            for (uint32_t m = 0; m < length; m++) {
+                float dx = x[begin + m] + o[0], dy = y[begin + m] + o[1], dz = z[begin + m] + o[2];
+                near[m] = dx * dx + dy * dy + dz * dz;
             }
-            if (!near)
-                continue;
-            const slot *j = &p->slots[m];
+            limit = g->reach2;
+        } else {
+            for (uint32_t m = 0; m < length; m++) {
+                float dx = fabsf(x[begin + m] + o[0]), dy = fabsf(y[begin + m] + o[1]);
+                float dz = fabsf(z[begin + m] + o[2]);
+                float far = dx > dy ? dx : dy;
+                near[m] = far > dz ? far : dz;
+            }
+            limit = g->reach;
+        }
+        // The few that pass, listed without a branch per point (which would mispredict).
+        uint32_t passed_count = 0;
+        for (uint32_t m = 0; m < length; m++) {
+            bool pass = near[m] <= limit;
+            passed[passed_count] = m;
+            passed_count += pass;
+        }
+        for (uint32_t q = 0; q < passed_count; q++) {
+            uint32_t m = passed[q];
+            const slot *j = &p->slots[begin + m];
             if (j->id <= i->id)
                 continue;
             hit h = {.j = j->id};
@@ -306,6 +327,19 @@ static size_t search_point(const search *s, const grid *g, const cell_points *p,
         }
     }
     return count;
+}
+
+// Pairs (i < j) per point were the points spread evenly over the cell, or over their bounds on
+// open axes: a guess to size the lists by, at most 64.
+static double expected_pairs(const search *s, const grid *g)
+{
+    double volume = 1;
+    for (int a = 0; a < 3; a++)
+        volume *= s->period[a] > 0 ? s->period[a] : g->count[a] / fmax(g->inverse[a], DBL_MIN);
+    double c = s->def->cutoff;
+    double reach = s->def->metric == BPX_METRIC_EUCLIDEAN ? 4.18879 * c * c * c : 8 * c * c * c;
+    double per_point = 0.5 * s->n * reach / volume;
+    return per_point < 64 ? per_point : 64;
 }
 
 // One share of the search: rows of cells (a row: the cells along x at one y and z), their
@@ -320,7 +354,9 @@ typedef struct search_job {
     const grid *g;
     const uint32_t *start;
     const cell_points *points;
-    size_t hits_capacity;
+    size_t hits_capacity; // most hits of one point: points in the cells around the fullest
+    size_t run_capacity;  // most points in one run
+    double pairs_per_point; // expected, were the points uniform
     int share_count;
     share *shares;
     size_t *first;    // per point: where its hits begin in its share's list
@@ -337,14 +373,25 @@ static void search_share(int begin, int end, int worker, void *context)
     size_t rows = (size_t)g->count[1] * g->count[2];
     hit *hits = bpx__alloc(job->hits_capacity * sizeof *hits);
     uint64_t *keys = bpx__alloc(job->hits_capacity * sizeof *keys);
+    float *near = bpx__alloc(job->run_capacity * sizeof *near);
+    uint32_t *passed = bpx__alloc(job->run_capacity * sizeof *passed);
     for (int k = begin; k < end; k++) {
         share *sh = &job->shares[k];
-        if (!hits || !keys) {
+        if (!hits || !keys || !near || !passed) {
             sh->status = BPX_ERR_OUT_OF_MEMORY;
             continue;
         }
+        size_t row_begin = rows * (size_t)k / job->share_count;
         size_t row_end = rows * (size_t)(k + 1) / job->share_count;
-        for (size_t row = rows * (size_t)k / job->share_count; row < row_end; row++) {
+        // Room for the pairs expected, so that the list rarely grows by copying.
+        size_t points = job->start[row_end * g->count[0]] - job->start[row_begin * g->count[0]];
+        double expected = points * job->pairs_per_point * 1.1 + 256;
+        if (!bpx__neighbors_reserve(&sh->found, (size_t)fmin(expected, 1e9),
+                                    s->def->want_distances)) {
+            sh->status = BPX_ERR_OUT_OF_MEMORY;
+            continue;
+        }
+        for (size_t row = row_begin; row < row_end; row++) {
             int cell[3] = {0, (int)(row % g->count[1]), (int)(row / g->count[1])};
             for (cell[0] = 0; cell[0] < g->count[0]; cell[0]++) {
                 size_t index = row * g->count[0] + cell[0];
@@ -353,7 +400,8 @@ static void search_share(int begin, int end, int worker, void *context)
                 run runs[MAX_RUNS];
                 int run_count = runs_around(s, g, job->start, cell, runs);
                 for (uint32_t m = job->start[index]; m < job->start[index + 1]; m++) {
-                    size_t count = search_point(s, g, job->points, m, runs, run_count, hits);
+                    size_t count =
+                        search_point(s, g, job->points, m, runs, run_count, near, passed, hits);
                     uint32_t id = job->points->slots[m].id;
                     job->first[id] = sh->found.count;
                     job->counts[id] = (uint32_t)count;
@@ -369,6 +417,8 @@ static void search_share(int begin, int end, int worker, void *context)
     }
     bpx__free(hits, job->hits_capacity * sizeof *hits);
     bpx__free(keys, job->hits_capacity * sizeof *keys);
+    bpx__free(near, job->run_capacity * sizeof *near);
+    bpx__free(passed, job->run_capacity * sizeof *passed);
 }
 
 bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list)
@@ -384,7 +434,7 @@ bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list)
     uint32_t *start = bpx__alloc((cells + 1) * sizeof *start);
     uint32_t *home = bpx__alloc((size_t)s->n * sizeof *home); // each point's cell
     slot *slots = bpx__alloc((size_t)s->n * sizeof *slots);
-    double *wrapped = bpx__alloc(3 * (size_t)s->n * sizeof *wrapped);
+    float *wrapped = bpx__alloc(3 * (size_t)s->n * sizeof *wrapped);
     size_t *first = bpx__alloc((size_t)s->n * sizeof *first);
     uint32_t *counts = bpx__alloc((size_t)s->n * sizeof *counts);
     uint16_t *owner = bpx__alloc((size_t)s->n * sizeof *owner);
@@ -420,16 +470,26 @@ bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list)
         locate(s, &g, k, cell, to->x, to->wrap);
         to->id = k;
         for (int a = 0; a < 3; a++)
-            points.wrapped[a][at] = to->x[a] - (double)to->wrap[a] * s->period[a];
+            points.wrapped[a][at] = (float)(to->x[a] - (double)to->wrap[a] * s->period[a]);
     }
     for (size_t c = cells; c > 0; c--) // start[c] ran to the end of cell c: shift back
         start[c] = start[c - 1];
     start[0] = 0;
     // The search, share by share; cells in order within one, so that the points searched stay
     // in cache from one point to the next.
-    int side = 2 * g.reach + 1;
-    search_job job = {s, &g, start, &points, (size_t)side * side * side * fullest, share_count,
-                      shares, first, counts, owner};
+    int side = 2 * g.cells_each_way + 1;
+    search_job job = {s,
+                      &g,
+                      start,
+                      &points,
+                      (size_t)side * side * side * fullest,
+                      (size_t)side * fullest,
+                      expected_pairs(s, &g),
+                      share_count,
+                      shares,
+                      first,
+                      counts,
+                      owner};
     bpx_executor executor = {.worker_count = 1};
     if (workers > 1) {
         if (!(pool = bpx__pool_create(workers - 1, -1))) {
