@@ -167,3 +167,16 @@ def test_bad_arguments():
     assert info.value.index == 1 and info.value.axis == 1
     with pytest.raises(bpx.TooManyBoxesError):
         bpx.neighbor_pairs(np.array([[0, 0, 0, 1, 1, 1.0]]), 0.0, cell=1e-12)
+
+
+def test_threads_same_bytes():
+    rng = np.random.default_rng(11)
+    points = rng.uniform(0, 20, size=(20000, 3))
+    one = bpx.neighbor_pairs(points, 1.1, cell=20, threads=1)
+    three = bpx.neighbor_pairs(points, 1.1, cell=20, threads=3)
+    for a, b in zip(one[:4], three[:4]):
+        assert np.array_equal(a, b)
+    # the image search (another backend) agrees with the cell list
+    other = bpx.neighbor_pairs(points, 1.1, cell=20, backend="sap", threads=2)
+    for a, b in zip(one[:4], other[:4]):
+        assert np.array_equal(a, b)
