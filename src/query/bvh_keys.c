@@ -12,24 +12,26 @@
 
 enum { RADIX_BITS = 11, BUCKETS = 1 << RADIX_BITS };
 
-// 10 bits of v spread to every third bit.
-static uint32_t spread(uint32_t v)
-{
-    v &= 0x3FF;
-    v = (v | (v << 16)) & 0x030000FF;
-    v = (v | (v << 8)) & 0x0300F00F;
-    v = (v | (v << 4)) & 0x030C30C3;
-    v = (v | (v << 2)) & 0x09249249;
-    return v;
-}
-
 // ---------------------------------------------------------------------------------------------
-// Keys: per chunk of ids, a copy of the boxes and the live ones' centre bounds, then their keys.
-// Large boxes share the Morton order of the small ones: a subtree of their own (the binary
-// tree's remedy) made every ray of the heavy-tailed scene walk it too, 20-30% more nodes.
+// Keys: per chunk of ids, a copy of the boxes, the live ones' centre bounds, and per shape class
+// the count and extents; then their keys. Large boxes share the Morton order of the small ones:
+// a subtree of their own (the binary tree's remedy) made every ray of the heavy-tailed scene
+// walk it too, 20-30% more nodes.
+//
+// Long boxes change two things. The key's bits interleave the axes in the order that shrinks
+// the nodes' area most (a node's bounds are its cell grown by its boxes): where boxes are 50
+// times longer on x, cells take their y and z bits first and end up long on x like their boxes
+// (cubic cells made every node as long as a box, around a cell a fiftieth of that). And boxes
+// long on different axes (their longest side over 4 times the next), each class at least an
+// eighth of them, go to subtrees of their own (two top key bits), each with its own order:
+// mixed, every node was long on every axis. Cube-like boxes keep the plain x, y, z order.
+
+enum { CLASSES = 4, LONG_RATIO = 4 };
 
 typedef struct chunk_stats {
     double lo[3], hi[3];
+    double extent[CLASSES][3]; // sums of the live boxes' sides, by class
+    uint32_t count[CLASSES];
     uint32_t live;
     uint32_t first; // where the chunk's keys start
 } chunk_stats;
@@ -39,14 +41,33 @@ typedef struct key_job {
     const bpx_soa *s;
     chunk_stats *stats;
     double lo[3], scale[3];
+    uint8_t class_of[CLASSES]; // a shape class's subtree (0 when not split off)
+    // Per subtree and axis, the key bits of a 10-bit coordinate's low and high five bits.
+    uint32_t bits[CLASSES][3][2][32];
 } key_job;
+
+// 0 for a cube-like box, 1 + a for one long on axis a.
+static int shape_class(const bpx_bvh_box *b)
+{
+    float e[3];
+    for (int a = 0; a < 3; a++)
+        e[a] = b->hi[a] - b->lo[a];
+    int l = e[0] >= e[1] ? (e[0] >= e[2] ? 0 : 2) : (e[1] >= e[2] ? 1 : 2);
+    float next = e[(l + 1) % 3] > e[(l + 2) % 3] ? e[(l + 1) % 3] : e[(l + 2) % 3];
+    return e[l] > LONG_RATIO * next ? 1 + l : 0;
+}
 
 static void stats_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
     key_job *job = context;
     for (int c = begin; c < end; c++) {
-        chunk_stats st = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}, 0, 0};
+        chunk_stats st;
+        memset(&st, 0, sizeof st);
+        for (int a = 0; a < 3; a++) {
+            st.lo[a] = INFINITY;
+            st.hi[a] = -INFINITY;
+        }
         bpx__bvh_copy_chunk(job->t, job->s, (uint32_t)c);
         uint32_t first = (uint32_t)c * CHUNK;
         uint32_t last = first + CHUNK < job->s->n ? first + CHUNK : job->s->n;
@@ -54,15 +75,50 @@ static void stats_task(int begin, int end, int worker, void *context)
             const bpx_bvh_box *b = &job->t->boxes[i];
             if (!(b->lo[0] <= b->hi[0]))
                 continue;
+            int k = shape_class(b);
             for (int a = 0; a < 3; a++) {
                 double m = 0.5 * ((double)b->lo[a] + (double)b->hi[a]);
                 st.lo[a] = m < st.lo[a] ? m : st.lo[a];
                 st.hi[a] = m > st.hi[a] ? m : st.hi[a];
+                st.extent[k][a] += (double)b->hi[a] - (double)b->lo[a];
             }
+            st.count[k]++;
             st.live++;
         }
         job->stats[c] = st;
     }
+}
+
+// The order of a subtree's 30 key bits, highest first: each bit halves the cell on the axis
+// whose halving takes the most area off the cell grown by the mean box (cell c, grown
+// d = c + e: halving c_a takes c_a / 2 * (d_b + d_c)); 10 bits an axis.
+static void order_bits(const double range[3], const double extent[3], uint32_t bits[3][2][32])
+{
+    double c[3];
+    int taken[3] = {0, 0, 0};
+    uint32_t place[3][10];
+    for (int a = 0; a < 3; a++)
+        c[a] = range[a];
+    for (int bit = 29; bit >= 0; bit--) {
+        int best = -1;
+        double most = -1.0;
+        for (int a = 0; a < 3; a++) {
+            double gain = c[a] * (c[(a + 1) % 3] + extent[(a + 1) % 3] + c[(a + 2) % 3] +
+                                  extent[(a + 2) % 3]);
+            if (taken[a] < 10 && gain > most)
+                best = a, most = gain;
+        }
+        place[best][9 - taken[best]++] = (uint32_t)bit;
+        c[best] *= 0.5;
+    }
+    for (int a = 0; a < 3; a++)
+        for (int half = 0; half < 2; half++)
+            for (uint32_t v = 0; v < 32; v++) {
+                uint32_t key = 0;
+                for (int j = 0; j < 5; j++)
+                    key |= ((v >> j) & 1u) << place[a][5 * half + j];
+                bits[a][half][v] = key;
+            }
 }
 
 // The keys only order the boxes: any rounding here changes the tree's shape, never a result.
@@ -78,10 +134,12 @@ static void key_task(int begin, int end, int worker, void *context)
             const bpx_bvh_box *b = &job->t->boxes[i];
             if (!(b->lo[0] <= b->hi[0]))
                 continue;
-            uint32_t key = 0;
+            uint32_t sub = job->class_of[shape_class(b)];
+            uint32_t key = sub << 30;
             for (int a = 0; a < 3; a++) {
                 double m = 0.5 * ((double)b->lo[a] + (double)b->hi[a]);
-                key |= spread((uint32_t)((m - job->lo[a]) * job->scale[a])) << (2 - a);
+                uint32_t q = (uint32_t)((m - job->lo[a]) * job->scale[a]) & 1023;
+                key |= job->bits[sub][a][0][q & 31] | job->bits[sub][a][1][q >> 5];
             }
             *out++ = (uint64_t)key << 32 | i;
         }
@@ -94,6 +152,8 @@ uint32_t bpx__bvh_keys(bpx_bvh *t, const bpx_soa *s, const bpx_executor *ex)
     key_job job = {.t = t, .s = s, .stats = (chunk_stats *)(void *)t->counts};
     run(ex, stats_task, chunks, s->n, &job);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double extent[CLASSES][3] = {{0}};
+    uint32_t count[CLASSES] = {0};
     uint32_t m = 0;
     for (uint32_t c = 0; c < chunks; c++) {
         chunk_stats *st = &job.stats[c];
@@ -101,12 +161,39 @@ uint32_t bpx__bvh_keys(bpx_bvh *t, const bpx_soa *s, const bpx_executor *ex)
             lo[a] = st->lo[a] < lo[a] ? st->lo[a] : lo[a];
             hi[a] = st->hi[a] > hi[a] ? st->hi[a] : hi[a];
         }
+        for (int k = 0; k < CLASSES; k++) {
+            count[k] += st->count[k];
+            for (int a = 0; a < 3; a++)
+                extent[k][a] += st->extent[k][a];
+        }
         st->first = m;
         m += st->live;
     }
+    if (!m)
+        return 0;
+    // A class too small for a subtree of its own joins the cube-like boxes (subtree 0). With
+    // one subtree in all, the key's top bits are the same for every box: no split.
+    for (int k = 1; k < CLASSES; k++)
+        if (count[k] < m / 8) {
+            count[0] += count[k];
+            count[k] = 0;
+            for (int a = 0; a < 3; a++)
+                extent[0][a] += extent[k][a];
+        }
+    double range[3];
     for (int a = 0; a < 3; a++) {
         job.lo[a] = lo[a];
-        job.scale[a] = hi[a] > lo[a] ? 1023.0 / (hi[a] - lo[a]) : 0.0;
+        range[a] = hi[a] > lo[a] ? hi[a] - lo[a] : 0.0;
+        job.scale[a] = range[a] > 0.0 ? 1023.0 / range[a] : 0.0;
+    }
+    for (int k = 0; k < CLASSES; k++) {
+        job.class_of[k] = count[k] ? (uint8_t)k : 0;
+        if (!count[k])
+            continue;
+        double mean[3];
+        for (int a = 0; a < 3; a++)
+            mean[a] = extent[k][a] / count[k];
+        order_bits(range, mean, job.bits[k]);
     }
     run(ex, key_task, chunks, s->n, &job);
     return m;
