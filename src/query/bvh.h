@@ -30,7 +30,7 @@ typedef struct bpx_bvh_node {
 /// A box in one 32-byte record: a read at a random id costs one cache line, not six.
 typedef struct bpx_bvh_box {
     float lo[3], hi[3];
-    float pad[2];
+    float pad[2]; ///< pad[0]: the build's shape class of the box (bvh_keys.c)
 } bpx_bvh_box;
 
 /// A run of nodes built by one task: a subtree below the top levels, or the top levels. The
