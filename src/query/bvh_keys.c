@@ -1,6 +1,7 @@
-// The tree's keys on the world's workers: a copy of the boxes (one cache line each), the Morton
-// keys of the live boxes' centres, and a stable radix sort of them. Every pass works on fixed
-// chunks of items and joins them in chunk order, so the order is the same for any worker count.
+// The tree's keys on the world's workers: a copy of the boxes (one cache line each), the
+// Morton-like keys of the live boxes' centres, and a stable radix sort of them. Every pass
+// works on fixed chunks of items and joins them in chunk order, so the order is the same for
+// any worker count.
 #include <math.h>
 #include <string.h>
 
@@ -23,8 +24,9 @@ enum { RADIX_BITS = 11, BUCKETS = 1 << RADIX_BITS };
 // times longer on x, cells take their y and z bits first and end up long on x like their boxes
 // (cubic cells made every node as long as a box, around a cell a fiftieth of that). And boxes
 // long on different axes (their longest side over 4 times the next), each class at least an
-// eighth of them, go to subtrees of their own (two top key bits), each with its own order:
-// mixed, every node was long on every axis. Cube-like boxes keep the plain x, y, z order.
+// eighth of them, go to subtrees of their own (two key bits, below the top bits), each with
+// its own order: mixed, every node was long on every axis. Cube-like boxes keep the plain
+// x, y, z order.
 
 enum { CLASSES = 4, LONG_RATIO = 4 };
 
