@@ -596,6 +596,33 @@ void scene_heavy_tailed_density(uint32_t n, uint64_t seed, bpx_box *out)
     }
 }
 
+void scene_elongated_density(uint32_t n, float aspect, bool random_axis, uint64_t seed,
+                             bpx_box *out)
+{
+    if (!out || n == 0) {
+        return;
+    }
+    scene_rng r;
+    scene_rng_seed(&r, seed);
+    // Two boxes of mean sides (1, 1, a) meet with probability ~8a / side^3 when parallel,
+    // ~2(1 + a)^2 / side^3 when not (two of three pairs on random axes).
+    double a = aspect > 1.0f ? (double)aspect : 1.0;
+    double meet = random_axis ? (8.0 * a + 4.0 * (1.0 + a) * (1.0 + a)) / 3.0 : 8.0 * a;
+    double side = density_side(n, 1.0) * det_cbrt(meet / 8.0);
+    float half = (float)(side * 0.5);
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t long_axis = random_axis ? scene_rng_below(&r, 3) : 0;
+        for (uint32_t k = 0; k < 3; k++) {
+            float size = scene_rng_range(&r, 0.5f, 1.5f);
+            if (k == long_axis) {
+                size *= (float)a;
+            }
+            float lo = scene_rng_range(&r, -half, half) - size * 0.5f;
+            set_axis(&out[i], (int)k, lo, lo + size);
+        }
+    }
+}
+
 void scene_move(bpx_box *boxes, uint32_t n, float step, scene_rng *r)
 {
     for (uint32_t i = 0; i < n; i++) {

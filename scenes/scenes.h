@@ -6,6 +6,7 @@
 // (finite coordinates, min <= max on each axis).
 #pragma once
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include <bpx/types.h>
@@ -71,6 +72,12 @@ void scene_uniform_density(uint32_t n, float overlaps_per_box, uint64_t seed, bp
 /// side 0.5..1.5 (~99%), 4..8 (~1%) or 16..32 (~0.01%, at least one box from n = 2). About 1.1
 /// overlaps per box whatever n is; each huge box overlaps ~2000 small ones.
 void scene_heavy_tailed_density(uint32_t n, uint64_t seed, bpx_box *out);
+
+/// Elongated boxes at the same density (~1 overlap per box): side 0.5..1.5 on two axes and
+/// `aspect` times that on the long one, x for every box or (random_axis) a random axis per box,
+/// in a cube. The case that splits by centres alone handles badly (nodes as long as their boxes).
+void scene_elongated_density(uint32_t n, float aspect, bool random_axis, uint64_t seed,
+                             bpx_box *out);
 
 /// Coherent motion: moves every box by its own random displacement in [-step, step]^3 (min and
 /// max together, so boxes stay valid).

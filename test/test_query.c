@@ -268,15 +268,22 @@ static void test_scenes(bpx_simd simd)
 {
     query_simd = simd;
     const uint32_t sizes[] = {0, 1, 2, 5, 17, 100, 1000};
-    for (int kind = 0; kind < SCENE_KIND_COUNT; kind++)
+    // After the kinds: boxes 50 times longer on x, then on random axes.
+    for (int kind = 0; kind < SCENE_KIND_COUNT + 2; kind++)
         for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
             uint32_t n = sizes[s];
             uint64_t seed = 1000u * (uint64_t)kind + s;
+            bool elongated = kind >= SCENE_KIND_COUNT;
             check_set_seed(seed);
-            check_set_context("scene %s n=%u simd %s", scene_kind_name((scene_kind)kind), n,
-                              bpx_simd_name(simd));
+            check_set_context("scene %s n=%u simd %s",
+                              elongated ? (kind == SCENE_KIND_COUNT ? "long" : "long_any")
+                                        : scene_kind_name((scene_kind)kind),
+                              n, bpx_simd_name(simd));
             bpx_box *boxes = malloc(sizeof(bpx_box) * (n ? n : 1));
-            CHECK(scene_generate((scene_kind)kind, n, seed, boxes) == 0);
+            if (elongated)
+                scene_elongated_density(n, 50.0f, kind > SCENE_KIND_COUNT, seed, boxes);
+            else
+                CHECK(scene_generate((scene_kind)kind, n, seed, boxes) == 0);
             bpx_world *w = make_world(1);
             CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
             world_copy copy = {boxes, n, NULL, NULL, NULL};
@@ -295,13 +302,17 @@ static void test_scenes(bpx_simd simd)
 
 // A world big enough that the tree is built and refitted in parallel passes and subtrees: at
 // every worker count the same results, against the oracle; then every box moves (a refit) and
-// a few are removed (a rebuild).
-static void test_parallel_tree(void)
+// a few are removed (a rebuild). Heavy-tailed sizes, or boxes long on random axes (the keys'
+// subtrees by shape and their own bit orders).
+static void test_parallel_tree(bool elongated)
 {
     enum { N = 150000, Q = 200 };
     bpx_box *boxes = malloc(sizeof(bpx_box) * N);
     uint8_t *live = malloc(N);
-    scene_heavy_tailed_density(N, 21, boxes);
+    if (elongated)
+        scene_elongated_density(N, 50.0f, true, 21, boxes);
+    else
+        scene_heavy_tailed_density(N, 21, boxes);
     memset(live, 1, N);
     bpx_query *queries = malloc(sizeof(bpx_query) * Q);
     scene_rng r;
@@ -315,7 +326,7 @@ static void test_parallel_tree(void)
     }
     world_copy copy = {boxes, N, live, NULL, NULL};
     for (int phase = 0; phase < 3; phase++) {
-        check_set_context("parallel tree phase %d", phase);
+        check_set_context("parallel tree phase %d elongated %d", phase, (int)elongated);
         if (phase == 1) { // every box moves: a refit
             scene_move(boxes, N, 0.5f, &r);
             for (int k = 0; k < 3; k++)
@@ -939,7 +950,8 @@ int main(void)
     if (bpx_simd_best() == BPX_SIMD_AVX512 && bpx_simd_supported(BPX_SIMD_AVX2))
         test_scenes(BPX_SIMD_AVX2);
     test_scenes(BPX_SIMD_SCALAR);
-    test_parallel_tree();
+    test_parallel_tree(false);
+    test_parallel_tree(true);
     test_adversarial_rays();
     test_objects_and_moves();
     test_centres();

@@ -2,7 +2,8 @@
 // (btDbvtBroadphase rayTest / aabbTest) and Box2D 2.4 (b2DynamicTree RayCast / Query), on the
 // same boxes and the same queries, in one run. SPDX-License-Identifier: MIT
 //
-//   bpx_querybench [--sizes 100000,1000000] [--rays 1000000] [--regions 1000000]
+//   bpx_querybench [--sizes 100000,1000000] [--scenes uniform,heavy,long,long_any]
+//                  [--rays 1000000] [--regions 1000000]
 //                  [--sweeps 100000] [--workers 2] [--rounds 1] [--peers all]
 //   bpx_querybench --modes 1 [--sizes ...] [--rays ...] [--rounds ...]
 //
@@ -18,7 +19,8 @@
 // Rays: closest hit from a random origin inside the world along a random unit direction, up to
 // a quarter of the world's side. Regions: boxes of side 2..4 at random places, every hit.
 // Sweeps: a scene box moved by a random translation of length 5, closest hit. Scenes: the
-// benchmark's uniform-density and heavy-tailed boxes (scenes.h).
+// benchmark's uniform-density and heavy-tailed boxes, and boxes 50× longer on x or on a random
+// axis each (scenes.h), all about one overlap per box.
 //
 // What each peer answers: Bullet's rayTest visits every proxy whose box the segment crosses
 // (its broad phase does not shorten the ray as hits are found; the callback here computes each
@@ -32,6 +34,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <thread>
@@ -51,6 +54,10 @@ extern "C" {
 #endif
 #ifdef BPX_QB_HAVE_EMBREE
 #include <embree3/rtcore.h>
+#endif
+
+#ifdef BPX_COUNT_VISITS // a measuring build of bpx: nodes entered by closest casts
+extern "C" uint64_t bpx__visits;
 #endif
 
 namespace
@@ -89,14 +96,29 @@ void unit_direction(scene_rng *r, float d[3])
     }
 }
 
-Workload make(bool heavy, uint32_t n, uint32_t rays, uint32_t regions, uint32_t sweeps)
+// The scenes (scenes.h), all about one overlap per box: uniform, heavy-tailed sizes, boxes 50×
+// longer along x (long) or along a random axis each (long_any).
+const char *const scene_names[] = {"uniform", "heavy", "long", "long_any"};
+
+bool make_boxes(const std::string &scene, uint32_t n, bpx_box *out)
+{
+    if (scene == "uniform")
+        scene_uniform_density(n, 1.0f, 42, out);
+    else if (scene == "heavy")
+        scene_heavy_tailed_density(n, 42, out);
+    else if (scene == "long" || scene == "long_any")
+        scene_elongated_density(n, 50.0f, scene == "long_any", 42, out);
+    else
+        return false;
+    return true;
+}
+
+Workload make(const std::string &scene, uint32_t n, uint32_t rays, uint32_t regions,
+              uint32_t sweeps)
 {
     Workload w;
     w.boxes.resize(n);
-    if (heavy)
-        scene_heavy_tailed_density(n, 42, w.boxes.data());
-    else
-        scene_uniform_density(n, 1.0f, 42, w.boxes.data());
+    make_boxes(scene, n, w.boxes.data());
     for (int a = 0; a < 3; a++) {
         w.lo[a] = INFINITY;
         w.hi[a] = -INFINITY;
@@ -572,9 +594,31 @@ int main(int argc, char **argv)
     uint32_t rays = 1000000, regions = 1000000, sweeps = 100000;
     int workers = 2, rounds = 1;
     std::string peers = "all";
+    std::vector<std::string> scenes(std::begin(scene_names), std::end(scene_names));
     bool modes = false;
+    for (int i = 1; i < argc; i++)
+        if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h")) {
+            std::printf("bpx_querybench [--sizes 100000,1000000] [--scenes "
+                        "uniform,heavy,long,long_any]\n    [--rays N] [--regions N] [--sweeps N] "
+                        "[--workers 2] [--rounds 1] [--peers all|bullet,box2d,embree]\n"
+                        "bpx_querybench --modes 1 [--sizes ...] [--rays ...] [--rounds ...]\n");
+            return 0;
+        }
     for (int i = 1; i + 1 < argc; i += 2) {
-        if (!std::strcmp(argv[i], "--sizes"))
+        if (!std::strcmp(argv[i], "--scenes")) {
+            scenes.clear();
+            for (const char *at = argv[i + 1]; *at;) {
+                const char *comma = std::strchr(at, ',');
+                std::string name = comma ? std::string(at, comma) : std::string(at);
+                bpx_box probe;
+                if (!make_boxes(name, 1, &probe)) {
+                    std::fprintf(stderr, "unknown scene %s\n", name.c_str());
+                    return 2;
+                }
+                scenes.push_back(name);
+                at = comma ? comma + 1 : at + name.size();
+            }
+        } else if (!std::strcmp(argv[i], "--sizes"))
             sizes = parse_list(argv[i + 1]);
         else if (!std::strcmp(argv[i], "--rays"))
             rays = (uint32_t)std::atoi(argv[i + 1]);
@@ -609,10 +653,10 @@ int main(int argc, char **argv)
                 workers);
     std::printf("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     std::vector<std::string> first_rows;
-    for (int heavy = 0; heavy < 2; heavy++)
+    for (const std::string &scene_name : scenes)
         for (uint32_t n : sizes) {
-            Workload w = make(heavy, n, rays, regions, sweeps);
-            const char *scene = heavy ? "heavy" : "uniform";
+            Workload w = make(scene_name, n, rays, regions, sweeps);
+            const char *scene = scene_name.c_str();
             // The first query after the boxes were set builds the tree, on a fresh world each
             // round: against that world's first collide.
             bpx_query probe = w.regions[0];
@@ -674,7 +718,16 @@ int main(int argc, char **argv)
                 std::vector<double> b1s, bms, bullets, box2ds, embrees;
                 uint64_t b1_hits = 0;
                 for (int round = 0; round < rounds; round++) {
-                    BpxResult b1 = run_bpx(one, qs_k), bm = run_bpx(many, qs_k);
+#ifdef BPX_COUNT_VISITS
+                    bpx__visits = 0;
+#endif
+                    BpxResult b1 = run_bpx(one, qs_k);
+#ifdef BPX_COUNT_VISITS
+                    if (round == 0)
+                        std::fprintf(stderr, "visits: %s %u %s: %.2f nodes per query\n", scene, n,
+                                     names[k], (double)bpx__visits / (double)qs_k.size());
+#endif
+                    BpxResult bm = run_bpx(many, qs_k);
                     b1s.push_back(b1.ns_per_query);
                     bms.push_back(bm.ns_per_query);
                     b1_hits = b1.hits;

@@ -12,7 +12,7 @@
 #ifndef BPX_BVH_WIDTH
 #define BPX_BVH_WIDTH 8
 #endif
-/// Deepest tree: 30 key bits split by bit, then equal keys halved (32 times at most); every
+/// Deepest tree: 32 key bits split by bit, then equal keys halved (32 times at most); every
 /// level of nodes takes at least one of those binary splits.
 #define BPX_BVH_MAX_DEPTH 64
 
@@ -30,7 +30,7 @@ typedef struct bpx_bvh_node {
 /// A box in one 32-byte record: a read at a random id costs one cache line, not six.
 typedef struct bpx_bvh_box {
     float lo[3], hi[3];
-    float pad[2];
+    float pad[2]; ///< pad[0]: the build's shape class of the box (bvh_keys.c)
 } bpx_bvh_box;
 
 /// A run of nodes built by one task: a subtree below the top levels, or the top levels. The
@@ -55,7 +55,7 @@ typedef struct bpx_bvh {
     uint32_t block_count;
     uint32_t block_capacity;
 
-    // Build scratch: (Morton key << 32 | id) words, twice for the radix sort; the world's boxes
+    // Build scratch: (key << 32 | id) words, twice for the radix sort; the world's boxes
     // by id, one cache line each, for the leaf lanes' reads in Morton order (scattered ids).
     uint64_t *words;
     uint64_t *words_scratch;
@@ -129,7 +129,7 @@ bool bpx__bvh_rebuild(bpx_bvh *t, const bpx_soa *s, const bpx_executor *executor
 void bpx__bvh_top_refit(bpx_bvh *t);
 /// Room for count nodes, keeping the first `keep`: false when memory ran out.
 bool bpx__bvh_reserve_nodes(bpx_bvh *t, size_t count, size_t keep);
-/// The live boxes' (Morton key << 32 | id) words into t->words, and the boxes into t->boxes;
+/// The live boxes' (key << 32 | id) words into t->words, and the boxes into t->boxes;
 /// returns how many are live.
 uint32_t bpx__bvh_keys(bpx_bvh *t, const bpx_soa *s, const bpx_executor *ex);
 /// Sorts t->words[0, m) by key, stably; the result ends in t->words.

@@ -50,61 +50,69 @@ void bpx__hits_sort(bpx_hit_list *out, size_t first, bool cast)
         qsort(out->hits + first, out->count - first, sizeof(bpx_hit), cast ? by_fraction : by_id);
 }
 
-static bpx_prepared prepare(const bpx_query *q, bpx_query_hit_fn *visit, void *visit_context)
+// In place, field by field: a whole-struct initialiser and return cleared and copied its 400
+// bytes per query (rep stos, rep movs: a tenth of a ray's time on a small tree). The oriented
+// box's fields are set for ORIENTED only, the one kind that reads them.
+static void prepare(bpx_prepared *p, const bpx_query *q, bpx_query_hit_fn *visit,
+                    void *visit_context)
 {
-    bpx_prepared p = {.kind = q->kind, .closest = q->closest, .any = q->any, .visit = visit,
-                      .visit_context = visit_context, .filter = q->filter};
-    p.all_moving = true;
+    p->kind = q->kind;
+    p->closest = q->closest;
+    p->any = q->any;
+    p->visit = visit;
+    p->visit_context = visit_context;
+    p->filter = q->filter;
+    p->all_moving = true;
     for (int a = 0; a < 3; a++) {
         switch (q->kind) {
         case BPX_QUERY_RAY:
-            p.lo[a] = p.hi[a] = q->origin[a];
+            p->lo[a] = p->hi[a] = q->origin[a];
             break;
         default:
-            p.lo[a] = q->box.min[a];
-            p.hi[a] = q->box.max[a];
+            p->lo[a] = q->box.min[a];
+            p->hi[a] = q->box.max[a];
         }
-        p.centre[a] = q->centre[a];
-        p.moving[a] = q->direction[a] != 0.0f;
-        p.all_moving &= p.moving[a];
-        p.inv[a] = p.moving[a] ? 1.0 / (double)q->direction[a] : 0.0;
+        p->centre[a] = q->centre[a];
+        p->moving[a] = q->direction[a] != 0.0f;
+        p->all_moving &= p->moving[a];
+        p->inv[a] = p->moving[a] ? 1.0 / (double)q->direction[a] : 0.0;
         // The definition's t1 = (b.min - q.max) * inv and t2 = (b.max - q.min) * inv: for a
         // positive inv t1 is the near one, for a negative t2.
-        bool up = p.inv[a] > 0.0;
+        bool up = p->inv[a] > 0.0;
         size_t lo = offsetof(bpx_bvh_node, lo) + sizeof(float) * BPX_BVH_WIDTH * (size_t)a;
         size_t hi = offsetof(bpx_bvh_node, hi) + sizeof(float) * BPX_BVH_WIDTH * (size_t)a;
-        p.near_plane[a] = (uint32_t)(up ? lo : hi);
-        p.far_plane[a] = (uint32_t)(up ? hi : lo);
-        p.q_near[a] = up ? p.hi[a] : p.lo[a];
-        p.q_far[a] = up ? p.lo[a] : p.hi[a];
+        p->near_plane[a] = (uint32_t)(up ? lo : hi);
+        p->far_plane[a] = (uint32_t)(up ? hi : lo);
+        p->q_near[a] = up ? p->hi[a] : p->lo[a];
+        p->q_far[a] = up ? p->lo[a] : p->hi[a];
     }
-    p.radius2 = (double)q->radius * (double)q->radius;
-    p.max_fraction = q->max_fraction;
+    p->radius2 = (double)q->radius * (double)q->radius;
+    p->max_fraction = q->max_fraction;
     if (q->kind == BPX_QUERY_ORIENTED) {
         // The walk prunes with the oriented box's bounding box, rounded outward.
         for (int a = 0; a < 3; a++) {
-            p.o_centre[a] = q->centre[a];
-            p.o_half[a] = q->half_extents[a];
+            p->o_centre[a] = q->centre[a];
+            p->o_half[a] = q->half_extents[a];
             for (int b = 0; b < 3; b++) {
-                p.o_rot[a][b] = q->rotation[3 * a + b];
-                p.o_abs[a][b] = fabs(p.o_rot[a][b]);
+                p->o_rot[a][b] = q->rotation[3 * a + b];
+                p->o_abs[a][b] = fabs(p->o_rot[a][b]);
             }
         }
         for (int a = 0; a < 3; a++) {
-            double reach = p.o_abs[a][0] * p.o_half[0] + p.o_abs[a][1] * p.o_half[1] +
-                           p.o_abs[a][2] * p.o_half[2];
-            float lo = (float)(p.o_centre[a] - reach), hi = (float)(p.o_centre[a] + reach);
-            p.lo[a] = nextafterf(lo, -INFINITY);
-            p.hi[a] = nextafterf(hi, INFINITY);
+            double reach = p->o_abs[a][0] * p->o_half[0] + p->o_abs[a][1] * p->o_half[1] +
+                           p->o_abs[a][2] * p->o_half[2];
+            float lo = (float)(p->o_centre[a] - reach), hi = (float)(p->o_centre[a] + reach);
+            p->lo[a] = nextafterf(lo, -INFINITY);
+            p->hi[a] = nextafterf(hi, INFINITY);
         }
     }
-    return p;
 }
 
 bool bpx__query_run(const bpx_query_view *view, const bpx_query *query, bpx_query_hit_fn *visit,
                     void *visit_context, bpx_hit_list *out)
 {
-    bpx_prepared p = prepare(query, visit, visit_context);
+    bpx_prepared p;
+    prepare(&p, query, visit, visit_context);
 #if BPX_HAVE_AVX512
     if (view->simd == BPX_SIMD_AVX512)
         return bpx__traverse_avx512(view, &p, out);

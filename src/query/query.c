@@ -8,6 +8,10 @@
 #include "core/alloc.h"
 #include "core/validate.h"
 
+#ifdef BPX_COUNT_VISITS
+uint64_t bpx__visits;
+#endif
+
 /// Queries per work item: enough to amortise handing one out, few enough to balance.
 #define BPX_QUERY_CHUNK 64
 
