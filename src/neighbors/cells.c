@@ -17,7 +17,7 @@
 #define MAX_CELLS_PER_AXIS (1 << 20)
 
 typedef struct grid {
-    int cells_each_way; // cells searched each way: 2 (cells half the cutoff), else 1
+    int cells_each_way; // cells searched each way (cells 1 / cells_each_way of the cutoff)
     int count[3];      // cells on each axis
     double origin[3];  // open axes: the least coordinate; periodic: 0
     double inverse[3]; // cells per unit of length
@@ -111,13 +111,11 @@ static bool plan(const search *s, grid *g)
     g->reach2 = (float)(reach * reach);
     g->reach2 = nextafterf(g->reach2, INFINITY);
     g->reach = nextafterf((float)reach, INFINITY);
-    // Cells half the cutoff wide, searched 2 each way, hold fewer points that are too far than
-    // cells as wide as the cutoff searched 1 each way (a 2.5 by 2.5 by 2.5 cutoff block
-    // against 3 by 3 by 3); a periodic axis needs 2 * reach + 1 distinct cells.
-    for (g->cells_each_way = 2; g->cells_each_way >= 1; g->cells_each_way--)
-        if (lay_out(s, g, least, most))
-            return true;
-    return false;
+    // Cells as wide as the cutoff, searched 1 each way. (Cells half as wide, searched 2 each
+    // way, hold fewer points too far away, but their runs along x are too short for the quick
+    // test's SIMD loop: 1.6 times slower at 100k points, 1.2 at 1M.)
+    g->cells_each_way = 1;
+    return lay_out(s, g, least, most);
 }
 
 static void point_of(const search *s, uint32_t k, double x[3])
