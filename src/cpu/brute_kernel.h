@@ -105,7 +105,8 @@ static bool row_pair(const bpx_soa *s, uint32_t i, uint32_t end, bpx_block *out)
         }
         keep0 = keep1 = lanes_after(0, 1); // all lanes after the first step
     }
-    return ok && bpx__list_append(&out->hits, &out->stage);
+    // (Most row pairs of a sparse scene leave the stage empty: no call for those.)
+    return ok && (out->stage.count == 0 || bpx__list_append(&out->hits, &out->stage));
 }
 
 // One row alone (the last of a block with an odd row count), four steps per group.
