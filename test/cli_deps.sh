@@ -10,7 +10,7 @@ if [[ $# -ne 1 ]]; then
     exit 2
 fi
 bpx=$1
-forbidden='libBullet|libLinearMath|libbox2d|libSDL2|libpng'
+forbidden='libBullet|libLinearMath|libbox2d|libfcl|libSDL2|libpng'
 failures=0
 
 if ! command -v readelf >/dev/null 2>&1; then

@@ -30,7 +30,7 @@ fail() {
 # The optional libraries' files, for the hidden mode: Bullet, Box2D, SDL2, libpng.
 hidden_files() {
     ldconfig -p 2>/dev/null | sed -n 's/.* => //p' |
-        grep -E '/lib(BulletCollision|LinearMath|box2d|SDL2-2\.0|png16)\.so' |
+        grep -E '/lib(BulletCollision|LinearMath|box2d|fcl|SDL2-2\.0|png16)\.so' |
         while read -r lib; do readlink -f "$lib"; done | sort -u
 }
 masks=""

@@ -75,7 +75,8 @@ int bench_cmd_parse_args(int argc, char **argv, bench_options *o)
                 if (known_name(o->names[n]))
                     continue;
                 if (bench_peers_unavailable() && (strncmp(o->names[n], "bullet-", 7) == 0 ||
-                                                  strncmp(o->names[n], "box2d-", 6) == 0)) {
+                                                  strncmp(o->names[n], "box2d-", 6) == 0 ||
+                                                  strncmp(o->names[n], "fcl-", 4) == 0)) {
                     cli_error("bench", "peer \"%s\" is not available: %s", o->names[n],
                               bench_peers_unavailable());
                     return CLI_EXIT_ERROR;

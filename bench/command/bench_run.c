@@ -203,7 +203,7 @@ typedef struct runner {
     bench_peer *peer;
     bench_mover mover; // motion: this replay's boxes
     bpx_box *boxes;    // recorded frames, for peers: the cycle's boxes
-    float *centres;    // motion, for two-phase variants: the cycle's centres
+    float *centres;    // recorded frames, for two-phase variants: the cycle's centres
     double create_s;   // peers: creation, with the first cycle's proxies and pairs
 } runner;
 
@@ -227,12 +227,17 @@ static const bpx_box *cycle_boxes(runner *r, int c)
     return r->boxes;
 }
 
-// The centres of cycle c, for the two-phase updater.
+// The centres of cycle c, for the two-phase updater. Recorded frames are copied out of the
+// recording first (untimed), as a peer's boxes are made from them just before its cycle: every
+// variant's input is then freshly written, as an engine's just-integrated state would be, and
+// none streams its cycle's input from a recording of tens of MB.
 static const float *cycle_centres(runner *r, int c)
 {
     const bench_frames *fr = r->frames;
-    if (!fr->motion)
-        return fr->centres + (size_t)c * 3 * fr->n;
+    if (!fr->motion) {
+        memcpy(r->centres, fr->centres + (size_t)c * 3 * fr->n, sizeof(float) * 3 * fr->n);
+        return r->centres;
+    }
     cycle_boxes(r, c);
     return r->mover.centres;
 }
@@ -244,7 +249,9 @@ static int runner_open(runner *r)
     bench_variant_name(r->v, name, sizeof name);
     size_t n = fr->n ? fr->n : 1;
     if ((fr->motion && bench_mover_init(&r->mover, fr->motion) != 0) ||
-        (!fr->motion && r->v->peer >= 0 && !(r->boxes = malloc(sizeof(bpx_box) * n)))) {
+        (!fr->motion && r->v->peer >= 0 && !(r->boxes = malloc(sizeof(bpx_box) * n))) ||
+        (!fr->motion && r->v->peer < 0 && r->v->centres &&
+         !(r->centres = malloc(sizeof(float) * 3 * n)))) {
         cli_error("bench", "%s: out of memory", name);
         return -1;
     }
@@ -318,6 +325,7 @@ static void runner_close(runner *r)
         bench_peer_destroy(r->peer);
     bench_mover_free(&r->mover);
     free(r->boxes);
+    free(r->centres);
 }
 
 // --- A variant in steps ----------------------------------------------------------------------

@@ -33,6 +33,7 @@ typedef struct bench_peer_class {
 /// Each shim's peers: a static array (built on first call) and its length.
 const bench_peer_class *bench_peer_bullet_classes(int *count);
 const bench_peer_class *bench_peer_box2d_classes(int *count);
+const bench_peer_class *bench_peer_fcl_classes(int *count);
 
 /// snprintf into err when err is not NULL (shared by the shims).
 void bench_peer_set_error(char *err, size_t err_size, const char *fmt, ...)

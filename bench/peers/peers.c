@@ -1,8 +1,8 @@
 // bpx bench peers: the registry and the checks every peer shares. SPDX-License-Identifier: MIT
 //
-// Each library shim (peer_bullet.cpp, peer_box2d.cpp) hands over a table of bench_peer_class;
-// this file numbers them, checks the arguments once for all, and holds the untimed exact-pair
-// filter, so a shim only wraps its library's broad phase.
+// Each library shim (peer_bullet.cpp, peer_box2d.cpp, peer_fcl.cpp) hands over a table of
+// bench_peer_class; this file numbers them, checks the arguments once for all, and holds the
+// untimed exact-pair filter, so a shim only wraps its library's broad phase.
 #include <math.h>
 #include <stdarg.h>
 #include <stdbool.h>
@@ -29,6 +29,9 @@ static bench_peer_list_fn *const peer_lists[] = {
 #endif
 #if defined(BPX_PEER_HAVE_BOX2D)
     bench_peer_box2d_classes,
+#endif
+#if defined(BPX_PEER_HAVE_FCL)
+    bench_peer_fcl_classes,
 #endif
     NULL,
 };

@@ -10,6 +10,7 @@
 //   "bullet-dbvt"   Bullet 3 btDbvtBroadphase (two dynamic AABB trees, fat leaves)
 //   "bullet-simple" Bullet 3 btSimpleBroadphase (all pairs, quadratic)
 //   "box2d-tree"    Box2D 2.4 b2BroadPhase over b2DynamicTree (2D: the x-y projection)
+//   "fcl-tree"      FCL 0.7 DynamicAABBTreeCollisionManager<double> (exact leaves, refit)
 //
 // No C++ exception crosses this API. A peer is used by one thread at a time.
 #pragma once
@@ -27,7 +28,8 @@ typedef struct bench_peer bench_peer;
 
 /// What a peer is. Strings are static (never free them).
 typedef struct bench_peer_info {
-    /// CLI name: "bullet-sap", "bullet-sap32", "bullet-dbvt", "bullet-simple", "box2d-tree".
+    /// CLI name: "bullet-sap", "bullet-sap32", "bullet-dbvt", "bullet-simple", "box2d-tree",
+    /// "fcl-tree".
     const char *name;
     /// One line: library + version, class, the settings that matter (quantisation, margins).
     const char *detail;

@@ -76,8 +76,8 @@ static void load(void)
     if (!entry) {
         // A library the module needs that is not installed shows in dlerror's text, by name.
         snprintf(why, sizeof why,
-                 "no peers: %s; the peers need Bullet and Box2D (Debian: libbullet3.24, "
-                 "libbox2d2)", err);
+                 "no peers: %s; the peers need Bullet, Box2D and FCL (Debian: libbullet3.24, "
+                 "libbox2d2, libfcl0.7)", err);
         return;
     }
     const bench_peers_module *m = entry();

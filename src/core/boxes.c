@@ -43,14 +43,23 @@ bool bpx__box_arrays_reserve(bpx_box_arrays *b, uint32_t n)
     return true;
 }
 
-// Padding boxes can never overlap anything: min = +inf fails every `min_j <= max_i`.
+static void fill(float *restrict to, uint32_t count, float value)
+{
+    for (uint32_t k = 0; k < count; k++)
+        to[k] = value;
+}
+
+// Padding boxes can never overlap anything: min = +inf fails every `min_j <= max_i`. Array by
+// array, so each fill is a run of vector stores: every update_centres / set_boxes pads the set
+// it swaps in, 14 to 78 boxes of it, which box by box across six arrays was 15% of a cycle at
+// n = 50 (perf, Table 2's scenario).
 void bpx__box_arrays_pad(bpx_box_arrays *b, uint32_t n)
 {
-    for (uint32_t i = n; i < bpx__boxes_padded(n); i++)
-        for (int a = 0; a < 3; a++) {
-            b->lo[a][i] = INFINITY;
-            b->hi[a][i] = -INFINITY;
-        }
+    uint32_t count = bpx__boxes_padded(n) - n;
+    for (int a = 0; a < 3; a++) {
+        fill(b->lo[a] + n, count, INFINITY);
+        fill(b->hi[a] + n, count, -INFINITY);
+    }
 }
 
 bool bpx__boxes_resize(bpx_world *w, uint32_t n)

@@ -280,27 +280,36 @@ static void set_task(int begin, int end, int worker, void *context)
     }
 }
 
+// One axis of boxes [i0, i1): min = centre + stored minimum, max = centre - stored minimum;
+// true when all are finite. restrict: the stores cannot touch the loads, so the loop runs in
+// vectors (it was 10% of a cycle at n = 50, one box at a time).
+static int centres_axis(const float *restrict centre, const float *restrict m,
+                        float *restrict lo, float *restrict hi, uint32_t i0, uint32_t i1)
+{
+    int ok = 1;
+    for (uint32_t i = i0; i < i1; i++) {
+        float v = centre[3 * (size_t)i];
+        float l = v + m[i], h = v - m[i];
+        lo[i] = l;
+        hi[i] = h;
+        ok &= (-FLT_MAX <= l) & (h <= FLT_MAX);
+    }
+    return ok;
+}
+
 // min = centre + stored minimum, max = centre - stored minimum; finiteness checked (see
 // bpx_world_update_centres).
 static void centres_task(int begin, int end, int worker, void *context)
 {
     (void)worker;
     update_job *job = context;
-    const float *centres = job->centres;
     for (int c = begin; c < end; c++) {
         uint32_t i0, i1;
         chunk_range(job, c, &i0, &i1);
         int ok = 1;
-        for (int a = 0; a < 3; a++) {
-            float *lo = job->out->lo[a], *hi = job->out->hi[a];
-            const float *m = job->minima[a];
-            for (uint32_t i = i0; i < i1; i++) {
-                float v = centres[3 * (size_t)i + a];
-                lo[i] = v + m[i];
-                hi[i] = v - m[i];
-                ok &= (-FLT_MAX <= lo[i]) & (hi[i] <= FLT_MAX);
-            }
-        }
+        for (int a = 0; a < 3; a++)
+            ok &= centres_axis(job->centres + a, job->minima[a], job->out->lo[a],
+                               job->out->hi[a], i0, i1);
         job->ok[c] = ok;
     }
 }
@@ -497,8 +506,9 @@ static void release_pairs(bpx_world *w)
     bpx__list_free(&w->pairs);
 }
 
-// Runs the comparator into the blocks. On success *total is the number of pairs.
-static bpx_status compare(bpx_world *w, size_t *total)
+// Runs the comparator into the blocks. On success *total is the number of pairs, and *end the
+// clock when it ended (the emitter's start: one clock read fewer per cycle).
+static bpx_status compare(bpx_world *w, size_t *total, uint64_t *end)
 {
     w->merged = false;
     w->result_valid = false; // the blocks are about to change: no reads of them until done
@@ -531,7 +541,8 @@ static bpx_status compare(bpx_world *w, size_t *total)
     }
     if (status == BPX_OK)
         status = bpx__emitter_total(&w->emitter, total);
-    w->stats.compare_ns = bpx__now_ns() - start;
+    *end = bpx__now_ns();
+    w->stats.compare_ns = *end - start;
     w->result_valid = status == BPX_OK; // nothing partial is ever reported
     if (status == BPX_ERR_OUT_OF_MEMORY || status == BPX_ERR_TOO_MANY_PAIRS)
         release_pairs(w); // a cycle too big for memory leaves none of it held
@@ -558,10 +569,10 @@ bpx_status bpx_world_collide(bpx_world *w)
     if (entered != BPX_OK)
         return entered;
     size_t total = 0;
-    bpx_status status = compare(w, &total);
+    uint64_t start = 0;
+    bpx_status status = compare(w, &total, &start);
     if (status != BPX_OK)
         return status;
-    uint64_t start = bpx__now_ns();
     if (!merge_own(w, total)) {
         w->result_valid = false;
         release_pairs(w);
@@ -586,7 +597,8 @@ bpx_status bpx_world_collide_into(bpx_world *w, bpx_pair *out, size_t capacity, 
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "count is NULL, or out is NULL with capacity > 0");
     size_t total = 0;
-    bpx_status status = compare(w, &total);
+    uint64_t compared = 0;
+    bpx_status status = compare(w, &total, &compared);
     *count = total;
     if (status != BPX_OK)
         return status;
