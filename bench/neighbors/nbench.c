@@ -3,7 +3,7 @@
 // overlap per box, scene_uniform_density), against a plain bpx_find_pairs on the same boxes.
 // SPDX-License-Identifier: MIT
 //
-//   bpx_nbench [--sizes 100000,1000000] [--rounds 5]
+//   bpx_nbench [--sizes 100000,1000000] [--rounds 5] [--only a|b|c|d]
 //
 // Columns, each timed in CPU time of the calling thread (CLOCK_THREAD_CPUTIME_ID), the columns
 // alternating within each round, medians over the rounds:
@@ -97,7 +97,7 @@ static size_t run_column(scene *sc, int column)
 int main(int argc, char **argv)
 {
     uint32_t sizes[16] = {100000, 1000000};
-    int size_count = 2, rounds = 5;
+    int size_count = 2, rounds = 5, only = -1;
     for (int a = 1; a < argc; a++) {
         if (!strcmp(argv[a], "--sizes") && a + 1 < argc) {
             size_count = 0;
@@ -106,10 +106,13 @@ int main(int argc, char **argv)
                 if (*p == ',')
                     p++;
             }
+        } else if (!strcmp(argv[a], "--only") && a + 1 < argc && argv[a + 1][0] >= 'a' &&
+                   argv[a + 1][0] <= 'd') {
+            only = argv[++a][0] - 'a'; // one column alone, for a profiler
         } else if (!strcmp(argv[a], "--rounds") && a + 1 < argc) {
             rounds = atoi(argv[++a]);
         } else {
-            fprintf(stderr, "usage: bpx_nbench [--sizes N,N,...] [--rounds 1..%d]\n",
+            fprintf(stderr, "usage: bpx_nbench [--sizes N,N,...] [--rounds 1..%d] [--only a|b|c|d]\n",
                     MAX_ROUNDS);
             return 2;
         }
@@ -161,6 +164,10 @@ int main(int argc, char **argv)
         for (int r = 0; r < rounds; r++) {
             for (int k = 0; k < COLUMNS; k++) {
                 int column = (k + r) % COLUMNS; // each column in every position in turn
+                if (only >= 0 && column != only) {
+                    t[column][r] = 1;
+                    continue;
+                }
                 double t0 = cpu_s();
                 pairs[column] = run_column(&sc, column);
                 t[column][r] = cpu_s() - t0;
@@ -169,7 +176,7 @@ int main(int argc, char **argv)
             ca[r] = t[2][r] / t[0][r];
             da[r] = t[3][r] / t[0][r];
         }
-        if (pairs[1] != pairs[0])
+        if (only < 0 && pairs[1] != pairs[0])
             fprintf(stderr, "bpx_nbench: neighbors open found %zu pairs, find_pairs %zu\n",
                     pairs[1], pairs[0]);
         double m[COLUMNS];
