@@ -187,17 +187,61 @@ static bpx_box image_box(const search *s, uint32_t k, const int32_t u[3])
     bpx_box b;
     for (int a = 0; a < 3; a++) {
         double t = s->wrap ? ((double)u[a] - s->wrap[k][a]) * s->period[a] : 0;
-        double error = 0x1p-48 * (fabs(lo[a]) + fabs(hi[a]) + half + fabs(t));
+        // Nothing to round when there is nothing to add: the box as given, rounded once.
+        double error =
+            half == 0 && t == 0 ? 0 : 0x1p-48 * (fabs(lo[a]) + fabs(hi[a]) + half + fabs(t));
         b.min[a] = round_down(lo[a] - half + t - error);
         b.max[a] = round_up(hi[a] + half + t + error);
     }
     return b;
 }
 
-static bpx_status make_images(search *s)
+// What the image search keeps beside `search` (search.h, shared with the cell list).
+typedef struct image_state {
+    // Per object: whether its own image (u = 0) is its box exactly (no cutoff, no wrap,
+    // float32 coordinates), so that a candidate of two such images is a pair as it stands:
+    // the comparator's closed-interval test on them is the exact test, shift 0, distance 0.
+    // NULL when no image can be exact (a cutoff) or when all are (all_exact).
+    uint8_t *exact;
+    bool all_exact;
+    const bpx_box *boxes; // the comparator's input: images, or the objects themselves
+} image_state;
+
+static bool any_wrap(const search *s)
+{
+    for (uint32_t k = 0; s->wrap && k < s->n; k++)
+        if (s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2])
+            return true;
+    return false;
+}
+
+static bool image_is_box(const search *s, uint32_t k, const bpx_box *b)
+{
+    if (s->wrap && (s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]))
+        return false;
+    double lo[3], hi[3];
+    object_box(&s->in, k, lo, hi);
+    bool same = true;
+    for (int a = 0; a < 3; a++)
+        same &= (double)b->min[a] == lo[a] && (double)b->max[a] == hi[a];
+    return same;
+}
+
+static bpx_status make_images(search *s, image_state *im)
 {
     size_t count = (size_t)s->n + s->ghost_count;
+    // float32 boxes, no cutoff, no wrap, no ghost: the images are the boxes; nothing to copy.
+    if (s->in.format == BPX_BOXES_F32 && s->def->cutoff == 0 && s->ghost_count == 0 &&
+        !any_wrap(s)) {
+        im->boxes = s->in.data;
+        im->all_exact = true;
+        return BPX_OK;
+    }
     s->images = bpx__alloc(count * sizeof *s->images);
+    im->boxes = s->images;
+    if (s->def->cutoff == 0 && !(im->exact = bpx__alloc(s->n)))
+        return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u objects", s->n);
     if (s->ghost_count) {
         s->ghost_owner = bpx__alloc((size_t)s->ghost_count * sizeof *s->ghost_owner);
         s->ghost_shift = bpx__alloc((size_t)s->ghost_count * sizeof *s->ghost_shift);
@@ -207,8 +251,13 @@ static bpx_status make_images(search *s)
                           "no memory for %zu periodic images", count);
     static const int32_t zero[3] = {0, 0, 0};
     uint32_t g = 0;
+    uint32_t exact_count = 0;
     for (uint32_t k = 0; k < s->n; k++) {
         s->images[k] = image_box(s, k, zero);
+        if (im->exact) {
+            im->exact[k] = image_is_box(s, k, &s->images[k]);
+            exact_count += im->exact[k];
+        }
         if (!s->ghost_count)
             continue;
         // Enumerate u on each axis from 0 down while the copy reaches 0 (as check_objects
@@ -233,6 +282,11 @@ static bpx_status make_images(search *s)
                     s->images[s->n + g] = image_box(s, k, u);
                     g++;
                 }
+    }
+    if (im->exact && (exact_count == 0 || exact_count == s->n)) {
+        im->all_exact = exact_count == s->n;
+        bpx__free(im->exact, s->n);
+        im->exact = NULL;
     }
     return BPX_OK;
 }
@@ -260,6 +314,7 @@ enum { PREFETCH_AHEAD = 16 };
 // Inlined always: as a function of its own GCC finds it "pure" (prefetches only read) and, its
 // result unused, drops every call to it.
 static inline __attribute__((always_inline)) void prefetch_object(const search *s,
+                                                                  const image_state *im,
                                                                   uint32_t image)
 {
     uint32_t k = image < s->n ? image : s->ghost_owner[image - s->n];
@@ -272,6 +327,21 @@ static inline __attribute__((always_inline)) void prefetch_object(const search *
     __builtin_prefetch(object + item - 1);
     if (s->wrap)
         __builtin_prefetch(&s->wrap[k]);
+    if (im->exact)
+        __builtin_prefetch(&im->exact[k]);
+}
+
+// Whether objects i and j (shift 0) are within a cutoff of 0 by the box metric: the exact
+// test's answer (bpx__within) without its sums, there being nothing to add; distance 0.
+static inline bool touching(const search *s, uint32_t i, uint32_t j)
+{
+    double lo_i[3], hi_i[3], lo_j[3], hi_j[3];
+    object_box(&s->in, i, lo_i, hi_i);
+    object_box(&s->in, j, lo_j, hi_j);
+    bool yes = true;
+    for (int a = 0; a < 3; a++)
+        yes &= lo_j[a] <= hi_i[a] && lo_i[a] <= hi_j[a];
+    return yes;
 }
 
 static int compare_found(const void *pa, const void *pb)
@@ -334,16 +404,33 @@ bool bpx__neighbors_reserve(bpx_neighbor_list *list, size_t needed, bool want_di
 
 // Decides the candidates: pairs of objects themselves go straight to the result (already in
 // (i, j) order, as the backend emits them), pairs with an image to `imaged`, sorted at the end.
-static bpx_status decide(const search *s, const bpx_pair *candidates, size_t count,
-                         bpx_neighbor_list *list, found_list *imaged)
+static bpx_status decide(const search *s, const image_state *im, const bpx_pair *candidates,
+                         size_t count, bpx_neighbor_list *list, found_list *imaged)
 {
     bool want = s->def->want_distances;
+    bool box0 = s->def->metric == BPX_METRIC_BOX && s->def->cutoff == 0;
+    // Every candidate of two objects themselves may be a pair: room for them all at once.
+    if (!bpx__neighbors_reserve(list, list->count + count, want))
+        return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for the pairs found");
     for (size_t c = 0; c < count; c++) {
         // The objects of a candidate a little ahead: its j is anywhere in memory, and waiting
         // for each in turn was most of this loop's time.
-        if (c + PREFETCH_AHEAD < count)
-            prefetch_object(s, candidates[c + PREFETCH_AHEAD].j);
+        if (!im->all_exact && c + PREFETCH_AHEAD < count)
+            prefetch_object(s, im, candidates[c + PREFETCH_AHEAD].j);
         uint32_t a = candidates[c].i, b = candidates[c].j;
+        if (a < s->n && b < s->n &&
+            (im->all_exact || (im->exact && im->exact[a] && im->exact[b]) || (box0 && !s->wrap))) {
+            // Two objects as they are (a < b), shift 0: a pair as the comparator found it, or
+            // as the plain closed-interval test says (box metric, no cutoff); distance 0.
+            bool yes = im->all_exact || (im->exact && im->exact[a] && im->exact[b]) ||
+                       touching(s, a, b);
+            list->pairs[list->count] = (bpx_image_pair){a, b, {0, 0, 0}};
+            if (want)
+                list->distances[list->count] = 0;
+            list->count += yes;
+            continue;
+        }
         static const int32_t zero[3] = {0, 0, 0};
         uint32_t i = a < s->n ? a : s->ghost_owner[a - s->n];
         uint32_t j = b < s->n ? b : s->ghost_owner[b - s->n];
@@ -372,23 +459,39 @@ static bpx_status decide(const search *s, const bpx_pair *candidates, size_t cou
             f.pair.shift[x] = flip ? -shift[x] : shift[x];
         if (!within_objects(s, f.pair.i, f.pair.j, f.pair.shift, &f.distance))
             continue;
-        bool stored;
         if (a < s->n && b < s->n) {
-            stored = bpx__neighbors_reserve(list, list->count + 1, want);
-            if (stored) {
-                list->pairs[list->count] = f.pair;
-                if (want)
-                    list->distances[list->count] = f.distance;
-                list->count++;
-            }
-        } else {
-            stored = push(imaged, f);
-        }
-        if (!stored)
+            list->pairs[list->count] = f.pair;
+            if (want)
+                list->distances[list->count] = f.distance;
+            list->count++;
+        } else if (!push(imaged, f)) {
             return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                               "no memory for the pairs found");
+        }
     }
     return BPX_OK;
+}
+
+// decide() for an open search into bpx_pair: keeps, in place and in order, the candidates that
+// are pairs; returns how many.
+static size_t decide_pairs(const search *s, const image_state *im, bpx_pair *pairs, size_t count)
+{
+    if (im->all_exact)
+        return count;
+    bool box0 = s->def->metric == BPX_METRIC_BOX && s->def->cutoff == 0;
+    size_t kept = 0;
+    for (size_t c = 0; c < count; c++) {
+        if (c + PREFETCH_AHEAD < count)
+            prefetch_object(s, im, pairs[c + PREFETCH_AHEAD].j);
+        uint32_t i = pairs[c].i, j = pairs[c].j;
+        static const int32_t zero[3] = {0, 0, 0};
+        double distance;
+        bool yes = (im->exact && im->exact[i] && im->exact[j]) ||
+                   (box0 ? touching(s, i, j) : within_objects(s, i, j, zero, &distance));
+        pairs[kept] = pairs[c];
+        kept += yes;
+    }
+    return kept;
 }
 
 // Merges the sorted pairs with images into the result, from the back, in place.
@@ -422,16 +525,19 @@ static bpx_status merge_imaged(const search *s, found_list *imaged, bpx_neighbor
     return BPX_OK;
 }
 
-static void free_search(search *s)
+static void free_search(search *s, image_state *im)
 {
+    bpx__free(im->exact, s->n);
     bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
     bpx__free(s->ghost_owner, (size_t)s->ghost_count * sizeof *s->ghost_owner);
     bpx__free(s->ghost_shift, (size_t)s->ghost_count * sizeof *s->ghost_shift);
     bpx__free(s->images, ((size_t)s->n + s->ghost_count) * sizeof *s->images);
 }
 
-// The candidates from a world of the images, decided into the list.
-static bpx_status run(search *s, bpx_neighbor_list *list)
+// The candidates from a world of the images, decided into the list; or, with out_count (an
+// open search), into out as bpx_find_pairs would (CAPACITY when more than capacity).
+static bpx_status run(search *s, image_state *im, bpx_neighbor_list *list, bpx_pair *out,
+                      size_t capacity, size_t *out_count)
 {
     bpx_world_def def = bpx_default_world_def();
     def.backend = s->def->backend;
@@ -442,9 +548,24 @@ static bpx_status run(search *s, bpx_neighbor_list *list)
     if (status != BPX_OK)
         return bpx__error(s->err, status, UINT32_MAX, -1, "%s (backend %s)",
                           bpx_status_string(status), bpx_backend_name(def.backend));
-    status = bpx_world_set_boxes(w, s->images, s->n + s->ghost_count);
-    if (status == BPX_OK)
+    status = bpx_world_set_boxes(w, im->boxes, s->n + s->ghost_count);
+    if (status == BPX_OK && out_count) {
+        // The candidates straight into out, then the pairs among them kept in place; when
+        // the candidates do not fit, the pairs may: the list's way, counted, then copied.
+        size_t total = 0;
+        status = bpx_world_collide_into(w, out, capacity, &total);
+        if (status == BPX_OK) {
+            *out_count = decide_pairs(s, im, out, total);
+            bpx_world_destroy(w);
+            return BPX_OK;
+        }
+        if (status == BPX_ERR_CAPACITY) {
+            bpx__error_clear(s->err);
+            status = bpx_world_collide(w);
+        }
+    } else if (status == BPX_OK) {
         status = bpx_world_collide(w);
+    }
     if (status != BPX_OK) {
         if (s->err)
             *s->err = *bpx_world_error(w);
@@ -454,22 +575,31 @@ static bpx_status run(search *s, bpx_neighbor_list *list)
     size_t count;
     const bpx_pair *candidates = bpx_world_pairs(w, &count);
     found_list imaged = {0};
-    status = decide(s, candidates, count, list, &imaged);
+    status = decide(s, im, candidates, count, list, &imaged);
     bpx_world_destroy(w);
     if (status == BPX_OK)
         status = merge_imaged(s, &imaged, list);
     bpx__free(imaged.items, imaged.capacity * sizeof(found));
-    if (status != BPX_OK)
+    if (status == BPX_OK && out_count) {
+        *out_count = list->count;
+        if (list->count > capacity) {
+            status = bpx__error(s->err, BPX_ERR_CAPACITY, UINT32_MAX, -1,
+                                "%zu pairs found, capacity %zu", list->count, capacity);
+        } else {
+            for (size_t k = 0; k < list->count; k++)
+                out[k] = (bpx_pair){list->pairs[k].i, list->pairs[k].j};
+        }
+    }
+    if (status != BPX_OK || out_count)
         bpx_neighbor_list_free(list);
     return status;
 }
 
-bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uint32_t n,
-                              bpx_neighbor_list *list, bpx_error *err)
+// bpx_find_neighbors; with out_count, into out as bpx_find_pairs would (open searches only).
+static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n,
+                       bpx_neighbor_list *list, bpx_pair *out, size_t capacity,
+                       size_t *out_count, bpx_error *err)
 {
-    bpx__error_clear(err);
-    if (!list)
-        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "list is NULL");
     *list = (bpx_neighbor_list){0};
     if (!def || (!data && n > 0))
         return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
@@ -491,21 +621,31 @@ bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uin
     uint64_t ghosts = 0;
     status = check_objects(&s, &ghosts);
     bool cells = false; // points with the auto backend: the cell list, where the cell allows
-    if (status == BPX_OK && def->backend == BPX_BACKEND_AUTO &&
+    if (status == BPX_OK && !out_count && def->backend == BPX_BACKEND_AUTO &&
         (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64)) {
         status = bpx__neighbors_cells(&s, list);
         cells = status != BPX_ERR_BAD_STATE;
         if (!cells)
             status = BPX_OK;
     }
+    image_state im = {0};
     if (status == BPX_OK && !cells) {
         s.ghost_count = (uint32_t)ghosts;
-        status = make_images(&s);
+        status = make_images(&s, &im);
         if (status == BPX_OK)
-            status = run(&s, list);
+            status = run(&s, &im, list, out, capacity, out_count);
     }
-    free_search(&s);
+    free_search(&s, &im);
     return status;
+}
+
+bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uint32_t n,
+                              bpx_neighbor_list *list, bpx_error *err)
+{
+    bpx__error_clear(err);
+    if (!list)
+        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "list is NULL");
+    return find(def, data, n, list, NULL, 0, NULL, err);
 }
 
 bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend backend,
@@ -520,16 +660,5 @@ bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend ba
     def.format = BPX_BOXES_F64;
     def.backend = backend;
     bpx_neighbor_list list;
-    bpx_status status = bpx_find_neighbors(&def, boxes, n, &list, err);
-    if (status != BPX_OK)
-        return status;
-    *count = list.count;
-    if (list.count > capacity) {
-        bpx_neighbor_list_free(&list);
-        return BPX_ERR_CAPACITY;
-    }
-    for (size_t k = 0; k < list.count; k++)
-        out[k] = (bpx_pair){list.pairs[k].i, list.pairs[k].j};
-    bpx_neighbor_list_free(&list);
-    return BPX_OK;
+    return find(&def, boxes, n, &list, out, capacity, count, err);
 }
