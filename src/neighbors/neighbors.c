@@ -122,7 +122,10 @@ static double images_below(const search *s, int a, double lo, double hi, double 
     double L = s->period[a], half = s->def->cutoff / 2;
     double grown_lo = lo - half, grown_hi = hi + half;
     double slack = 0x1p-40 * (fabs(grown_lo) + fabs(grown_hi) + fabs(w * L) + L);
-    return floor_fast((grown_hi - w * L + slack) / L);
+    double q = grown_hi - w * L + slack;
+    // q < L: q / L < 1 even rounded (L / L is 1, and the largest double below 1 is 1 - 2^-53,
+    // no further from 1 than q / L): no image, and no division for the most of the objects.
+    return q >= L ? floor_fast(q / L) : 0;
 }
 
 // The input checks, then each object's wrap and image count. Fills s->wrap; returns the number of
@@ -156,7 +159,8 @@ static bpx_status check_objects(search *s, uint64_t *ghosts)
             s->wrap[k][a] = 0;
             if (L == 0)
                 continue;
-            double w = floor_fast((lo[a] - half) / L);
+            double x = lo[a] - half; // w = 0 within the cell without a division (as above)
+            double w = x >= 0 && x < L ? 0 : floor_fast(x / L);
             double below = images_below(s, a, lo[a], hi[a], w);
             if (!(fabs(w) < MAX_PERIODS && below < MAX_PERIODS))
                 return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
