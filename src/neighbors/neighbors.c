@@ -115,22 +115,43 @@ static bpx_status check_def(const bpx_neighbor_def *def, bpx_error *err)
 }
 
 // How many images below itself an object [lo, hi] wrapped by w periods gets on axis a: the
-// copies shifted down by 1, 2, ... periods that still reach 0 once grown by cutoff / 2. The
-// slack only adds images, which the exact test then drops, and covers the rounding of the wrap.
-static double images_below(const search *s, int a, double lo, double hi, double w)
+// copies shifted down by 1, 2, ... periods that still reach the cell's lower face o once grown by
+// cutoff / 2. The slack only adds images, which the exact test then drops, and covers the
+// rounding of the wrap.
+static double images_below(const search *s, int a, double lo, double hi, double w, double o)
 {
     double L = s->period[a], half = s->def->cutoff / 2;
     double grown_lo = lo - half, grown_hi = hi + half;
-    double slack = 0x1p-40 * (fabs(grown_lo) + fabs(grown_hi) + fabs(w * L) + L);
-    double q = grown_hi - w * L + slack;
+    double slack = 0x1p-40 * (fabs(grown_lo) + fabs(grown_hi) + fabs(w * L) + L + fabs(o));
+    double q = grown_hi - o - w * L + slack;
     // q < L: q / L < 1 even rounded (L / L is 1, and the largest double below 1 is 1 - 2^-53,
     // no further from 1 than q / L): no image, and no division for the most of the objects.
     return q >= L ? floor_fast(q / L) : 0;
 }
 
-// The input checks, then each object's wrap and image count. Fills s->wrap; returns the number of
-// ghost images in *ghosts.
-static bpx_status check_objects(search *s, uint64_t *ghosts)
+// The cell's lower corner for the image search: the lowest object's grown lower face on each
+// periodic axis, so that objects in one cell's span need no wrap (their own images are then their
+// boxes, and exact). Where the cell lies is the search's own choice: it decides which objects
+// wrap and which get images, never a pair or its shift. Non-finite and huge coordinates are left
+// to check_objects (0 when no object has a usable one).
+static void cell_origin(const search *s, double origin[3])
+{
+    double half = s->def->cutoff / 2, lowest[3] = {INFINITY, INFINITY, INFINITY};
+    for (uint32_t k = 0; k < s->n; k++) {
+        double lo[3], hi[3];
+        object_box(&s->in, k, lo, hi);
+        for (int a = 0; a < 3; a++) {
+            double x = lo[a] - half;
+            lowest[a] = fabs(lo[a]) < MAX_MAGNITUDE && x < lowest[a] ? x : lowest[a];
+        }
+    }
+    for (int a = 0; a < 3; a++)
+        origin[a] = s->period[a] > 0 && lowest[a] < INFINITY ? lowest[a] : 0;
+}
+
+// The input checks, then each object's wrap (relative to the cell's lower corner, origin) and
+// image count. Fills s->wrap; returns the number of ghost images in *ghosts.
+static bpx_status check_objects(search *s, const double origin[3], uint64_t *ghosts)
 {
     double half = s->def->cutoff / 2;
     uint64_t total = 0;
@@ -159,10 +180,15 @@ static bpx_status check_objects(search *s, uint64_t *ghosts)
             s->wrap[k][a] = 0;
             if (L == 0)
                 continue;
-            double x = lo[a] - half; // w = 0 within the cell without a division (as above)
+            // Within 2^29 periods of 0 (and of the cell, so that shifts fit): counted from 0,
+            // wherever the cell lies, so that the limit is the caller's to know.
+            double from_zero = lo[a] - half;
+            bool near = fabs(from_zero) < 0x1p28 * L ||
+                        fabs(floor_fast(from_zero / L)) < MAX_PERIODS;
+            double x = from_zero - origin[a]; // w = 0 within the cell without a division
             double w = x >= 0 && x < L ? 0 : floor_fast(x / L);
-            double below = images_below(s, a, lo[a], hi[a], w);
-            if (!(fabs(w) < MAX_PERIODS && below < MAX_PERIODS))
+            double below = images_below(s, a, lo[a], hi[a], w, origin[a]);
+            if (!(near && fabs(w) < MAX_PERIODS && below < MAX_PERIODS))
                 return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
                                   "object %u lies or reaches more than 2^29 periods (%g) from "
                                   "the origin on axis %c",
@@ -209,6 +235,7 @@ typedef struct image_state {
     uint8_t *exact;
     bool all_exact;
     const bpx_box *boxes; // the comparator's input: images, or the objects themselves
+    double origin[3];     // the cell's lower corner (cell_origin; 0 where the cell list may run)
 } image_state;
 
 static bool any_wrap(const search *s)
@@ -272,7 +299,7 @@ static bpx_status make_images(search *s, image_state *im)
         for (int a = 0; a < 3; a++) {
             if (s->period[a] == 0)
                 continue;
-            double below = images_below(s, a, lo[a], hi[a], s->wrap[k][a]);
+            double below = images_below(s, a, lo[a], hi[a], s->wrap[k][a], im->origin[a]);
             lowest[a] = below > 0 ? -(int32_t)below : 0;
         }
         int32_t u[3];
@@ -623,16 +650,20 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
         return bpx__error(err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
     uint64_t ghosts = 0;
-    status = check_objects(&s, &ghosts);
-    bool cells = false; // points with the auto backend: the cell list, where the cell allows
-    if (status == BPX_OK && !out_count && def->backend == BPX_BACKEND_AUTO &&
-        (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64)) {
+    image_state im = {0};
+    // Points with the auto backend: the cell list, where the cell allows; its wraps are from 0.
+    bool may_cells = !out_count && def->backend == BPX_BACKEND_AUTO &&
+                     (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64);
+    if (s.periodic && !may_cells)
+        cell_origin(&s, im.origin);
+    status = check_objects(&s, im.origin, &ghosts);
+    bool cells = false;
+    if (status == BPX_OK && may_cells) {
         status = bpx__neighbors_cells(&s, list);
         cells = status != BPX_ERR_BAD_STATE;
         if (!cells)
             status = BPX_OK;
     }
-    image_state im = {0};
     if (status == BPX_OK && !cells) {
         s.ghost_count = (uint32_t)ghosts;
         status = make_images(&s, &im);
