@@ -234,17 +234,16 @@ typedef struct image_state {
     // NULL when no image can be exact (a cutoff) or when all are (all_exact).
     uint8_t *exact;
     bool all_exact;
-    const bpx_box *boxes; // the comparator's input: images, or the objects themselves
+    // The comparator's input: n boxes for the objects (their images, or the objects themselves),
+    // then, from the objects themselves, `moved` images moved onto objects moved_ids, then the
+    // ghosts (ghost_boxes; after the n boxes in s->images when those are images).
+    const bpx_box *boxes;
+    uint32_t moved;
+    uint32_t *moved_ids;
+    const bpx_box *moved_boxes, *ghost_boxes;
+    size_t image_count;   // boxes allocated in s->images
     double origin[3];     // the cell's lower corner (cell_origin; 0 where the cell list may run)
 } image_state;
-
-static bool any_wrap(const search *s)
-{
-    for (uint32_t k = 0; s->wrap && k < s->n; k++)
-        if (s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2])
-            return true;
-    return false;
-}
 
 static bool image_is_box(const search *s, uint32_t k, const bpx_box *b)
 {
@@ -258,19 +257,35 @@ static bool image_is_box(const search *s, uint32_t k, const bpx_box *b)
     return same;
 }
 
+static bool wraps(const search *s, uint32_t k)
+{
+    return s->wrap && (s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]);
+}
+
 static bpx_status make_images(search *s, image_state *im)
 {
-    size_t count = (size_t)s->n + s->ghost_count;
-    // float32 boxes, no cutoff, no wrap, no ghost: the images are the boxes; nothing to copy.
-    if (s->in.format == BPX_BOXES_F32 && s->def->cutoff == 0 && s->ghost_count == 0 &&
-        !any_wrap(s)) {
+    // float32 boxes and no cutoff: an object's own image is its box unless it wraps. The
+    // comparator gets the boxes themselves, then the images of the few that wrap moved onto
+    // them, then the ghosts: no copy of the many.
+    bool own = s->in.format == BPX_BOXES_F32 && s->def->cutoff == 0;
+    uint32_t moved = 0;
+    for (uint32_t k = 0; own && s->wrap && k < s->n; k++)
+        moved += wraps(s, k);
+    if (own && moved == 0 && s->ghost_count == 0) {
         im->boxes = s->in.data;
         im->all_exact = true;
         return BPX_OK;
     }
+    size_t count = own ? (size_t)moved + s->ghost_count : (size_t)s->n + s->ghost_count;
     s->images = bpx__alloc(count * sizeof *s->images);
-    im->boxes = s->images;
-    if (s->def->cutoff == 0 && !(im->exact = bpx__alloc(s->n)))
+    im->image_count = count;
+    im->boxes = own ? s->in.data : s->images;
+    im->moved = moved;
+    im->moved_boxes = s->images;
+    im->ghost_boxes = own ? s->images + moved : s->images + s->n;
+    bpx_box *ghost_out = s->images ? (bpx_box *)im->ghost_boxes : NULL;
+    if ((s->def->cutoff == 0 && !(im->exact = bpx__alloc(s->n))) ||
+        (moved && !(im->moved_ids = bpx__alloc((size_t)moved * sizeof *im->moved_ids))))
         return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", s->n);
     if (s->ghost_count) {
@@ -281,13 +296,23 @@ static bpx_status make_images(search *s, image_state *im)
         return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %zu periodic images", count);
     static const int32_t zero[3] = {0, 0, 0};
-    uint32_t g = 0;
+    uint32_t g = 0, m = 0;
     uint32_t exact_count = 0;
     for (uint32_t k = 0; k < s->n; k++) {
-        s->images[k] = image_box(s, k, zero);
-        if (im->exact) {
-            im->exact[k] = image_is_box(s, k, &s->images[k]);
-            exact_count += im->exact[k];
+        if (!own) {
+            s->images[k] = image_box(s, k, zero);
+            if (im->exact) {
+                im->exact[k] = image_is_box(s, k, &s->images[k]);
+                exact_count += im->exact[k];
+            }
+        } else {
+            bool moves = wraps(s, k);
+            if (moves) {
+                im->moved_ids[m] = k;
+                s->images[m++] = image_box(s, k, zero);
+            }
+            im->exact[k] = !moves;
+            exact_count += !moves;
         }
         if (!s->ghost_count)
             continue;
@@ -310,7 +335,7 @@ static bpx_status make_images(search *s, image_state *im)
                         continue;
                     s->ghost_owner[g] = k;
                     memcpy(s->ghost_shift[g], u, sizeof u);
-                    s->images[s->n + g] = image_box(s, k, u);
+                    ghost_out[g] = image_box(s, k, u);
                     g++;
                 }
     }
@@ -562,7 +587,8 @@ static void free_search(search *s, image_state *im)
     bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
     bpx__free(s->ghost_owner, (size_t)s->ghost_count * sizeof *s->ghost_owner);
     bpx__free(s->ghost_shift, (size_t)s->ghost_count * sizeof *s->ghost_shift);
-    bpx__free(s->images, ((size_t)s->n + s->ghost_count) * sizeof *s->images);
+    bpx__free(s->images, im->image_count * sizeof *s->images);
+    bpx__free(im->moved_ids, (size_t)im->moved * sizeof *im->moved_ids);
 }
 
 // The candidates from a world of the images, decided into the list; or, with out_count (an
@@ -579,7 +605,30 @@ static bpx_status run(search *s, image_state *im, bpx_neighbor_list *list, bpx_p
     if (status != BPX_OK)
         return bpx__error(s->err, status, UINT32_MAX, -1, "%s (backend %s)",
                           bpx_status_string(status), bpx_backend_name(def.backend));
-    status = bpx_world_set_boxes(w, im->boxes, s->n + s->ghost_count);
+    bool mine = false; // an error of this function's own, not the world's
+    if (im->boxes == s->images) {
+        status = bpx_world_set_boxes(w, im->boxes, s->n + s->ghost_count);
+    } else {
+        // The objects themselves, the wrapped ones moved, the ghosts added: ids n, n + 1, ...
+        // as the world hands them out after set_boxes.
+        status = bpx_world_set_boxes(w, im->boxes, s->n);
+        if (status == BPX_OK && im->moved)
+            status = bpx_world_move_boxes(w, im->moved_ids, im->moved_boxes, im->moved);
+        if (status == BPX_OK && s->ghost_count) {
+            uint32_t *ids = bpx__alloc((size_t)s->ghost_count * sizeof *ids);
+            status = ids ? bpx_world_add_boxes(w, im->ghost_boxes, s->ghost_count, ids)
+                         : bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                                      "no memory for %u images", s->ghost_count);
+            mine = !ids;
+            for (uint32_t g = 0; status == BPX_OK && g < s->ghost_count; g++)
+                if (ids[g] != s->n + g) {
+                    status = bpx__error(s->err, BPX_ERR_BAD_STATE, g, -1,
+                                        "image %u got id %u", g, ids[g]);
+                    mine = true;
+                }
+            bpx__free(ids, (size_t)s->ghost_count * sizeof *ids);
+        }
+    }
     if (status == BPX_OK && out_count) {
         // The candidates straight into out, then the pairs among them kept in place; when
         // the candidates do not fit, the pairs may: the list's way, counted, then copied.
@@ -598,7 +647,7 @@ static bpx_status run(search *s, image_state *im, bpx_neighbor_list *list, bpx_p
         status = bpx_world_collide(w);
     }
     if (status != BPX_OK) {
-        if (s->err)
+        if (s->err && !mine)
             *s->err = *bpx_world_error(w);
         bpx_world_destroy(w);
         return status;
