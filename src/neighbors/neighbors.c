@@ -259,6 +259,25 @@ static bool image_is_box(const search *s, uint32_t k, const bpx_box *b)
     return same;
 }
 
+// Open, no cutoff, float64 boxes: each image is the box rounded outward, nothing added (as
+// image_box, but for the sign of a zero); exact[k] whether it is the box. Returns how many are.
+static uint32_t round_boxes64(const bpx_box64 *in, uint32_t n, bpx_box *out, uint8_t *exact)
+{
+    uint32_t count = 0;
+    for (uint32_t k = 0; k < n; k++) {
+        bool same = true;
+        for (int a = 0; a < 3; a++) {
+            float lo = round_down(in[k].min[a]), hi = round_up(in[k].max[a]);
+            out[k].min[a] = lo;
+            out[k].max[a] = hi;
+            same &= ((double)lo == in[k].min[a]) & ((double)hi == in[k].max[a]);
+        }
+        exact[k] = same;
+        count += same;
+    }
+    return count;
+}
+
 static bool wraps(const search *s, uint32_t k)
 {
     return s->wrap && (s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]);
@@ -300,6 +319,10 @@ static bpx_status make_images(search *s, image_state *im)
     static const int32_t zero[3] = {0, 0, 0};
     uint32_t g = 0, m = 0;
     uint32_t exact_count = 0;
+    if (s->in.format == BPX_BOXES_F64 && !s->wrap && s->def->cutoff == 0) {
+        exact_count = round_boxes64(s->in.data, s->n, s->images, im->exact);
+        goto done;
+    }
     for (uint32_t k = 0; k < s->n; k++) {
         if (!own) {
             s->images[k] = image_box(s, k, zero);
@@ -341,6 +364,7 @@ static bpx_status make_images(search *s, image_state *im)
                     g++;
                 }
     }
+done:
     if (im->exact && (exact_count == 0 || exact_count == s->n)) {
         im->all_exact = exact_count == s->n;
         bpx__free(im->exact, s->n);
