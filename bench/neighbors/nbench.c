@@ -72,8 +72,8 @@ static size_t run_column(scene *sc, int column)
     bpx_status s;
     size_t count = 0;
     if (column == 0 || column == 3) {
-        s = column == 0 ? bpx_find_pairs(sc->boxes, sc->n, BPX_BACKEND_AUTO, sc->out,
-                                         sc->capacity, &count, &err)
+        s = column == 0 ? bpx_find_pairs(sc->boxes, sc->n, BPX_BACKEND_AUTO, sc->out, sc->capacity,
+                                         &count, &err)
                         : bpx_find_pairs_f64(sc->boxes64, sc->n, BPX_BACKEND_AUTO, sc->out,
                                              sc->capacity, &count, &err);
         if (s != BPX_OK)
@@ -112,7 +112,8 @@ int main(int argc, char **argv)
         } else if (!strcmp(argv[a], "--rounds") && a + 1 < argc) {
             rounds = atoi(argv[++a]);
         } else {
-            fprintf(stderr, "usage: bpx_nbench [--sizes N,N,...] [--rounds 1..%d] [--only a|b|c|d]\n",
+            fprintf(stderr,
+                    "usage: bpx_nbench [--sizes N,N,...] [--rounds 1..%d] [--only a|b|c|d]\n",
                     MAX_ROUNDS);
             return 2;
         }

@@ -498,15 +498,23 @@ static bpx_status decide(const search *s, const image_state *im, const bpx_pair 
     for (size_t c = 0; c < count; c++) {
         // The objects of a candidate a little ahead: its j is anywhere in memory, and waiting
         // for each in turn was most of this loop's time.
-        if (!im->all_exact && c + PREFETCH_AHEAD < count)
-            prefetch_object(s, im, candidates[c + PREFETCH_AHEAD].j);
+        // With exact flags, the flag twice as far ahead, and the object only where its flag
+        // says it is needed: most candidates then touch one byte of j, not its box.
+        if (!im->all_exact && c + PREFETCH_AHEAD < count) {
+            bpx_pair next = candidates[c + PREFETCH_AHEAD];
+            if (im->exact && c + 2 * PREFETCH_AHEAD < count &&
+                candidates[c + 2 * PREFETCH_AHEAD].j < s->n)
+                __builtin_prefetch(&im->exact[candidates[c + 2 * PREFETCH_AHEAD].j]);
+            if (!(im->exact && next.i < s->n && next.j < s->n && im->exact[next.i] &&
+                  im->exact[next.j]))
+                prefetch_object(s, im, next.j);
+        }
         uint32_t a = candidates[c].i, b = candidates[c].j;
-        if (a < s->n && b < s->n &&
-            (im->all_exact || (im->exact && im->exact[a] && im->exact[b]) || (box0 && !s->wrap))) {
+        bool own = a < s->n && b < s->n && im->exact && im->exact[a] && im->exact[b];
+        if (a < s->n && b < s->n && (im->all_exact || own || (box0 && !s->wrap))) {
             // Two objects as they are (a < b), shift 0: a pair as the comparator found it, or
             // as the plain closed-interval test says (box metric, no cutoff); distance 0.
-            bool yes = im->all_exact || (im->exact && im->exact[a] && im->exact[b]) ||
-                       touching(s, a, b);
+            bool yes = im->all_exact || own || touching(s, a, b);
             list->pairs[list->count] = (bpx_image_pair){a, b, {0, 0, 0}};
             if (want)
                 list->distances[list->count] = 0;
