@@ -10,6 +10,11 @@
 // whenever the objects truly overlap: with the lower one's image at 0, the other's face is
 // within [0, L) and the first reaches it. Each kept pair is then decided on the input
 // coordinates (exact_sign), so the float32 pass only ever proposes.
+#if defined(__linux__)
+#define _DEFAULT_SOURCE // madvise
+#include <sys/mman.h>
+#endif
+
 #include "bpx/bpx.h"
 #include "bpx/neighbors.h"
 
@@ -27,6 +32,23 @@
 #define MAX_PERIODS (1 << 29)
 // Coordinates, periods and the cutoff stay below this so that exact sums cannot overflow.
 #define MAX_MAGNITUDE 0x1p1000
+
+// Big arrays in 2 MiB pages where the OS has them on request (Linux's transparent huge pages in
+// "madvise" mode, as src/query/bvh.c): the images, the wraps and the result are written once,
+// fresh, and their page faults were a tenth of a search.
+static void advise_huge(void *memory, size_t size)
+{
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    const uintptr_t huge = (uintptr_t)2 << 20;
+    uintptr_t begin = ((uintptr_t)memory + huge - 1) & ~(huge - 1);
+    uintptr_t end = ((uintptr_t)memory + size) & ~(huge - 1);
+    if (memory && end > begin)
+        (void)madvise((void *)begin, end - begin, MADV_HUGEPAGE); // a hint: failure is fine
+#else
+    (void)memory;
+    (void)size;
+#endif
+}
 
 bpx_neighbor_def bpx_default_neighbor_def(void)
 {
@@ -299,6 +321,7 @@ static bpx_status make_images(search *s, image_state *im)
     }
     size_t count = own ? (size_t)moved + s->ghost_count : (size_t)s->n + s->ghost_count;
     s->images = bpx__alloc(count * sizeof *s->images);
+    advise_huge(s->images, count * sizeof *s->images);
     im->image_count = count;
     im->boxes = own ? s->in.data : s->images;
     im->moved = moved;
@@ -473,6 +496,8 @@ bool bpx__neighbors_reserve(bpx_neighbor_list *list, size_t needed, bool want_di
         bpx__free(distances, grown * sizeof *distances);
         return false;
     }
+    advise_huge(pairs, grown * sizeof *pairs);
+    advise_huge(distances, want_distances ? grown * sizeof *distances : 0);
     if (list->count) {
         memcpy(pairs, list->pairs, list->count * sizeof *pairs);
         if (want_distances)
@@ -732,6 +757,7 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
     if (s.periodic && !(s.wrap = bpx__alloc((size_t)n * sizeof *s.wrap)))
         return bpx__error(err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
+    advise_huge(s.wrap, s.periodic ? (size_t)n * sizeof *s.wrap : 0);
     uint64_t ghosts = 0;
     image_state im = {0};
     // Points with the auto backend: the cell list, where the cell allows; its wraps are from 0.
