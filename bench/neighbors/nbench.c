@@ -3,7 +3,7 @@
 // overlap per box, scene_uniform_density), against a plain bpx_find_pairs on the same boxes.
 // SPDX-License-Identifier: MIT
 //
-//   bpx_nbench [--sizes 100000,1000000] [--rounds 5] [--only a|b|c|d]
+//   bpx_nbench [--sizes 100000,1000000] [--rounds 5] [--only a|b|c|d] [--hash]
 //
 // Columns, each timed in CPU time of the calling thread (CLOCK_THREAD_CPUTIME_ID), the columns
 // alternating within each round, medians over the rounds:
@@ -65,6 +65,19 @@ typedef struct scene {
     size_t capacity;
 } scene;
 
+// With --hash: an FNV-1a hash of each column's output bytes, taken after the timed rounds, to
+// compare builds (the same bytes before and after a change).
+static bool hashing;
+static uint64_t hashes[COLUMNS];
+
+static uint64_t fnv1a(const void *data, size_t size)
+{
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (size_t k = 0; k < size; k++)
+        h = (h ^ ((const unsigned char *)data)[k]) * 0x100000001b3ull;
+    return h;
+}
+
 // One column once; returns the pairs found.
 static size_t run_column(scene *sc, int column)
 {
@@ -78,6 +91,8 @@ static size_t run_column(scene *sc, int column)
                                              sc->capacity, &count, &err);
         if (s != BPX_OK)
             fail(column == 0 ? "bpx_find_pairs" : "bpx_find_pairs_f64", s, &err);
+        if (hashing)
+            hashes[column] = fnv1a(sc->out, count * sizeof *sc->out);
         return count;
     }
     bpx_neighbor_def def = bpx_default_neighbor_def();
@@ -90,6 +105,8 @@ static size_t run_column(scene *sc, int column)
     if (s != BPX_OK)
         fail("bpx_find_neighbors", s, &err);
     count = list.count;
+    if (hashing)
+        hashes[column] = fnv1a(list.pairs, count * sizeof *list.pairs);
     bpx_neighbor_list_free(&list);
     return count;
 }
@@ -98,6 +115,7 @@ int main(int argc, char **argv)
 {
     uint32_t sizes[16] = {100000, 1000000};
     int size_count = 2, rounds = 5, only = -1;
+    bool want_hash = false;
     for (int a = 1; a < argc; a++) {
         if (!strcmp(argv[a], "--sizes") && a + 1 < argc) {
             size_count = 0;
@@ -109,12 +127,15 @@ int main(int argc, char **argv)
         } else if (!strcmp(argv[a], "--only") && a + 1 < argc && argv[a + 1][0] >= 'a' &&
                    argv[a + 1][0] <= 'd') {
             only = argv[++a][0] - 'a'; // one column alone, for a profiler
+        } else if (!strcmp(argv[a], "--hash")) {
+            want_hash = true; // taken after the timed rounds
         } else if (!strcmp(argv[a], "--rounds") && a + 1 < argc) {
             rounds = atoi(argv[++a]);
         } else {
-            fprintf(stderr,
-                    "usage: bpx_nbench [--sizes N,N,...] [--rounds 1..%d] [--only a|b|c|d]\n",
-                    MAX_ROUNDS);
+            fprintf(
+                stderr,
+                "usage: bpx_nbench [--sizes N,N,...] [--rounds 1..%d] [--only a|b|c|d] [--hash]\n",
+                MAX_ROUNDS);
             return 2;
         }
     }
@@ -188,6 +209,15 @@ int main(int argc, char **argv)
                n, pairs[0], pairs[2], pairs[3], 1e3 * m[0], 1e3 * m[1], 1e3 * m[2], 1e3 * m[3],
                m[2] / m[1], median(cb, rounds), m[2] / m[0], median(ca, rounds), m[3] / m[0],
                median(da, rounds));
+        if (want_hash) {
+            hashing = true;
+            for (int k = 0; k < COLUMNS; k++)
+                run_column(&sc, k);
+            hashing = false;
+            printf("hashes %u: a %016llx b %016llx c %016llx d %016llx\n", n,
+                   (unsigned long long)hashes[0], (unsigned long long)hashes[1],
+                   (unsigned long long)hashes[2], (unsigned long long)hashes[3]);
+        }
         fflush(stdout);
         free(sc.out);
         free(sc.boxes64);
