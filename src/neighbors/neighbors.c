@@ -153,6 +153,31 @@ static double images_below(const search *s, int a, double lo, double hi, double 
     return q >= L ? floor_fast(q / L) : 0;
 }
 
+// What the image search keeps beside `search` (search.h, shared with the cell list).
+typedef struct image_state {
+    // Per object: whether its own image (u = 0) is its box exactly (no cutoff, no wrap,
+    // float32 coordinates), so that a candidate of two such images is a pair as it stands:
+    // the comparator's closed-interval test on them is the exact test, shift 0, distance 0.
+    // NULL when no image can be exact (a cutoff) or when all are (all_exact).
+    uint8_t *exact;
+    bool all_exact;
+    // The comparator's input: n boxes for the objects (their images, or the objects themselves),
+    // then, from the objects themselves, `moved` images moved onto objects moved_ids, then the
+    // ghosts (ghost_boxes; after the n boxes in s->images when those are images).
+    const bpx_box *boxes;
+    uint32_t moved;
+    uint32_t *moved_ids;
+    const bpx_box *moved_boxes, *ghost_boxes;
+    size_t image_count;   // boxes allocated in s->images
+    double origin[3];     // the cell's lower corner (cell_origin; 0 where the cell list may run)
+    // With `mark` (periodic float32 boxes without cutoff, whose images are their boxes but for
+    // the marked), check_objects lists the objects that wrap or have ghosts, in order: the
+    // image pass then visits those alone.
+    bool mark;
+    uint32_t *marked;
+    uint32_t marked_count, marked_capacity;
+} image_state;
+
 // The cell's lower corner for the image search: the lowest object's grown lower face on each
 // periodic axis, so that objects in one cell's span need no wrap (their own images are then their
 // boxes, and exact). Where the cell lies is the search's own choice: it decides which objects
@@ -173,10 +198,24 @@ static void cell_origin(const search *s, double origin[3])
         origin[a] = s->period[a] > 0 && lowest[a] < INFINITY ? lowest[a] : 0;
 }
 
-// The input checks, then each object's wrap (relative to the cell's lower corner, origin) and
-// image count. Fills s->wrap; returns the number of ghost images in *ghosts.
-static bpx_status check_objects(search *s, const double origin[3], uint64_t *ghosts)
+static bool mark(image_state *im, uint32_t k)
 {
+    if (im->marked_count == im->marked_capacity) {
+        uint32_t grown = im->marked_capacity ? 2 * im->marked_capacity : 1024;
+        if (!bpx__grow((void **)&im->marked, im->marked_capacity * sizeof *im->marked,
+                       grown * sizeof *im->marked))
+            return false;
+        im->marked_capacity = grown;
+    }
+    im->marked[im->marked_count++] = k;
+    return true;
+}
+
+// The input checks, then each object's wrap (relative to the cell's lower corner, im->origin)
+// and image count. Fills s->wrap (and im->marked); returns the number of ghost images in *ghosts.
+static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
+{
+    const double *origin = im->origin;
     double half = s->def->cutoff / 2;
     uint64_t total = 0;
     for (uint32_t k = 0; k < s->n; k++) {
@@ -221,6 +260,10 @@ static bpx_status check_objects(search *s, const double origin[3], uint64_t *gho
             images *= 1 + (uint64_t)(below > 0 ? below : 0);
         }
         total += images - 1;
+        if (im->mark && (images > 1 || s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]) &&
+            !mark(im, k))
+            return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %u objects", s->n);
         if (total + s->n > BPX_MAX_BOXES)
             return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, -1,
                               "the objects with their periodic images pass BPX_MAX_BOXES (%u) at "
@@ -250,24 +293,6 @@ static bpx_box image_box(const search *s, uint32_t k, const int32_t u[3])
     return b;
 }
 
-// What the image search keeps beside `search` (search.h, shared with the cell list).
-typedef struct image_state {
-    // Per object: whether its own image (u = 0) is its box exactly (no cutoff, no wrap,
-    // float32 coordinates), so that a candidate of two such images is a pair as it stands:
-    // the comparator's closed-interval test on them is the exact test, shift 0, distance 0.
-    // NULL when no image can be exact (a cutoff) or when all are (all_exact).
-    uint8_t *exact;
-    bool all_exact;
-    // The comparator's input: n boxes for the objects (their images, or the objects themselves),
-    // then, from the objects themselves, `moved` images moved onto objects moved_ids, then the
-    // ghosts (ghost_boxes; after the n boxes in s->images when those are images).
-    const bpx_box *boxes;
-    uint32_t moved;
-    uint32_t *moved_ids;
-    const bpx_box *moved_boxes, *ghost_boxes;
-    size_t image_count;   // boxes allocated in s->images
-    double origin[3];     // the cell's lower corner (cell_origin; 0 where the cell list may run)
-} image_state;
 
 static bool image_is_box(const search *s, uint32_t k, const bpx_box *b)
 {
@@ -312,8 +337,8 @@ static bpx_status make_images(search *s, image_state *im)
     // them, then the ghosts: no copy of the many.
     bool own = s->in.format == BPX_BOXES_F32 && s->def->cutoff == 0;
     uint32_t moved = 0;
-    for (uint32_t k = 0; own && s->wrap && k < s->n; k++)
-        moved += wraps(s, k);
+    for (uint32_t x = 0; own && im->mark && x < im->marked_count; x++)
+        moved += wraps(s, im->marked[x]);
     if (own && moved == 0 && s->ghost_count == 0) {
         im->boxes = s->in.data;
         im->all_exact = true;
@@ -346,7 +371,13 @@ static bpx_status make_images(search *s, image_state *im)
         exact_count = round_boxes64(s->in.data, s->n, s->images, im->exact);
         goto done;
     }
-    for (uint32_t k = 0; k < s->n; k++) {
+    if (own) {
+        memset(im->exact, 1, s->n); // but for those that move, below
+        exact_count = s->n - moved;
+    }
+    uint32_t visits = own ? im->marked_count : s->n;
+    for (uint32_t x = 0; x < visits; x++) {
+        uint32_t k = own ? im->marked[x] : x;
         if (!own) {
             s->images[k] = image_box(s, k, zero);
             if (im->exact) {
@@ -360,7 +391,6 @@ static bpx_status make_images(search *s, image_state *im)
                 s->images[m++] = image_box(s, k, zero);
             }
             im->exact[k] = !moves;
-            exact_count += !moves;
         }
         if (!s->ghost_count)
             continue;
@@ -648,6 +678,7 @@ static void free_search(search *s, image_state *im)
     bpx__free(s->ghost_shift, (size_t)s->ghost_count * sizeof *s->ghost_shift);
     bpx__free(s->images, im->image_count * sizeof *s->images);
     bpx__free(im->moved_ids, (size_t)im->moved * sizeof *im->moved_ids);
+    bpx__free(im->marked, (size_t)im->marked_capacity * sizeof *im->marked);
 }
 
 // The candidates from a world of the images, decided into the list; or, with out_count (an
@@ -765,7 +796,8 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
                      (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64);
     if (s.periodic && !may_cells)
         cell_origin(&s, im.origin);
-    status = check_objects(&s, im.origin, &ghosts);
+    im.mark = s.periodic && def->format == BPX_BOXES_F32 && def->cutoff == 0;
+    status = check_objects(&s, &im, &ghosts);
     bool cells = false;
     if (status == BPX_OK && may_cells) {
         status = bpx__neighbors_cells(&s, list);
