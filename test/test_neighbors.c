@@ -253,6 +253,43 @@ static void random_configurations(void)
     }
 }
 
+// Cutoff 0 (Algorithm 1's closed-interval test), which random_configurations leaves out: on the
+// 1/64 grid boxes touch often, and images that are the boxes themselves are kept as the
+// comparator finds them; in float64 some faces are moved out by 2^-40 (no float32 holds them)
+// so that others are decided.
+static void touching_configurations(void)
+{
+    static objects o;
+    static const double cells[][3] = {{8, 8, 8}, {0, 0, 0}, {4, 6.5, 3.25}, {0, 5, 0}};
+    for (int round = 0; round < 24; round++) {
+        check_set_seed(1000 + (uint64_t)round);
+        rng_state = 0x9E3779B97F4A7C15ull * (uint64_t)(round + 1001);
+        const double *period = cells[round % 4];
+        int spread = round % 3 == 2 ? 2 : 0;
+        bpx_input_format format = round % 3 == 0   ? BPX_BOXES_F32
+                                  : round % 3 == 1 ? BPX_BOXES_F64
+                                                   : BPX_POINTS_F64;
+        bool points = format == BPX_POINTS_F64;
+        random_objects(&o, 120, period, points ? 0 : 2, spread);
+        if (format != BPX_BOXES_F32 && round % 2)
+            for (uint32_t k = 0; k < o.n; k++)
+                for (int a = 0; a < 3; a++) {
+                    uint64_t r = next_random() % 4;
+                    if (points && r == 0)
+                        o.lo[k][a] = o.hi[k][a] = o.lo[k][a] + 0x1p-40;
+                    else if (!points && r == 0)
+                        o.lo[k][a] -= 0x1p-40;
+                    else if (!points && r == 1)
+                        o.hi[k][a] += 0x1p-40;
+                }
+        for (uint32_t k = 7; points && k < o.n; k += 8) // coinciding points: pairs at distance 0
+            for (int a = 0; a < 3; a++)
+                o.lo[k][a] = o.hi[k][a] = o.lo[k - 7][a];
+        bpx_metric metric = round / 2 % 2 ? BPX_METRIC_BOX : BPX_METRIC_EUCLIDEAN;
+        check_against_reference(&o, period, 0, metric, format, "touching");
+    }
+}
+
 // Hand-made cases: objects on the faces and at exactly half a period.
 static void walls(void)
 {
@@ -330,6 +367,13 @@ static void float64_exact(void)
         CHECK_STATUS(bpx_find_pairs_f64(boxes, 4, BPX_BACKEND_AUTO, out, 0, &count, &err),
                      wanted ? BPX_ERR_CAPACITY : BPX_OK);
         CHECK_EQ_U64(count, wanted);
+        // Room for the pairs but not for every candidate (at 1e6 and 1e-30, boxes 0 and 1
+        // are one in float32): the pairs all the same.
+        bpx_pair tight[16];
+        CHECK_STATUS(bpx_find_pairs_f64(boxes, 4, BPX_BACKEND_AUTO, tight, wanted, &count, &err),
+                     BPX_OK);
+        CHECK_MSG(count == wanted && memcmp(tight, want, count * sizeof *tight) == 0,
+                  "scale %g, capacity %zu: %zu pairs", x, wanted, count);
     }
     // The same, periodic: point 0 at just under L and point 1 at 0 are one ulp apart across the
     // face; with cutoff 0 they do not pair, with the ulp as cutoff they do.
@@ -417,6 +461,7 @@ int main(void)
 {
     int64_t start = bpx_allocated_bytes();
     random_configurations();
+    touching_configurations();
     walls();
     float64_exact();
     bad_input();

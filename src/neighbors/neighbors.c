@@ -10,6 +10,11 @@
 // whenever the objects truly overlap: with the lower one's image at 0, the other's face is
 // within [0, L) and the first reaches it. Each kept pair is then decided on the input
 // coordinates (exact_sign), so the float32 pass only ever proposes.
+#if defined(__linux__)
+#define _DEFAULT_SOURCE // madvise
+#include <sys/mman.h>
+#endif
+
 #include "bpx/bpx.h"
 #include "bpx/neighbors.h"
 
@@ -28,6 +33,23 @@
 // Coordinates, periods and the cutoff stay below this so that exact sums cannot overflow.
 #define MAX_MAGNITUDE 0x1p1000
 
+// Big arrays in 2 MiB pages where the OS has them on request (Linux's transparent huge pages in
+// "madvise" mode, as src/query/bvh.c): the images, the wraps and the result are written once,
+// fresh, and their page faults were a tenth of a search.
+static void advise_huge(void *memory, size_t size)
+{
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    const uintptr_t huge = (uintptr_t)2 << 20;
+    uintptr_t begin = ((uintptr_t)memory + huge - 1) & ~(huge - 1);
+    uintptr_t end = ((uintptr_t)memory + size) & ~(huge - 1);
+    if (memory && end > begin)
+        (void)madvise((void *)begin, end - begin, MADV_HUGEPAGE); // a hint: failure is fine
+#else
+    (void)memory;
+    (void)size;
+#endif
+}
+
 bpx_neighbor_def bpx_default_neighbor_def(void)
 {
     return (bpx_neighbor_def){.format = BPX_BOXES_F32, .metric = BPX_METRIC_BOX,
@@ -44,20 +66,50 @@ void bpx_neighbor_list_free(bpx_neighbor_list *list)
     *list = (bpx_neighbor_list){0};
 }
 
-static float round_down(double x)
+// floor(x), inline: without SSE4.1 floor is a call into libm, a third of the checks' time.
+static inline double floor_fast(double x)
 {
-    float f = (float)x;
-    if ((double)f > x)
-        f = nextafterf(f, -INFINITY);
-    return f < -FLT_MAX ? -FLT_MAX : (f > FLT_MAX ? FLT_MAX : f);
+    if (!(fabs(x) < 0x1p52))
+        return floor(x);
+    double t = (double)(int64_t)x; // truncated toward 0, exact
+    return t > x ? t - 1 : t;
 }
 
-static float round_up(double x)
+// The float after / before f (f not NaN), as nextafterf(f, +-INFINITY) without the call.
+// Selects, no branches: which way a coordinate rounds is a coin toss, and mispredicting it was
+// most of the time of the images of float64 boxes.
+static inline float float_up(float f)
 {
-    float f = (float)x;
-    if ((double)f < x)
-        f = nextafterf(f, INFINITY);
-    return f < -FLT_MAX ? -FLT_MAX : (f > FLT_MAX ? FLT_MAX : f);
+    uint32_t b;
+    memcpy(&b, &f, sizeof b);
+    b = f < 0 ? b - 1 : (b & 0x7FFFFFFFu) + 1; // -0 and +0 both to the least subnormal
+    memcpy(&f, &b, sizeof f);
+    return f;
+}
+
+static inline float float_down(float f)
+{
+    uint32_t b;
+    memcpy(&b, &f, sizeof b);
+    b = f > 0 ? b - 1 : (b | 0x80000000u) + 1; // -0 and +0 both to minus the least subnormal
+    memcpy(&f, &b, sizeof f);
+    return f;
+}
+
+static inline float round_down(double x)
+{
+    float f = (float)x, d = float_down(f);
+    f = (double)f > x ? d : f;
+    f = f < -FLT_MAX ? -FLT_MAX : f;
+    return f > FLT_MAX ? FLT_MAX : f;
+}
+
+static inline float round_up(double x)
+{
+    float f = (float)x, u = float_up(f);
+    f = (double)f < x ? u : f;
+    f = f < -FLT_MAX ? -FLT_MAX : f;
+    return f > FLT_MAX ? FLT_MAX : f;
 }
 
 static bpx_status check_def(const bpx_neighbor_def *def, bpx_error *err)
@@ -87,20 +139,83 @@ static bpx_status check_def(const bpx_neighbor_def *def, bpx_error *err)
 }
 
 // How many images below itself an object [lo, hi] wrapped by w periods gets on axis a: the
-// copies shifted down by 1, 2, ... periods that still reach 0 once grown by cutoff / 2. The
-// slack only adds images, which the exact test then drops, and covers the rounding of the wrap.
-static double images_below(const search *s, int a, double lo, double hi, double w)
+// copies shifted down by 1, 2, ... periods that still reach the cell's lower face o once grown by
+// cutoff / 2. The slack only adds images, which the exact test then drops, and covers the
+// rounding of the wrap.
+static double images_below(const search *s, int a, double lo, double hi, double w, double o)
 {
     double L = s->period[a], half = s->def->cutoff / 2;
     double grown_lo = lo - half, grown_hi = hi + half;
-    double slack = 0x1p-40 * (fabs(grown_lo) + fabs(grown_hi) + fabs(w * L) + L);
-    return floor((grown_hi - w * L + slack) / L);
+    double slack = 0x1p-40 * (fabs(grown_lo) + fabs(grown_hi) + fabs(w * L) + L + fabs(o));
+    double q = grown_hi - o - w * L + slack;
+    // q < L: q / L < 1 even rounded (L / L is 1, and the largest double below 1 is 1 - 2^-53,
+    // no further from 1 than q / L): no image, and no division for the most of the objects.
+    return q >= L ? floor_fast(q / L) : 0;
 }
 
-// The input checks, then each object's wrap and image count. Fills s->wrap; returns the number of
-// ghost images in *ghosts.
-static bpx_status check_objects(search *s, uint64_t *ghosts)
+// What the image search keeps beside `search` (search.h, shared with the cell list).
+typedef struct image_state {
+    // Per object: whether its own image (u = 0) is its box exactly (no cutoff, no wrap,
+    // float32 coordinates), so that a candidate of two such images is a pair as it stands:
+    // the comparator's closed-interval test on them is the exact test, shift 0, distance 0.
+    // NULL when no image can be exact (a cutoff) or when all are (all_exact).
+    uint8_t *exact;
+    bool all_exact;
+    // The comparator's input: n boxes for the objects (their images, or the objects themselves),
+    // then, from the objects themselves, `moved` images moved onto objects moved_ids, then the
+    // ghosts (ghost_boxes; after the n boxes in s->images when those are images).
+    const bpx_box *boxes;
+    uint32_t moved;
+    uint32_t *moved_ids;
+    const bpx_box *moved_boxes, *ghost_boxes;
+    size_t image_count;   // boxes allocated in s->images
+    double origin[3];     // the cell's lower corner (cell_origin; 0 where the cell list may run)
+    // With `mark` (periodic float32 boxes without cutoff, whose images are their boxes but for
+    // the marked), check_objects lists the objects that wrap or have ghosts, in order: the
+    // image pass then visits those alone.
+    bool mark;
+    uint32_t *marked;
+    uint32_t marked_count, marked_capacity;
+} image_state;
+
+// The cell's lower corner for the image search: the lowest object's grown lower face on each
+// periodic axis, so that objects in one cell's span need no wrap (their own images are then their
+// boxes, and exact). Where the cell lies is the search's own choice: it decides which objects
+// wrap and which get images, never a pair or its shift. Non-finite and huge coordinates are left
+// to check_objects (0 when no object has a usable one).
+static void cell_origin(const search *s, double origin[3])
 {
+    double half = s->def->cutoff / 2, lowest[3] = {INFINITY, INFINITY, INFINITY};
+    for (uint32_t k = 0; k < s->n; k++) {
+        double lo[3], hi[3];
+        object_box(&s->in, k, lo, hi);
+        for (int a = 0; a < 3; a++) {
+            double x = lo[a] - half;
+            lowest[a] = fabs(lo[a]) < MAX_MAGNITUDE && x < lowest[a] ? x : lowest[a];
+        }
+    }
+    for (int a = 0; a < 3; a++)
+        origin[a] = s->period[a] > 0 && lowest[a] < INFINITY ? lowest[a] : 0;
+}
+
+static bool mark(image_state *im, uint32_t k)
+{
+    if (im->marked_count == im->marked_capacity) {
+        uint32_t grown = im->marked_capacity ? 2 * im->marked_capacity : 1024;
+        if (!bpx__grow((void **)&im->marked, im->marked_capacity * sizeof *im->marked,
+                       grown * sizeof *im->marked))
+            return false;
+        im->marked_capacity = grown;
+    }
+    im->marked[im->marked_count++] = k;
+    return true;
+}
+
+// The input checks, then each object's wrap (relative to the cell's lower corner, im->origin)
+// and image count. Fills s->wrap (and im->marked); returns the number of ghost images in *ghosts.
+static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
+{
+    const double *origin = im->origin;
     double half = s->def->cutoff / 2;
     uint64_t total = 0;
     for (uint32_t k = 0; k < s->n; k++) {
@@ -128,9 +243,15 @@ static bpx_status check_objects(search *s, uint64_t *ghosts)
             s->wrap[k][a] = 0;
             if (L == 0)
                 continue;
-            double w = floor((lo[a] - half) / L);
-            double below = images_below(s, a, lo[a], hi[a], w);
-            if (!(fabs(w) < MAX_PERIODS && below < MAX_PERIODS))
+            // Within 2^29 periods of 0 (and of the cell, so that shifts fit): counted from 0,
+            // wherever the cell lies, so that the limit is the caller's to know.
+            double from_zero = lo[a] - half;
+            bool near = fabs(from_zero) < 0x1p28 * L ||
+                        fabs(floor_fast(from_zero / L)) < MAX_PERIODS;
+            double x = from_zero - origin[a]; // w = 0 within the cell without a division
+            double w = x >= 0 && x < L ? 0 : floor_fast(x / L);
+            double below = images_below(s, a, lo[a], hi[a], w, origin[a]);
+            if (!(near && fabs(w) < MAX_PERIODS && below < MAX_PERIODS))
                 return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
                                   "object %u lies or reaches more than 2^29 periods (%g) from "
                                   "the origin on axis %c",
@@ -139,6 +260,10 @@ static bpx_status check_objects(search *s, uint64_t *ghosts)
             images *= 1 + (uint64_t)(below > 0 ? below : 0);
         }
         total += images - 1;
+        if (im->mark && (images > 1 || s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]) &&
+            !mark(im, k))
+            return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %u objects", s->n);
         if (total + s->n > BPX_MAX_BOXES)
             return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, -1,
                               "the objects with their periodic images pass BPX_MAX_BOXES (%u) at "
@@ -159,17 +284,79 @@ static bpx_box image_box(const search *s, uint32_t k, const int32_t u[3])
     bpx_box b;
     for (int a = 0; a < 3; a++) {
         double t = s->wrap ? ((double)u[a] - s->wrap[k][a]) * s->period[a] : 0;
-        double error = 0x1p-48 * (fabs(lo[a]) + fabs(hi[a]) + half + fabs(t));
+        // Nothing to round when there is nothing to add: the box as given, rounded once.
+        double error =
+            half == 0 && t == 0 ? 0 : 0x1p-48 * (fabs(lo[a]) + fabs(hi[a]) + half + fabs(t));
         b.min[a] = round_down(lo[a] - half + t - error);
         b.max[a] = round_up(hi[a] + half + t + error);
     }
     return b;
 }
 
-static bpx_status make_images(search *s)
+
+static bool image_is_box(const search *s, uint32_t k, const bpx_box *b)
 {
-    size_t count = (size_t)s->n + s->ghost_count;
+    if (s->wrap && (s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]))
+        return false;
+    double lo[3], hi[3];
+    object_box(&s->in, k, lo, hi);
+    bool same = true;
+    for (int a = 0; a < 3; a++)
+        same &= (double)b->min[a] == lo[a] && (double)b->max[a] == hi[a];
+    return same;
+}
+
+// Open, no cutoff, float64 boxes: each image is the box rounded outward, nothing added (as
+// image_box, but for the sign of a zero); exact[k] whether it is the box. Returns how many are.
+static uint32_t round_boxes64(const bpx_box64 *in, uint32_t n, bpx_box *out, uint8_t *exact)
+{
+    uint32_t count = 0;
+    for (uint32_t k = 0; k < n; k++) {
+        bool same = true;
+        for (int a = 0; a < 3; a++) {
+            float lo = round_down(in[k].min[a]), hi = round_up(in[k].max[a]);
+            out[k].min[a] = lo;
+            out[k].max[a] = hi;
+            same &= ((double)lo == in[k].min[a]) & ((double)hi == in[k].max[a]);
+        }
+        exact[k] = same;
+        count += same;
+    }
+    return count;
+}
+
+static bool wraps(const search *s, uint32_t k)
+{
+    return s->wrap && (s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]);
+}
+
+static bpx_status make_images(search *s, image_state *im)
+{
+    // float32 boxes and no cutoff: an object's own image is its box unless it wraps. The
+    // comparator gets the boxes themselves, then the images of the few that wrap moved onto
+    // them, then the ghosts: no copy of the many.
+    bool own = s->in.format == BPX_BOXES_F32 && s->def->cutoff == 0;
+    uint32_t moved = 0;
+    for (uint32_t x = 0; own && im->mark && x < im->marked_count; x++)
+        moved += wraps(s, im->marked[x]);
+    if (own && moved == 0 && s->ghost_count == 0) {
+        im->boxes = s->in.data;
+        im->all_exact = true;
+        return BPX_OK;
+    }
+    size_t count = own ? (size_t)moved + s->ghost_count : (size_t)s->n + s->ghost_count;
     s->images = bpx__alloc(count * sizeof *s->images);
+    advise_huge(s->images, count * sizeof *s->images);
+    im->image_count = count;
+    im->boxes = own ? s->in.data : s->images;
+    im->moved = moved;
+    im->moved_boxes = s->images;
+    im->ghost_boxes = own ? s->images + moved : s->images + s->n;
+    bpx_box *ghost_out = s->images ? (bpx_box *)im->ghost_boxes : NULL;
+    if ((s->def->cutoff == 0 && !(im->exact = bpx__alloc(s->n))) ||
+        (moved && !(im->moved_ids = bpx__alloc((size_t)moved * sizeof *im->moved_ids))))
+        return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u objects", s->n);
     if (s->ghost_count) {
         s->ghost_owner = bpx__alloc((size_t)s->ghost_count * sizeof *s->ghost_owner);
         s->ghost_shift = bpx__alloc((size_t)s->ghost_count * sizeof *s->ghost_shift);
@@ -178,9 +365,33 @@ static bpx_status make_images(search *s)
         return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %zu periodic images", count);
     static const int32_t zero[3] = {0, 0, 0};
-    uint32_t g = 0;
-    for (uint32_t k = 0; k < s->n; k++) {
-        s->images[k] = image_box(s, k, zero);
+    uint32_t g = 0, m = 0;
+    uint32_t exact_count = 0;
+    if (s->in.format == BPX_BOXES_F64 && !s->wrap && s->def->cutoff == 0) {
+        exact_count = round_boxes64(s->in.data, s->n, s->images, im->exact);
+        goto done;
+    }
+    if (own) {
+        memset(im->exact, 1, s->n); // but for those that move, below
+        exact_count = s->n - moved;
+    }
+    uint32_t visits = own ? im->marked_count : s->n;
+    for (uint32_t x = 0; x < visits; x++) {
+        uint32_t k = own ? im->marked[x] : x;
+        if (!own) {
+            s->images[k] = image_box(s, k, zero);
+            if (im->exact) {
+                im->exact[k] = image_is_box(s, k, &s->images[k]);
+                exact_count += im->exact[k];
+            }
+        } else {
+            bool moves = wraps(s, k);
+            if (moves) {
+                im->moved_ids[m] = k;
+                s->images[m++] = image_box(s, k, zero);
+            }
+            im->exact[k] = !moves;
+        }
         if (!s->ghost_count)
             continue;
         // Enumerate u on each axis from 0 down while the copy reaches 0 (as check_objects
@@ -191,7 +402,7 @@ static bpx_status make_images(search *s)
         for (int a = 0; a < 3; a++) {
             if (s->period[a] == 0)
                 continue;
-            double below = images_below(s, a, lo[a], hi[a], s->wrap[k][a]);
+            double below = images_below(s, a, lo[a], hi[a], s->wrap[k][a], im->origin[a]);
             lowest[a] = below > 0 ? -(int32_t)below : 0;
         }
         int32_t u[3];
@@ -202,9 +413,15 @@ static bpx_status make_images(search *s)
                         continue;
                     s->ghost_owner[g] = k;
                     memcpy(s->ghost_shift[g], u, sizeof u);
-                    s->images[s->n + g] = image_box(s, k, u);
+                    ghost_out[g] = image_box(s, k, u);
                     g++;
                 }
+    }
+done:
+    if (im->exact && (exact_count == 0 || exact_count == s->n)) {
+        im->all_exact = exact_count == s->n;
+        bpx__free(im->exact, s->n);
+        im->exact = NULL;
     }
     return BPX_OK;
 }
@@ -229,7 +446,11 @@ static bool within_objects(const search *s, uint32_t i, uint32_t j, const int32_
 
 enum { PREFETCH_AHEAD = 16 };
 
-static inline void prefetch_object(const search *s, uint32_t image)
+// Inlined always: as a function of its own GCC finds it "pure" (prefetches only read) and, its
+// result unused, drops every call to it.
+static inline __attribute__((always_inline)) void prefetch_object(const search *s,
+                                                                  const image_state *im,
+                                                                  uint32_t image)
 {
     uint32_t k = image < s->n ? image : s->ghost_owner[image - s->n];
     size_t item = s->in.format == BPX_BOXES_F32 ? sizeof(bpx_box)
@@ -241,6 +462,21 @@ static inline void prefetch_object(const search *s, uint32_t image)
     __builtin_prefetch(object + item - 1);
     if (s->wrap)
         __builtin_prefetch(&s->wrap[k]);
+    if (im->exact)
+        __builtin_prefetch(&im->exact[k]);
+}
+
+// Whether objects i and j (shift 0) are within a cutoff of 0 by the box metric: the exact
+// test's answer (bpx__within) without its sums, there being nothing to add; distance 0.
+static inline bool touching(const search *s, uint32_t i, uint32_t j)
+{
+    double lo_i[3], hi_i[3], lo_j[3], hi_j[3];
+    object_box(&s->in, i, lo_i, hi_i);
+    object_box(&s->in, j, lo_j, hi_j);
+    bool yes = true;
+    for (int a = 0; a < 3; a++)
+        yes &= lo_j[a] <= hi_i[a] && lo_i[a] <= hi_j[a];
+    return yes;
 }
 
 static int compare_found(const void *pa, const void *pb)
@@ -290,6 +526,8 @@ bool bpx__neighbors_reserve(bpx_neighbor_list *list, size_t needed, bool want_di
         bpx__free(distances, grown * sizeof *distances);
         return false;
     }
+    advise_huge(pairs, grown * sizeof *pairs);
+    advise_huge(distances, want_distances ? grown * sizeof *distances : 0);
     if (list->count) {
         memcpy(pairs, list->pairs, list->count * sizeof *pairs);
         if (want_distances)
@@ -303,16 +541,41 @@ bool bpx__neighbors_reserve(bpx_neighbor_list *list, size_t needed, bool want_di
 
 // Decides the candidates: pairs of objects themselves go straight to the result (already in
 // (i, j) order, as the backend emits them), pairs with an image to `imaged`, sorted at the end.
-static bpx_status decide(const search *s, const bpx_pair *candidates, size_t count,
-                         bpx_neighbor_list *list, found_list *imaged)
+static bpx_status decide(const search *s, const image_state *im, const bpx_pair *candidates,
+                         size_t count, bpx_neighbor_list *list, found_list *imaged)
 {
     bool want = s->def->want_distances;
+    bool box0 = s->def->metric == BPX_METRIC_BOX && s->def->cutoff == 0;
+    // Every candidate of two objects themselves may be a pair: room for them all at once.
+    if (!bpx__neighbors_reserve(list, list->count + count, want))
+        return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for the pairs found");
     for (size_t c = 0; c < count; c++) {
         // The objects of a candidate a little ahead: its j is anywhere in memory, and waiting
         // for each in turn was most of this loop's time.
-        if (c + PREFETCH_AHEAD < count)
-            prefetch_object(s, candidates[c + PREFETCH_AHEAD].j);
+        // With exact flags, the flag twice as far ahead, and the object only where its flag
+        // says it is needed: most candidates then touch one byte of j, not its box.
+        if (!im->all_exact && c + PREFETCH_AHEAD < count) {
+            bpx_pair next = candidates[c + PREFETCH_AHEAD];
+            if (im->exact && c + 2 * PREFETCH_AHEAD < count &&
+                candidates[c + 2 * PREFETCH_AHEAD].j < s->n)
+                __builtin_prefetch(&im->exact[candidates[c + 2 * PREFETCH_AHEAD].j]);
+            if (!(im->exact && next.i < s->n && next.j < s->n && im->exact[next.i] &&
+                  im->exact[next.j]))
+                prefetch_object(s, im, next.j);
+        }
         uint32_t a = candidates[c].i, b = candidates[c].j;
+        bool own = a < s->n && b < s->n && im->exact && im->exact[a] && im->exact[b];
+        if (a < s->n && b < s->n && (im->all_exact || own || (box0 && !s->wrap))) {
+            // Two objects as they are (a < b), shift 0: a pair as the comparator found it, or
+            // as the plain closed-interval test says (box metric, no cutoff); distance 0.
+            bool yes = im->all_exact || own || touching(s, a, b);
+            list->pairs[list->count] = (bpx_image_pair){a, b, {0, 0, 0}};
+            if (want)
+                list->distances[list->count] = 0;
+            list->count += yes;
+            continue;
+        }
         static const int32_t zero[3] = {0, 0, 0};
         uint32_t i = a < s->n ? a : s->ghost_owner[a - s->n];
         uint32_t j = b < s->n ? b : s->ghost_owner[b - s->n];
@@ -341,23 +604,39 @@ static bpx_status decide(const search *s, const bpx_pair *candidates, size_t cou
             f.pair.shift[x] = flip ? -shift[x] : shift[x];
         if (!within_objects(s, f.pair.i, f.pair.j, f.pair.shift, &f.distance))
             continue;
-        bool stored;
         if (a < s->n && b < s->n) {
-            stored = bpx__neighbors_reserve(list, list->count + 1, want);
-            if (stored) {
-                list->pairs[list->count] = f.pair;
-                if (want)
-                    list->distances[list->count] = f.distance;
-                list->count++;
-            }
-        } else {
-            stored = push(imaged, f);
-        }
-        if (!stored)
+            list->pairs[list->count] = f.pair;
+            if (want)
+                list->distances[list->count] = f.distance;
+            list->count++;
+        } else if (!push(imaged, f)) {
             return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                               "no memory for the pairs found");
+        }
     }
     return BPX_OK;
+}
+
+// decide() for an open search into bpx_pair: keeps, in place and in order, the candidates that
+// are pairs; returns how many.
+static size_t decide_pairs(const search *s, const image_state *im, bpx_pair *pairs, size_t count)
+{
+    if (im->all_exact)
+        return count;
+    bool box0 = s->def->metric == BPX_METRIC_BOX && s->def->cutoff == 0;
+    size_t kept = 0;
+    for (size_t c = 0; c < count; c++) {
+        if (c + PREFETCH_AHEAD < count)
+            prefetch_object(s, im, pairs[c + PREFETCH_AHEAD].j);
+        uint32_t i = pairs[c].i, j = pairs[c].j;
+        static const int32_t zero[3] = {0, 0, 0};
+        double distance;
+        bool yes = (im->exact && im->exact[i] && im->exact[j]) ||
+                   (box0 ? touching(s, i, j) : within_objects(s, i, j, zero, &distance));
+        pairs[kept] = pairs[c];
+        kept += yes;
+    }
+    return kept;
 }
 
 // Merges the sorted pairs with images into the result, from the back, in place.
@@ -391,16 +670,21 @@ static bpx_status merge_imaged(const search *s, found_list *imaged, bpx_neighbor
     return BPX_OK;
 }
 
-static void free_search(search *s)
+static void free_search(search *s, image_state *im)
 {
+    bpx__free(im->exact, s->n);
     bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
     bpx__free(s->ghost_owner, (size_t)s->ghost_count * sizeof *s->ghost_owner);
     bpx__free(s->ghost_shift, (size_t)s->ghost_count * sizeof *s->ghost_shift);
-    bpx__free(s->images, ((size_t)s->n + s->ghost_count) * sizeof *s->images);
+    bpx__free(s->images, im->image_count * sizeof *s->images);
+    bpx__free(im->moved_ids, (size_t)im->moved * sizeof *im->moved_ids);
+    bpx__free(im->marked, (size_t)im->marked_capacity * sizeof *im->marked);
 }
 
-// The candidates from a world of the images, decided into the list.
-static bpx_status run(search *s, bpx_neighbor_list *list)
+// The candidates from a world of the images, decided into the list; or, with out_count (an
+// open search), into out as bpx_find_pairs would (CAPACITY when more than capacity).
+static bpx_status run(search *s, image_state *im, bpx_neighbor_list *list, bpx_pair *out,
+                      size_t capacity, size_t *out_count)
 {
     bpx_world_def def = bpx_default_world_def();
     def.backend = s->def->backend;
@@ -411,11 +695,49 @@ static bpx_status run(search *s, bpx_neighbor_list *list)
     if (status != BPX_OK)
         return bpx__error(s->err, status, UINT32_MAX, -1, "%s (backend %s)",
                           bpx_status_string(status), bpx_backend_name(def.backend));
-    status = bpx_world_set_boxes(w, s->images, s->n + s->ghost_count);
-    if (status == BPX_OK)
+    bool mine = false; // an error of this function's own, not the world's
+    if (im->boxes == s->images) {
+        status = bpx_world_set_boxes(w, im->boxes, s->n + s->ghost_count);
+    } else {
+        // The objects themselves, the wrapped ones moved, the ghosts added: ids n, n + 1, ...
+        // as the world hands them out after set_boxes.
+        status = bpx_world_set_boxes(w, im->boxes, s->n);
+        if (status == BPX_OK && im->moved)
+            status = bpx_world_move_boxes(w, im->moved_ids, im->moved_boxes, im->moved);
+        if (status == BPX_OK && s->ghost_count) {
+            uint32_t *ids = bpx__alloc((size_t)s->ghost_count * sizeof *ids);
+            status = ids ? bpx_world_add_boxes(w, im->ghost_boxes, s->ghost_count, ids)
+                         : bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                                      "no memory for %u images", s->ghost_count);
+            mine = !ids;
+            for (uint32_t g = 0; status == BPX_OK && g < s->ghost_count; g++)
+                if (ids[g] != s->n + g) {
+                    status = bpx__error(s->err, BPX_ERR_BAD_STATE, g, -1,
+                                        "image %u got id %u", g, ids[g]);
+                    mine = true;
+                }
+            bpx__free(ids, (size_t)s->ghost_count * sizeof *ids);
+        }
+    }
+    if (status == BPX_OK && out_count) {
+        // The candidates straight into out, then the pairs among them kept in place; when
+        // the candidates do not fit, the pairs may: the list's way, counted, then copied.
+        size_t total = 0;
+        status = bpx_world_collide_into(w, out, capacity, &total);
+        if (status == BPX_OK) {
+            *out_count = decide_pairs(s, im, out, total);
+            bpx_world_destroy(w);
+            return BPX_OK;
+        }
+        if (status == BPX_ERR_CAPACITY) {
+            bpx__error_clear(s->err);
+            status = bpx_world_collide(w);
+        }
+    } else if (status == BPX_OK) {
         status = bpx_world_collide(w);
+    }
     if (status != BPX_OK) {
-        if (s->err)
+        if (s->err && !mine)
             *s->err = *bpx_world_error(w);
         bpx_world_destroy(w);
         return status;
@@ -423,22 +745,31 @@ static bpx_status run(search *s, bpx_neighbor_list *list)
     size_t count;
     const bpx_pair *candidates = bpx_world_pairs(w, &count);
     found_list imaged = {0};
-    status = decide(s, candidates, count, list, &imaged);
+    status = decide(s, im, candidates, count, list, &imaged);
     bpx_world_destroy(w);
     if (status == BPX_OK)
         status = merge_imaged(s, &imaged, list);
     bpx__free(imaged.items, imaged.capacity * sizeof(found));
-    if (status != BPX_OK)
+    if (status == BPX_OK && out_count) {
+        *out_count = list->count;
+        if (list->count > capacity) {
+            status = bpx__error(s->err, BPX_ERR_CAPACITY, UINT32_MAX, -1,
+                                "%zu pairs found, capacity %zu", list->count, capacity);
+        } else {
+            for (size_t k = 0; k < list->count; k++)
+                out[k] = (bpx_pair){list->pairs[k].i, list->pairs[k].j};
+        }
+    }
+    if (status != BPX_OK || out_count)
         bpx_neighbor_list_free(list);
     return status;
 }
 
-bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uint32_t n,
-                              bpx_neighbor_list *list, bpx_error *err)
+// bpx_find_neighbors; with out_count, into out as bpx_find_pairs would (open searches only).
+static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n,
+                       bpx_neighbor_list *list, bpx_pair *out, size_t capacity,
+                       size_t *out_count, bpx_error *err)
 {
-    bpx__error_clear(err);
-    if (!list)
-        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "list is NULL");
     *list = (bpx_neighbor_list){0};
     if (!def || (!data && n > 0))
         return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
@@ -457,11 +788,18 @@ bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uin
     if (s.periodic && !(s.wrap = bpx__alloc((size_t)n * sizeof *s.wrap)))
         return bpx__error(err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
+    advise_huge(s.wrap, s.periodic ? (size_t)n * sizeof *s.wrap : 0);
     uint64_t ghosts = 0;
-    status = check_objects(&s, &ghosts);
-    bool cells = false; // points with the auto backend: the cell list, where the cell allows
-    if (status == BPX_OK && def->backend == BPX_BACKEND_AUTO &&
-        (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64)) {
+    image_state im = {0};
+    // Points with the auto backend: the cell list, where the cell allows; its wraps are from 0.
+    bool may_cells = !out_count && def->backend == BPX_BACKEND_AUTO &&
+                     (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64);
+    if (s.periodic && !may_cells)
+        cell_origin(&s, im.origin);
+    im.mark = s.periodic && def->format == BPX_BOXES_F32 && def->cutoff == 0;
+    status = check_objects(&s, &im, &ghosts);
+    bool cells = false;
+    if (status == BPX_OK && may_cells) {
         status = bpx__neighbors_cells(&s, list);
         cells = status != BPX_ERR_BAD_STATE;
         if (!cells)
@@ -469,12 +807,21 @@ bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uin
     }
     if (status == BPX_OK && !cells) {
         s.ghost_count = (uint32_t)ghosts;
-        status = make_images(&s);
+        status = make_images(&s, &im);
         if (status == BPX_OK)
-            status = run(&s, list);
+            status = run(&s, &im, list, out, capacity, out_count);
     }
-    free_search(&s);
+    free_search(&s, &im);
     return status;
+}
+
+bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uint32_t n,
+                              bpx_neighbor_list *list, bpx_error *err)
+{
+    bpx__error_clear(err);
+    if (!list)
+        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "list is NULL");
+    return find(def, data, n, list, NULL, 0, NULL, err);
 }
 
 bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend backend,
@@ -489,16 +836,5 @@ bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend ba
     def.format = BPX_BOXES_F64;
     def.backend = backend;
     bpx_neighbor_list list;
-    bpx_status status = bpx_find_neighbors(&def, boxes, n, &list, err);
-    if (status != BPX_OK)
-        return status;
-    *count = list.count;
-    if (list.count > capacity) {
-        bpx_neighbor_list_free(&list);
-        return BPX_ERR_CAPACITY;
-    }
-    for (size_t k = 0; k < list.count; k++)
-        out[k] = (bpx_pair){list.pairs[k].i, list.pairs[k].j};
-    bpx_neighbor_list_free(&list);
-    return BPX_OK;
+    return find(&def, boxes, n, &list, out, capacity, count, err);
 }
