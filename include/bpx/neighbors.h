@@ -14,8 +14,8 @@
 //   if (bpx_find_neighbors(&def, xyz, n, &list, &err) == BPX_OK) { ... }
 //   bpx_neighbor_list_free(&list);
 //
-// How: points with the auto backend go to a cell list (cells half the cutoff wide, each point
-// against the points of the cells around it, in cell order, on the workers). Everything else
+// How: points with the auto backend go to a cell list (cells as wide as the cutoff, each point
+// against the points of the 27 cells around it, in cell order, on the workers). Everything else
 // (boxes, another backend, a periodic axis shorter than 3 cutoffs) goes through a backend: the
 // objects are wrapped into the cell, grown by cutoff / 2 and rounded outward to float32 (so no
 // pair is ever missed), objects that reach past the cell's upper faces get images below its
