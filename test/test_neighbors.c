@@ -457,6 +457,84 @@ static void bad_input(void)
     bpx_neighbor_list_free(NULL);
 }
 
+// Inputs a review found wrong once: a wrap rounded to a whole period with the partner's image
+// then never made; an image count past 2^64; squares that underflow or overflow; coordinates so
+// small that cells as wide as the cutoff would be subnormal.
+static void review_cases(void)
+{
+    check_set_context("review cases");
+    bpx_neighbor_def def = bpx_default_neighbor_def();
+    bpx_neighbor_list list;
+    bpx_error err;
+    // 2^28 - 2^-30 rounds to 2^28: object 1 lies a hair below its computed cell.
+    bpx_box64 wrap[3] = {{{0x1p-30, 0, 0}, {0x1p-30, 0, 0}},
+                         {{0x1p28, 0, 0}, {0x1p28, 0, 0}},
+                         {{1, 0, 0}, {1, 0, 0}}};
+    def.format = BPX_BOXES_F64;
+    def.period[0] = 1;
+    for (int b = 0; b < 3; b++) {
+        static const bpx_backend backends[3] = {BPX_BACKEND_AUTO, BPX_BACKEND_BRUTE,
+                                                BPX_BACKEND_SAP};
+        def.backend = backends[b];
+        CHECK_STATUS(bpx_find_neighbors(&def, wrap, 3, &list, &err), BPX_OK);
+        CHECK_EQ_U64(list.count, 1);
+        if (list.count == 1)
+            CHECK(list.pairs[0].i == 1 && list.pairs[0].j == 2 &&
+                  list.pairs[0].shift[0] == (1 << 28) - 1);
+        bpx_neighbor_list_free(&list);
+    }
+    def.backend = BPX_BACKEND_AUTO;
+    // 769546 * 494770 * 48448661 images is 2^64 + 4.
+    bpx_box64 huge = {{0, 0, 0}, {769545.5, 494769.5, 48448660.5}};
+    def.period[0] = def.period[1] = def.period[2] = 1;
+    CHECK_STATUS(bpx_find_neighbors(&def, &huge, 1, &list, &err), BPX_ERR_TOO_MANY_BOXES);
+    // Squares below double's range, and past it.
+    def = bpx_default_neighbor_def();
+    def.format = BPX_POINTS_F64;
+    def.metric = BPX_METRIC_EUCLIDEAN;
+    def.want_distances = true;
+    for (int search = 0; search < 2; search++) {
+        def.backend = search ? BPX_BACKEND_BRUTE : BPX_BACKEND_AUTO;
+        double apart[6] = {0, 0, 0, 1e-170, 0, 0};
+        def.cutoff = 0;
+        CHECK_STATUS(bpx_find_neighbors(&def, apart, 2, &list, &err), BPX_OK);
+        CHECK_EQ_U64(list.count, 0);
+        bpx_neighbor_list_free(&list);
+        double diagonal[6] = {0, 0, 0, 1e-170, 1e-170, 1e-170}; // 1.732e-170 apart
+        def.cutoff = 1.5e-170;
+        CHECK_STATUS(bpx_find_neighbors(&def, diagonal, 2, &list, &err), BPX_OK);
+        CHECK_EQ_U64(list.count, 0);
+        bpx_neighbor_list_free(&list);
+        def.cutoff = 1.8e-170;
+        CHECK_STATUS(bpx_find_neighbors(&def, diagonal, 2, &list, &err), BPX_OK);
+        CHECK_EQ_U64(list.count, 1);
+        if (list.count == 1)
+            CHECK(fabs(list.distances[0] / (sqrt(3) * 1e-170) - 1) < 1e-12);
+        bpx_neighbor_list_free(&list);
+        double far[6] = {0, 0, 0, 0x1p700, 0, 0};
+        def.cutoff = 0x1p600;
+        CHECK_STATUS(bpx_find_neighbors(&def, far, 2, &list, &err), BPX_OK);
+        CHECK_EQ_U64(list.count, 0);
+        bpx_neighbor_list_free(&list);
+        def.cutoff = 0x1p701;
+        CHECK_STATUS(bpx_find_neighbors(&def, far, 2, &list, &err), BPX_OK);
+        CHECK_EQ_U64(list.count, 1);
+        if (list.count == 1)
+            CHECK(list.distances[0] == 0x1p700);
+        bpx_neighbor_list_free(&list);
+        // Every point within 2^-900 of 0, no cutoff: the cells must not be subnormal.
+        double tiny[6] = {1e-300, 0, 0, 0, 0, 0};
+        def.cutoff = 0;
+        CHECK_STATUS(bpx_find_neighbors(&def, tiny, 2, &list, &err), BPX_OK);
+        CHECK_EQ_U64(list.count, 0);
+        bpx_neighbor_list_free(&list);
+        def.cutoff = 1e-300;
+        CHECK_STATUS(bpx_find_neighbors(&def, tiny, 2, &list, &err), BPX_OK);
+        CHECK_EQ_U64(list.count, 1);
+        bpx_neighbor_list_free(&list);
+    }
+}
+
 int main(void)
 {
     int64_t start = bpx_allocated_bytes();
@@ -465,6 +543,7 @@ int main(void)
     walls();
     float64_exact();
     bad_input();
+    review_cases();
     CHECK(bpx_allocated_bytes() == start);
     return check_finish("test_neighbors", 1);
 }

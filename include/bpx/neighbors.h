@@ -104,7 +104,7 @@ BPX_API bpx_neighbor_def bpx_default_neighbor_def(void);
 /// Errors: NULL_ARGUMENT; INVALID_ARGUMENT (a period or the cutoff NaN, infinite or negative, an
 /// unknown format or metric, a worker count out of range); NOT_FINITE / MIN_GREATER_THAN_MAX
 /// naming the object; TOO_MANY_BOXES (n, or the objects with their images, past
-/// BPX_MAX_BOXES; an object more than 2^30 periods from the origin, or spanning that many);
+/// BPX_MAX_BOXES; an object more than 2^29 periods from the origin, or spanning that many);
 /// OUT_OF_MEMORY; BACKEND_UNAVAILABLE; TOO_MANY_PAIRS as the backend reports it.
 BPX_API bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uint32_t n,
                                       bpx_neighbor_list *list, bpx_error *err);

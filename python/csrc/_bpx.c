@@ -17,14 +17,6 @@
 #include <string.h>
 #include <time.h>
 
-#if PY_VERSION_HEX < 0x030A0000 // Python 3.9
-static inline PyObject *Py_NewRef(PyObject *object)
-{
-    Py_INCREF(object);
-    return object;
-}
-#endif
-
 // bpx._errors._from_status(status_name, index, axis, message) -> the exception to raise, set at
 // module initialisation so that every error path has it.
 static PyObject *error_factory;

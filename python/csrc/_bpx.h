@@ -12,6 +12,14 @@
 
 #include <bpx/bpx.h>
 
+#if PY_VERSION_HEX < 0x030A0000 // Python 3.9
+static inline PyObject *Py_NewRef(PyObject *object)
+{
+    Py_INCREF(object);
+    return object;
+}
+#endif
+
 /// A bpx_world and the lock that lets one thread at a time use it.
 typedef struct {
     PyObject_HEAD

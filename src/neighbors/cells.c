@@ -45,8 +45,10 @@ static bool lay_out(const search *s, grid *g, const double least[3], const doubl
 {
     int fewest = 2 * g->cells_each_way + 1;
     double width = (s->def->cutoff + 4 * g->slack) / g->cells_each_way;
-    if (!(width > 0)) // every point at 0 and no cutoff: any width will do
-        width = 1;
+    // Cells far narrower than this would take 1 / width past double's range (all the points
+    // within 2^-900 of 0 and no cutoff); wider cells are always right.
+    if (!(width > 0x1p-900))
+        width = 0x1p-900;
     double cells = 1;
     for (int a = 0; a < 3; a++) {
         double L = s->period[a], extent = most[a] - least[a];
@@ -260,16 +262,14 @@ typedef struct cell_points {
 static inline bool points_within(const search *s, const double xi[3], const double xj[3],
                                  const int32_t shift[3], double *distance)
 {
-    double squares = 0;
+    double gaps[3];
     for (int a = 0; a < 3; a++) {
-        double gap = (xj[a] + (double)shift[a] * s->period[a]) - xi[a];
-        squares += gap * gap;
+        double p = (double)shift[a] * s->period[a];
+        double image = xj[a] + p;
+        double gap = image - xi[a];
+        gaps[a] = gap < 0 ? -gap : gap;
     }
-    double c = s->def->cutoff;
-    if (!(squares <= c * c))
-        return false;
-    *distance = sqrt(squares);
-    return true;
+    return bpx__euclidean_within(gaps, s->def->cutoff, distance);
 }
 
 // Point k's hits among the runs' points j > i. near, passed: room for a run's points.
@@ -480,7 +480,9 @@ bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list)
                       &g,
                       start,
                       &points,
-                      (size_t)side * side * side * fullest,
+                      (size_t)side * side * side * fullest < s->n
+                          ? (size_t)side * side * side * fullest
+                          : s->n,
                       (size_t)side * fullest,
                       expected_pairs(s, &g),
                       share_count,

@@ -14,8 +14,9 @@ static inline void bpx__two_sum(double a, double b, double *s, double *e)
     *s = sum;
 }
 
-// The sign (-1, 0, 1) of t[0] + ... + t[k-1] as real numbers, k <= 6, every |t| < 2^1000 (so no
-// partial sum overflows). Fast path: the rounded sum, when it is farther from 0 than its error
+// The sign (-1, 0, 1) of t[0] + ... + t[k-1] as real numbers, k <= 6, every |t| below about
+// 2^1004 (coordinates and the cutoff below 2^1000, a shift times a period a little more), so that
+// no partial sum overflows. Fast path: the rounded sum, when it is farther from 0 than its error
 // bound; otherwise Shewchuk's expansion sum, whose largest component carries the sign.
 static inline int bpx__exact_sign(const double *t, int k)
 {

@@ -141,12 +141,16 @@ static bpx_status check_def(const bpx_neighbor_def *def, bpx_error *err)
 // How many images below itself an object [lo, hi] wrapped by w periods gets on axis a: the
 // copies shifted down by 1, 2, ... periods that still reach the cell's lower face o once grown by
 // cutoff / 2. The slack only adds images, which the exact test then drops, and covers the
-// rounding of the wrap.
-static double images_below(const search *s, int a, double lo, double hi, double w, double o)
+// rounding of the wrap: this object's, and its partner's, which can leave the partner's lower
+// face a few ulps of its own magnitude below o (hence `magnitude`: the largest of all the
+// objects' coordinates, from cell_origin).
+static double images_below(const search *s, int a, double lo, double hi, double w, double o,
+                           double magnitude)
 {
     double L = s->period[a], half = s->def->cutoff / 2;
     double grown_lo = lo - half, grown_hi = hi + half;
-    double slack = 0x1p-40 * (fabs(grown_lo) + fabs(grown_hi) + fabs(w * L) + L + fabs(o));
+    double slack =
+        0x1p-40 * (fabs(grown_lo) + fabs(grown_hi) + fabs(w * L) + L + fabs(o) + magnitude);
     double q = grown_hi - o - w * L + slack;
     // q < L: q / L < 1 even rounded (L / L is 1, and the largest double below 1 is 1 - 2^-53,
     // no further from 1 than q / L): no image, and no division for the most of the objects.
@@ -170,6 +174,7 @@ typedef struct image_state {
     const bpx_box *moved_boxes, *ghost_boxes;
     size_t image_count;   // boxes allocated in s->images
     double origin[3];     // the cell's lower corner (cell_origin; 0 where the cell list may run)
+    double magnitude;     // the largest |coordinate| + cutoff / 2 + |origin| (cell_origin)
     // With `mark` (periodic float32 boxes without cutoff, whose images are their boxes but for
     // the marked), check_objects lists the objects that wrap or have ghosts, in order: the
     // image pass then visits those alone.
@@ -183,19 +188,26 @@ typedef struct image_state {
 // boxes, and exact). Where the cell lies is the search's own choice: it decides which objects
 // wrap and which get images, never a pair or its shift. Non-finite and huge coordinates are left
 // to check_objects (0 when no object has a usable one).
-static void cell_origin(const search *s, double origin[3])
+static void cell_origin(const search *s, double origin[3], double *magnitude)
 {
-    double half = s->def->cutoff / 2, lowest[3] = {INFINITY, INFINITY, INFINITY};
+    double half = s->def->cutoff / 2, lowest[3] = {INFINITY, INFINITY, INFINITY}, most = 0;
     for (uint32_t k = 0; k < s->n; k++) {
         double lo[3], hi[3];
         object_box(&s->in, k, lo, hi);
         for (int a = 0; a < 3; a++) {
             double x = lo[a] - half;
-            lowest[a] = fabs(lo[a]) < MAX_MAGNITUDE && x < lowest[a] ? x : lowest[a];
+            bool usable = fabs(lo[a]) < MAX_MAGNITUDE && fabs(hi[a]) < MAX_MAGNITUDE;
+            lowest[a] = usable && x < lowest[a] ? x : lowest[a];
+            most = usable && fabs(lo[a]) > most ? fabs(lo[a]) : most;
+            most = usable && fabs(hi[a]) > most ? fabs(hi[a]) : most;
         }
     }
-    for (int a = 0; a < 3; a++)
+    double farthest_origin = 0;
+    for (int a = 0; a < 3; a++) {
         origin[a] = s->period[a] > 0 && lowest[a] < INFINITY ? lowest[a] : 0;
+        farthest_origin = fmax(farthest_origin, fabs(origin[a]));
+    }
+    *magnitude = most + half + farthest_origin;
 }
 
 static bool mark(image_state *im, uint32_t k)
@@ -250,14 +262,20 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
                         fabs(floor_fast(from_zero / L)) < MAX_PERIODS;
             double x = from_zero - origin[a]; // w = 0 within the cell without a division
             double w = x >= 0 && x < L ? 0 : floor_fast(x / L);
-            double below = images_below(s, a, lo[a], hi[a], w, origin[a]);
+            double below = images_below(s, a, lo[a], hi[a], w, origin[a], im->magnitude);
             if (!(near && fabs(w) < MAX_PERIODS && below < MAX_PERIODS))
                 return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
                                   "object %u lies or reaches more than 2^29 periods (%g) from "
                                   "the origin on axis %c",
                                   k, L, "xyz"[a]);
             s->wrap[k][a] = (int32_t)w;
-            images *= 1 + (uint64_t)(below > 0 ? below : 0);
+            uint64_t copies = 1 + (uint64_t)(below > 0 ? below : 0);
+            if (copies > BPX_MAX_BOXES / images) // before the product can wrap around
+                return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
+                                  "object %u has more than BPX_MAX_BOXES (%u) periodic images: "
+                                  "the cell is small for boxes and cutoff this large",
+                                  k, BPX_MAX_BOXES);
+            images *= copies;
         }
         total += images - 1;
         if (im->mark && (images > 1 || s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]) &&
@@ -402,7 +420,8 @@ static bpx_status make_images(search *s, image_state *im)
         for (int a = 0; a < 3; a++) {
             if (s->period[a] == 0)
                 continue;
-            double below = images_below(s, a, lo[a], hi[a], s->wrap[k][a], im->origin[a]);
+            double below =
+                images_below(s, a, lo[a], hi[a], s->wrap[k][a], im->origin[a], im->magnitude);
             lowest[a] = below > 0 ? -(int32_t)below : 0;
         }
         int32_t u[3];
@@ -794,8 +813,11 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
     // Points with the auto backend: the cell list, where the cell allows; its wraps are from 0.
     bool may_cells = !out_count && def->backend == BPX_BACKEND_AUTO &&
                      (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64);
-    if (s.periodic && !may_cells)
-        cell_origin(&s, im.origin);
+    if (s.periodic) {
+        cell_origin(&s, im.origin, &im.magnitude);
+        if (may_cells) // the image search then runs only where the cell list cannot
+            im.origin[0] = im.origin[1] = im.origin[2] = 0;
+    }
     im.mark = s.periodic && def->format == BPX_BOXES_F32 && def->cutoff == 0;
     status = check_objects(&s, &im, &ghosts);
     bool cells = false;

@@ -70,12 +70,40 @@ typedef struct search {
 // Whether box i and box j shifted by shift periods are within the cutoff, decided on the input
 // coordinates; *distance receives the metric's distance. Both searches decide here, so that
 // they give the same bits.
+// Whether sqrt(g[0]^2 + g[1]^2 + g[2]^2) <= c for gaps g >= 0, and that distance, in double.
+// Where the squares could underflow to 0 or overflow, the gaps and c are first scaled by a power
+// of two (exact); in between, nothing is scaled, so the bits are those of the plain sums.
+static inline bool bpx__euclidean_within(const double g[3], double c, double *distance)
+{
+    double largest = g[0] > g[1] ? g[0] : g[1];
+    largest = g[2] > largest ? g[2] : largest;
+    if (largest > c)
+        return false;
+    if (largest == 0 || (largest > 0x1p-450 && largest < 0x1p450)) {
+        double squares = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+        if (!(squares <= c * c))
+            return false;
+        *distance = sqrt(squares);
+        return true;
+    }
+    int e = ilogb(largest);
+    double x = ldexp(g[0], -e), y = ldexp(g[1], -e), z = ldexp(g[2], -e), r = ldexp(c, -e);
+    double squares = x * x + y * y + z * z; // largest is in [1, 2) now
+    if (!(squares <= r * r))
+        return false;
+    *distance = ldexp(sqrt(squares), e);
+    return true;
+}
+
+// Whether box i and box j shifted by shift periods are within the cutoff, decided on the input
+// coordinates; *distance receives the metric's distance. Both searches decide here (or, for
+// points, in the same arithmetic), so that they give the same bits.
 static inline bool bpx__within(const search *s, const double lo_i[3], const double hi_i[3],
                                const double lo_j[3], const double hi_j[3],
                                const int32_t shift[3], double *distance)
 {
     double c = s->def->cutoff;
-    double gap_max = -INFINITY, sum_squares = 0;
+    double gap_max = -INFINITY, gaps[3];
     for (int a = 0; a < 3; a++) {
         // The shift in two parts, p_hi + p_lo == shift * L exactly.
         double p_hi = (double)shift[a] * s->period[a];
@@ -87,19 +115,15 @@ static inline bool bpx__within(const search *s, const double lo_i[3], const doub
             if (bpx__exact_sign(j_above, 5) < 0 || bpx__exact_sign(j_below, 5) < 0)
                 return false;
         }
-        double above = (lo_j[a] + p_hi) - hi_i[a], below = lo_i[a] - (hi_j[a] + p_hi);
+        double lo_image = lo_j[a] + p_hi, hi_image = hi_j[a] + p_hi;
+        double above = lo_image - hi_i[a], below = lo_i[a] - hi_image;
         double gap = above > below ? above : below; // no NaN here: fmax's call is not needed
         gap_max = gap > gap_max ? gap : gap_max;
-        if (gap > 0)
-            sum_squares += gap * gap;
+        gaps[a] = gap > 0 ? gap : 0;
     }
-    if (s->def->metric == BPX_METRIC_EUCLIDEAN) {
-        if (!(sum_squares <= c * c))
-            return false;
-        *distance = sqrt(sum_squares);
-    } else {
-        *distance = gap_max > 0 ? gap_max : 0;
-    }
+    if (s->def->metric == BPX_METRIC_EUCLIDEAN)
+        return bpx__euclidean_within(gaps, c, distance);
+    *distance = gap_max > 0 ? gap_max : 0;
     return true;
 }
 

@@ -180,7 +180,7 @@ def neighbor_pairs(
     v = None
     if vectors:
         xyz = data.astype(np.float64, copy=False)
-        v = xyz[j] - xyz[i] + shifts * np.asarray(period)
+        v = (xyz[j] + shifts * np.asarray(period)) - xyz[i]  # as bpx computes the distances
     return Neighbors(i, j, shifts, d, v)
 
 
