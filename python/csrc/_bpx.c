@@ -75,8 +75,9 @@ int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_r
     const char *format = view->format ? view->format : "B";
     if (format[0] == '<' || format[0] == '=' || format[0] == '@')
         format++; // native little-endian, which is all bpx's hosts are
-    Py_ssize_t item_size = kind == 'Q' ? 8 : 4;
+    Py_ssize_t item_size = kind == 'Q' || kind == 'd' ? 8 : 4;
     const char *type_name = kind == 'f'   ? "float32"
+                            : kind == 'd' ? "float64"
                             : kind == 'I' ? "uint32"
                             : kind == 'i' ? "int32"
                                           : "uint64";

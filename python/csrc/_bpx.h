@@ -46,7 +46,7 @@ PyObject *raise_error(const char *where, const bpx_error *err);
 /// Raises an error that bpx itself did not report, as the bpx.Error subclass of status.
 PyObject *raise_status(const char *where, bpx_status status, const char *message);
 /// Borrows obj's memory as C-contiguous rows of items_per_row items ('f' float32, 'I' uint32,
-/// 'i' int32, 'Q' uint64); on failure raises and returns -1 with nothing held.
+/// 'i' int32, 'Q' uint64, 'd' float64); on failure raises and returns -1 with nothing held.
 int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_row, Py_buffer *view,
              uint32_t *rows);
 /// Parses a backend name; on failure raises UnknownBackendError listing the names, returns -1.

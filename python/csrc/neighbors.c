@@ -4,41 +4,6 @@
 
 #include <string.h>
 
-// Borrows obj as C-contiguous rows of `per_row` float32 ('f') or float64 ('d') items.
-static int get_float_rows(const char *where, PyObject *obj, char kind, Py_ssize_t per_row,
-                          Py_buffer *view, uint32_t *rows)
-{
-    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) != 0)
-        return -1;
-    const char *format = view->format ? view->format : "B";
-    if (format[0] == '<' || format[0] == '=' || format[0] == '@')
-        format++;
-    Py_ssize_t item_size = kind == 'd' ? 8 : 4;
-    Py_ssize_t row_bytes = per_row * item_size;
-    if (strlen(format) != 1 || format[0] != kind || view->itemsize != item_size ||
-        view->len % row_bytes != 0) {
-        char message[160];
-        snprintf(message, sizeof message,
-                 "expected a C-contiguous %s buffer of %zd items per row, got format '%s', "
-                 "%zd bytes",
-                 kind == 'd' ? "float64" : "float32", per_row, view->format, view->len);
-        PyBuffer_Release(view);
-        raise_status(where, BPX_ERR_INVALID_ARGUMENT, message);
-        return -1;
-    }
-    Py_ssize_t count = view->len / row_bytes;
-    if ((size_t)count > BPX_MAX_BOXES) {
-        char message[96];
-        snprintf(message, sizeof message, "%zd rows exceed BPX_MAX_BOXES (%u)", count,
-                 BPX_MAX_BOXES);
-        PyBuffer_Release(view);
-        raise_status(where, BPX_ERR_TOO_MANY_BOXES, message);
-        return -1;
-    }
-    *rows = (uint32_t)count;
-    return 0;
-}
-
 // The list's pairs as bytearrays: (i, j) rows of bpx_pair when pairs_only, else the columns
 // i, j (uint32) and the shifts (3 int32 a pair), split here so that NumPy takes them as they are.
 static PyObject *pairs_bytes(const bpx_neighbor_list *list, int pairs_only)
@@ -95,7 +60,7 @@ PyObject *py_find_neighbors(PyObject *module, PyObject *args)
     bool points = format == BPX_POINTS_F32 || format == BPX_POINTS_F64;
     Py_buffer view;
     uint32_t n;
-    if (get_float_rows(where, obj, f64 ? 'd' : 'f', points ? 3 : 6, &view, &n) != 0)
+    if (get_rows(where, obj, f64 ? 'd' : 'f', points ? 3 : 6, &view, &n) != 0)
         return NULL;
     bpx_neighbor_list list;
     bpx_error err = {0};
