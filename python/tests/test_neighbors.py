@@ -180,3 +180,74 @@ def test_threads_same_bytes():
     other = bpx.neighbor_pairs(points, 1.1, cell=20, backend="sap", threads=2)
     for a, b in zip(one[:4], other[:4]):
         assert np.array_equal(a, b)
+
+
+def periodic_box_pairs(boxes, period, reach=2):
+    """Every (i <= j, shift) with box i and the image of box j overlapping (closed intervals,
+    float64), written for the purpose; a box and its own image when the shift is positive."""
+    boxes = np.asarray(boxes, dtype=np.float64)
+    period = np.asarray(period, dtype=np.float64)
+    ranges = [range(-reach, reach + 1) if L > 0 else range(1) for L in period]
+    want = set()
+    for i in range(len(boxes)):
+        for j in range(i, len(boxes)):
+            for s in itertools.product(*ranges):
+                if i == j and s <= (0, 0, 0):
+                    continue
+                sh = np.array(s) * period
+                lo_j, hi_j = boxes[j, :3] + sh, boxes[j, 3:] + sh
+                if np.all(boxes[i, :3] <= hi_j) and np.all(lo_j <= boxes[i, 3:]):
+                    want.add((i, j, *s))
+    return want
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("backend", ["auto", "reference", "sap", "grid"])
+def test_find_pairs_periodic(dtype, backend):
+    rng = np.random.default_rng(21)
+    lo = rng.uniform(-2, 9, size=(60, 3))  # not wrapped into the cell
+    size = rng.uniform(0, 2, size=(60, 3))
+    size[:3] = [4.0, 0.5, 0.5]  # longer than half the cell on x: two images of a neighbour
+    size[3] = [9.0, 0.3, 0.3]  # longer than the cell: it meets its own image
+    lo[4:8, 0] = 0.0  # on the lower face
+    lo[8:12, 0] = 6.0  # their images touch the upper face (boxes 4..7 at x = 0 + period)
+    size[8:12, 0] = 0.0
+    boxes = np.concatenate([lo, lo + size], axis=1).astype(dtype)
+    cell, pbc = [6.0, 7.0, 100.0], [True, True, False]
+    pairs, shifts = bpx.find_pairs(boxes, backend=backend, cell=cell, pbc=pbc, return_shifts=True)
+    got = [(int(i), int(j), *map(int, s)) for (i, j), s in zip(pairs, shifts)]
+    assert got == sorted(got) and len(set(got)) == len(got)
+    assert set(got) == periodic_box_pairs(boxes, [6.0, 7.0, 0.0])
+    assert np.all(shifts[:, 2] == 0)
+    # the same pairs without the shifts, and the same as neighbor_pairs at cutoff 0
+    assert np.array_equal(bpx.find_pairs(boxes, backend=backend, cell=cell, pbc=pbc), pairs)
+    nl = bpx.neighbor_pairs(boxes, 0.0, cell=cell, pbc=pbc, metric="box", distances=False)
+    assert np.array_equal(nl.pairs, pairs) and np.array_equal(nl.shifts, shifts)
+
+
+def test_find_pairs_periodic_float64_exact():
+    # Across the periodic face, one float64 ulp apart: no pair; touching: a pair.
+    L = 1e6
+    below = np.nextafter(L, 0)
+    boxes = np.array([[0, 0, 0, 1, 1, 1], [L - 1, 0, 0, below, 1, 1]])
+    assert bpx.find_pairs(boxes, cell=[L, 0, 0], pbc=[True, False, False]).shape == (0, 2)
+    boxes[1, 3] = L
+    pairs, shifts = bpx.find_pairs(boxes, cell=[L, 0, 0], pbc=[True, False, False],
+                                   return_shifts=True)
+    assert pairs.tolist() == [[0, 1]] and shifts.tolist() == [[-1, 0, 0]]
+    # rounded to float32 (by the caller) the ulp is lost and the boxes touch
+    boxes[1, 3] = below
+    assert bpx.find_pairs(boxes.astype(np.float32), cell=L, pbc=[1, 0, 0]).tolist() == [[0, 1]]
+
+
+def test_find_pairs_open_shifts_and_bad_cells():
+    rng = np.random.default_rng(5)
+    lo = rng.uniform(0, 10, size=(200, 3)).astype(np.float32)
+    boxes = np.concatenate([lo, lo + 1], axis=1)
+    pairs, shifts = bpx.find_pairs(boxes, return_shifts=True)  # no cell: the plain pairs
+    assert np.array_equal(pairs, bpx.find_pairs(boxes))
+    assert shifts.shape == (len(pairs), 3) and not shifts.any()
+    with pytest.raises(bpx.InvalidArgumentError, match="find_pairs"):
+        bpx.find_pairs(boxes, cell=[0, 5, 5])
+    with pytest.raises(bpx.InvalidArgumentError, match="triclinic"):
+        bpx.find_pairs(boxes, cell=[[5, 1, 0], [0, 5, 0], [0, 0, 5]])

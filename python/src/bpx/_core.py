@@ -76,7 +76,10 @@ def find_pairs(
     *,
     mins: Any = None,
     maxs: Any = None,
-) -> np.ndarray:
+    cell: Any = None,
+    pbc: Any = True,
+    return_shifts: bool = False,
+) -> Any:
     """Every overlapping pair among boxes, as a (k, 2) uint32 array sorted by (i, j), i < j.
 
     Boxes i and j overlap iff ``min_i <= max_j and min_j <= max_i`` on x, y and z: closed
@@ -97,9 +100,18 @@ def find_pairs(
             may use from 16,384 boxes, one thread below (where starting threads costs more
             than they save).
         mins, maxs: instead of boxes, (n, 3) minimum and maximum corners (one copy).
+        cell, pbc: a periodic cell, as for ``neighbor_pairs``: one length, three, or a diagonal
+            3x3 matrix, and which axes are periodic (default all). Then box i pairs with every
+            periodic image of box j that it overlaps (the same closed intervals), once per
+            image: a pair appears twice when two images of j overlap i (a box longer than half
+            the cell), and a box longer than the cell pairs with its own images (i == j). The
+            boxes need not lie inside the cell. Exact for float32 and float64 alike.
+        return_shifts: also return each pair's image shift, (k, 3) int32: box j moved by
+            ``shift * cell`` overlaps box i (0 on open axes); sorted by (i, j, shift).
 
     Returns:
-        (k, 2) uint32 array of pairs (i, j), i < j, sorted; it owns its memory.
+        (k, 2) uint32 array of pairs (i, j), i < j (i <= j with a cell), sorted; it owns its
+        memory. With return_shifts, the tuple (pairs, shifts).
 
     Raises:
         NotFiniteError, MinGreaterThanMaxError: a bad box; the message names the box and axis
@@ -116,6 +128,11 @@ def find_pairs(
     if threads is None:
         threads = usable_cpus() if array.shape[0] >= _THREADED_FROM else 1
     threads = check_threads(threads, "find_pairs")
+    if cell is not None or return_shifts:
+        from ._neighbors import periodic_pairs
+
+        pairs, shifts = periodic_pairs(array, f64, cell, pbc, backend, threads)
+        return (pairs, shifts) if return_shifts else pairs
     if f64:
         return exact_pairs(array, backend, threads)
     return pairs_from_bytes(_bpx.find_pairs(array, backend, threads))

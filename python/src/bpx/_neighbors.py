@@ -191,3 +191,19 @@ def exact_pairs(boxes64: np.ndarray, backend: str, threads: int) -> np.ndarray:
         threads,
     )
     return np.frombuffer(raw, dtype=np.uint32).reshape(-1, 2)
+
+
+def periodic_pairs(
+    boxes: np.ndarray, f64: bool, cell: Any, pbc: Any, backend: str, threads: int
+) -> Tuple[np.ndarray, np.ndarray]:
+    """find_pairs over a periodic cell: the box metric at cutoff 0 (Algorithm 1's closed
+    intervals) over every image, as pairs (k, 2) and their shifts (k, 3)."""
+    period = _period(cell, pbc, "find_pairs")
+    raw, _ = _bpx.find_neighbors(
+        "find_pairs", boxes, _BOXES_F64 if f64 else _BOXES_F32, period, 0.0, _METRICS["box"],
+        False, False, backend, threads,
+    )
+    i = np.frombuffer(raw[0], dtype=np.uint32)
+    j = np.frombuffer(raw[1], dtype=np.uint32)
+    shifts = np.frombuffer(raw[2], dtype=np.int32).reshape(-1, 3)
+    return np.stack([i, j], axis=1), shifts
