@@ -181,6 +181,7 @@ typedef struct image_state {
     bool mark;
     uint32_t *marked;
     uint32_t marked_count, marked_capacity;
+    uint32_t past_limit; // the object at which the images pass BPX_MAX_BOXES, or UINT32_MAX
 } image_state;
 
 // The cell's lower corner for the image search: the lowest object's grown lower face on each
@@ -282,14 +283,21 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
             !mark(im, k))
             return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                               "no memory for %u objects", s->n);
-        if (total + s->n > BPX_MAX_BOXES)
-            return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, -1,
-                              "the objects with their periodic images pass BPX_MAX_BOXES (%u) at "
-                              "object %u: the cell is small for boxes and cutoff this large",
-                              BPX_MAX_BOXES, k);
+        // The images' limit is the image search's: the cell list makes no images, so it is
+        // checked only where the image search runs (too_many_images).
+        if (total + s->n > BPX_MAX_BOXES && im->past_limit == UINT32_MAX)
+            im->past_limit = k;
     }
     *ghosts = total;
     return BPX_OK;
+}
+
+static bpx_status too_many_images(const search *s, const image_state *im)
+{
+    return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, im->past_limit, -1,
+                      "the objects with their periodic images pass BPX_MAX_BOXES (%u) at object "
+                      "%u: the cell is small for boxes and cutoff this large",
+                      BPX_MAX_BOXES, im->past_limit);
 }
 
 // The float32 box of object k shifted by (u - w) periods, grown by cutoff / 2, rounded outward
@@ -809,7 +817,7 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
                           "no memory for %u objects", n);
     advise_huge(s.wrap, s.periodic ? (size_t)n * sizeof *s.wrap : 0);
     uint64_t ghosts = 0;
-    image_state im = {0};
+    image_state im = {.past_limit = UINT32_MAX};
     // Points with the auto backend: the cell list, where the cell allows; its wraps are from 0.
     bool may_cells = !out_count && def->backend == BPX_BACKEND_AUTO &&
                      (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64);
@@ -827,6 +835,8 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
         if (!cells)
             status = BPX_OK;
     }
+    if (status == BPX_OK && !cells && im.past_limit != UINT32_MAX)
+        status = too_many_images(&s, &im);
     if (status == BPX_OK && !cells) {
         s.ghost_count = (uint32_t)ghosts;
         status = make_images(&s, &im);
