@@ -37,8 +37,14 @@ typedef struct bpx_world bpx_world;
 /// A world definition with every field at its default.
 BPX_API bpx_world_def bpx_default_world_def(void);
 
+/// Checks a definition as bpx_world_create does and names the first field out of range in err
+/// (may be NULL): create has no world to keep its message in (it also logs it, level 0).
+/// Errors: NULL_ARGUMENT, INVALID_ARGUMENT.
+BPX_API bpx_status bpx_world_def_check(const bpx_world_def *def, bpx_error *err);
+
 /// Creates a world. On success *out_world owns threads and memory until bpx_world_destroy.
-/// Errors: NULL_ARGUMENT, INVALID_ARGUMENT (worker_count, hooks given singly),
+/// Errors: NULL_ARGUMENT, INVALID_ARGUMENT (worker_count, hooks given singly, a period
+/// negative, NaN or infinite, contact margins on a periodic world: bpx_world_def_check says which),
 /// BACKEND_UNAVAILABLE (backend or forced SIMD width not usable here), OUT_OF_MEMORY.
 /// On error *out_world is NULL and nothing is leaked.
 BPX_API bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world);
@@ -176,6 +182,9 @@ BPX_API bpx_status bpx_world_pair_events(const bpx_world *world, bpx_pair_events
 /// Finds every overlapping pair among the current boxes into the world's own buffer, which grows
 /// as needed and is kept between cycles (after the first cycles, no allocation).
 /// Errors: OUT_OF_MEMORY (the pair set does not fit in memory; no partial result is reported).
+/// A periodic world also: TOO_MANY_BOXES when its cell is too small for its boxes (a box lies or
+/// reaches more than 2^29 periods from the origin, or the boxes with their images pass
+/// BPX_MAX_BOXES), the message naming the box and axis.
 /// After an error, pairs and events read as none (pair_events: BAD_STATE) until a collide
 /// succeeds; that one reports its events against the last successful collide, and ids removed
 /// before it are still held back until then.
@@ -184,6 +193,25 @@ BPX_API bpx_status bpx_world_collide(bpx_world *world);
 /// The pairs of the last successful collide, sorted by (i, j). *count receives their number
 /// (may be NULL). Owned by the world; valid until the next call that changes the world.
 BPX_API const bpx_pair *bpx_world_pairs(bpx_world *world, size_t *count);
+
+/// Periodic worlds (bpx_world_def.period): the last successful collide's pairs over every
+/// periodic image, sorted by (i, j, shift): box i and box j moved by shift[a] * period[a] on each
+/// axis overlap (closed intervals, decided exactly on the float32 coordinates; shift 0 on open
+/// axes; shifts relative to the boxes as given, which need not lie in the cell). A pair of boxes
+/// that meet in several images (a box wider than half a period) is listed once per image, and
+/// (i, i, shift) with the shift's first non-zero component positive when a box meets its own
+/// image (a box at least a period wide). bpx_world_pairs holds the distinct (i, j), i < j, of
+/// these; filters, groups, exclusions and the pair filter decide on (i, j), and an image is
+/// listed when its (i, j) passed them; a box and its own image, when the box would pair with a
+/// box of its own category, mask and group (exclusions and the pair filter never see (i, i)).
+/// Events are on (i, j): a pair begins when its first image appears and ends when its last
+/// goes. For an open world: the pairs, shift 0. Owned by the world; valid until the next call
+/// that changes it; NULL with *count 0 when there is no result (or no memory to make it).
+/// Cost of a periodic collide: docs/neighbors.md.
+BPX_API const bpx_image_pair *bpx_world_image_pairs(bpx_world *world, size_t *count);
+
+/// The world's period (bpx_world_def.period, or the last restored snapshot's); 0 on open axes.
+BPX_API void bpx_world_period(const bpx_world *world, double period[3]);
 
 /// Like bpx_world_collide, but the emitter writes straight into caller memory.
 /// *count receives the number of pairs found. If it exceeds capacity, returns BPX_ERR_CAPACITY,
@@ -210,8 +238,10 @@ BPX_API bpx_simd bpx_world_simd(const bpx_world *world);
 /// Writes the world's state into buffer: its boxes (and the two-phase extents), every id's state
 /// (live, removed, waiting for reuse), filters, groups, user data, excluded pairs, and the last
 /// collide's pairs, so that a world restored from it reports on its next collide the same pairs
-/// and events, byte for byte, as this one would. Not in it: the world's definition (backend,
-/// workers, track_events: the restoring world keeps its own), statistics, query results.
+/// and events, byte for byte, as this one would, and the period (bpx_world_def.period: the
+/// pairs depend on it, so the restoring world takes it). Not in it: the rest of the world's
+/// definition (backend, workers, track_events: the restoring world keeps its own),
+/// statistics, query results.
 /// The bytes are versioned and checksummed, for this library on a machine of the same byte
 /// order. *size receives the bytes needed; with capacity < *size returns CAPACITY and writes
 /// nothing (buffer may be NULL with capacity 0, to ask). Reads the world only.
@@ -224,8 +254,9 @@ BPX_API bpx_status bpx_world_snapshot(const bpx_world *world, void *buffer, size
 /// the snapshot's last pairs.
 /// Errors: NULL_ARGUMENT; INVALID_ARGUMENT when the bytes are not a snapshot this library reads
 /// (another format version or byte order, truncated, changed: the checksum, or a field that
-/// does not hold), the message naming what and its byte offset; OUT_OF_MEMORY. On error the
-/// world is unchanged.
+/// does not hold; a periodic snapshot into a world with contact margins), the message naming
+/// what and its byte offset; OUT_OF_MEMORY. On error the world is unchanged. Snapshots of
+/// format version 1 (before periods) are refused so.
 BPX_API bpx_status bpx_world_restore(bpx_world *world, const void *buffer, size_t size);
 
 // ---------------------------------------------------------------------------------------------

@@ -180,6 +180,14 @@ typedef struct bpx_world_def {
     /// to grow them by end_margin / 2 for the comparator, and a gap test per pair found.
     float begin_margin;
     float end_margin;
+    /// Periodic boundaries: > 0 makes the axis periodic with that period (an orthorhombic cell;
+    /// its origin does not matter and boxes need not be wrapped into it), 0 leaves it open
+    /// (default 0, 0, 0). Finite, >= 0 and below 2^1000, else bpx_world_create returns
+    /// INVALID_ARGUMENT (bpx_world_def_check names the axis). A periodic world pairs i and j
+    /// when any image of j (j moved by whole periods) overlaps i; bpx_world_pairs stays the
+    /// distinct (i, j) pairs and bpx_world_image_pairs gives every image with its shift. Not
+    /// with contact margins (INVALID_ARGUMENT). Double, as bpx_neighbor_def.period.
+    double period[3];
 } bpx_world_def;
 
 /// The change in the pair set made by the last collide, both lists sorted by (i, j).

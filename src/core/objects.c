@@ -560,6 +560,11 @@ static inline bool may_pair(const bpx_world *w, uint32_t i, uint32_t j)
            ((w->category[i] & w->mask[j]) && (w->category[j] & w->mask[i]));
 }
 
+bool bpx__objects_may_pair(const bpx_world *w, uint32_t i, uint32_t j)
+{
+    return may_pair(w, i, j);
+}
+
 void bpx__filter_blocks(bpx_world *w)
 {
     // Only the rules of may_pair: margins and the pair filter have passes of their own.

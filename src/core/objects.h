@@ -29,6 +29,9 @@ bool bpx__objects_reset(bpx_world *w, uint32_t n);
 void bpx__objects_reinert(bpx_world *w);
 /// Whether filters, groups or excluded pairs are set (the device-resident path cannot apply them).
 bool bpx__objects_filtering(const bpx_world *w);
+/// Whether boxes i and j may pair by exclusions, groups and filters (i == j: a box and its own
+/// periodic image, by groups and filters).
+bool bpx__objects_may_pair(const bpx_world *w, uint32_t i, uint32_t j);
 /// Contact margins: w->grown becomes the boxes grown by end_margin / 2 (rounded outward, so
 /// that every pair within end_margin is found). False when out of memory.
 bool bpx__margins_grow_boxes(bpx_world *w);

@@ -13,10 +13,12 @@
 //   excluded the excluded pairs as u64 keys (smaller id << 32 | larger)
 //   pairs    the last successful collide's pairs (the events' "before"; ids may be past n
 //            after set_boxes to fewer), (i, j) u32 each
+//   period   three doubles, bpx_world_def.period (0 on open axes; version 2 on)
 //
 // A restore reads and checks all of it before it changes anything: then it can only succeed.
 #include <float.h>
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "alloc.h"
@@ -26,7 +28,7 @@
 
 static const char magic[8] = "BPXSNAP";
 enum {
-    FORMAT_VERSION = 1,
+    FORMAT_VERSION = 2, // 2: the period
     BYTE_ORDER_MARK = 0x01020304,
     HEADER_SIZE = 8 + 4 + 4 + 8 + 8,
     HAS_EXTENTS = 1,
@@ -126,6 +128,7 @@ static void write_state(bpx_world *w, writer *wr)
         if (w->excluded.keys[s] != BPX_PAIR_SET_EMPTY)
             put_u64(wr, w->excluded.keys[s]);
     put(wr, last->pairs, sizeof(bpx_pair) * last->count);
+    put(wr, w->def.period, sizeof w->def.period);
 }
 
 bpx_status bpx_world_snapshot(const bpx_world *world, void *buffer, size_t capacity,
@@ -200,7 +203,7 @@ typedef struct sections {
     const uint8_t *lo[3], *hi[3], *minima[3];
     const uint8_t *dead, *pending_ids, *free_ids;
     const uint8_t *columns[SAVED_COLUMNS];
-    const uint8_t *keys, *pairs;
+    const uint8_t *keys, *pairs, *period;
 } sections;
 
 // The offset of p in the buffer, for messages.
@@ -224,8 +227,15 @@ static bpx_status locate(bpx_world *w, reader *r, sections *s)
         return bad(w, 0, "not a bpx snapshot");
     if (read_u32(head + 12) != BYTE_ORDER_MARK)
         return bad(w, 12, "written on a machine of the other byte order");
-    if (read_u32(head + 8) != FORMAT_VERSION)
-        return bad(w, 8, "a snapshot format this library does not read");
+    uint32_t version = read_u32(head + 8);
+    if (version != FORMAT_VERSION) {
+        char what[128];
+        snprintf(what, sizeof what,
+                 "format version %u, and this library reads version %d only (version 1 had no "
+                 "period)",
+                 version, FORMAT_VERSION);
+        return bad(w, 8, what);
+    }
     if (read_u64(head + 16) != r->size)
         return bad(w, 16, "its size is not the buffer's: truncated, or more than one");
     if (read_u64(head + 24) != checksum(r->data + HEADER_SIZE, r->size - HEADER_SIZE))
@@ -269,6 +279,8 @@ static bpx_status locate(bpx_world *w, reader *r, sections *s)
     if (s->last > (SIZE_MAX - r->at) / sizeof(bpx_pair) ||
         !(s->pairs = take(r, sizeof(bpx_pair) * s->last)))
         return bad(w, r->at, "truncated in its pairs");
+    if (!(s->period = take(r, 3 * sizeof(double))))
+        return bad(w, r->at, "truncated in its period");
     if (r->at != r->size)
         return bad(w, r->at, "bytes after its last section");
     return BPX_OK;
@@ -339,6 +351,17 @@ static bpx_status check_values(bpx_world *w, const sections *s)
         uint32_t i = (uint32_t)(key >> 32), j = (uint32_t)key;
         if (i >= j || j >= s->n || (s->dead && (s->dead[i] || s->dead[j])))
             return bad(w, at(s, p), "an excluded pair is not of two different live ids");
+    }
+    for (int a = 0; a < 3; a++) {
+        double p;
+        memcpy(&p, s->period + sizeof p * a, sizeof p);
+        if (!(p >= 0 && p < 0x1p1000))
+            return bad(w, at(s, s->period + sizeof p * a),
+                       "a period is negative, NaN, infinite or past 2^1000");
+        if (p > 0 && bpx__world_margins(w))
+            return bad(w, at(s, s->period + sizeof p * a),
+                       "a periodic snapshot, and this world has contact margins, which a "
+                       "periodic world does not support");
     }
     bpx_pair before = {0, 0};
     for (uint64_t k = 0; k < s->last; k++) {
@@ -459,6 +482,7 @@ bpx_status bpx_world_restore(bpx_world *w, const void *buffer, size_t size)
     if (s.last)
         memcpy(w->previous.pairs, s.pairs, sizeof(bpx_pair) * s.last);
     w->previous.count = s.last;
+    memcpy(w->def.period, s.period, sizeof w->def.period);
     // The last result is not the restored world's: pairs and events read as none until the
     // next collide, which reports its events against the restored pairs.
     w->result_valid = w->merged = w->events_valid = false;

@@ -8,6 +8,7 @@
 #include "alloc.h"
 #include "boxes.h"
 #include "clock.h"
+#include "log.h"
 #include "objects.h"
 #include "transpose.h"
 #include "validate.h"
@@ -110,6 +111,42 @@ static void free_boxes(bpx_world *w)
     w->extent_capacity = 0;
 }
 
+bpx_status bpx_world_def_check(const bpx_world_def *def, bpx_error *err)
+{
+    bpx__error_clear(err);
+    if (!def)
+        return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "def is NULL");
+    const char *what = NULL;
+    if (def->worker_count < 0 || def->worker_count > MAX_WORKERS)
+        what = "worker_count is outside 0..256";
+    else if ((unsigned)def->backend >= BPX_BACKEND_COUNT)
+        what = "backend is not a bpx_backend";
+    else if ((unsigned)def->simd >= BPX_SIMD_COUNT)
+        what = "simd is not a bpx_simd";
+    else if (!def->enqueue_task != !def->finish_task)
+        what = "enqueue_task and finish_task must be given both or neither";
+    else if (def->capacity_hint > BPX_MAX_BOXES)
+        what = "capacity_hint is past BPX_MAX_BOXES";
+    else if (!(def->hybrid_device_share >= 0.0f && def->hybrid_device_share <= 1.0f))
+        what = "hybrid_device_share is outside [0, 1]";
+    else if (!(def->begin_margin >= 0.0f && def->begin_margin <= FLT_MAX))
+        what = "begin_margin must be finite and >= 0";
+    else if (!(def->end_margin == 0.0f ||
+               (def->end_margin >= def->begin_margin && def->end_margin <= FLT_MAX)))
+        what = "end_margin must be 0, or finite and >= begin_margin";
+    if (what)
+        return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1, "%s", what);
+    bpx_status status = bpx__period_check(def->period, err);
+    if (status != BPX_OK)
+        return status;
+    bool periodic = def->period[0] > 0 || def->period[1] > 0 || def->period[2] > 0;
+    if (periodic && (def->begin_margin > 0.0f || def->end_margin > 0.0f))
+        return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                          "contact margins on a periodic world are not supported: set "
+                          "begin_margin and end_margin to 0, or leave period at 0");
+    return BPX_OK;
+}
+
 bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
 {
     if (!out_world)
@@ -117,14 +154,12 @@ bpx_status bpx_world_create(const bpx_world_def *def, bpx_world **out_world)
     *out_world = NULL;
     if (!def)
         return BPX_ERR_NULL_ARGUMENT;
-    if (def->worker_count < 0 || def->worker_count > MAX_WORKERS ||
-        (unsigned)def->backend >= BPX_BACKEND_COUNT || (unsigned)def->simd >= BPX_SIMD_COUNT ||
-        !def->enqueue_task != !def->finish_task || def->capacity_hint > BPX_MAX_BOXES ||
-        !(def->hybrid_device_share >= 0.0f && def->hybrid_device_share <= 1.0f) ||
-        !(def->begin_margin >= 0.0f && def->begin_margin <= FLT_MAX) ||
-        !(def->end_margin == 0.0f ||
-          (def->end_margin >= def->begin_margin && def->end_margin <= FLT_MAX)))
-        return BPX_ERR_INVALID_ARGUMENT;
+    bpx_error err;
+    bpx_status checked = bpx_world_def_check(def, &err);
+    if (checked != BPX_OK) {
+        bpx__log(0, "bpx_world_create: %s", err.message); // no world to keep the message in
+        return checked;
+    }
 
     bpx_backend resolved = def->backend;
     const char *reason;
@@ -174,6 +209,7 @@ void bpx_world_destroy(bpx_world *w)
     bpx__list_free(&w->pairs);
     bpx__objects_free(w);
     bpx__query_free(w);
+    bpx__periodic_free(&w->periodic);
     free_boxes(w);
     bpx__free(w, sizeof *w);
 }
@@ -193,6 +229,8 @@ bpx_backend bpx_world_backend(const bpx_world *w)
 {
     if (!w)
         return BPX_BACKEND_AUTO;
+    if (bpx__world_periodic(w) && bpx__periodic_backend(w) != BPX_BACKEND_COUNT)
+        return bpx__periodic_backend(w); // the world of images ran the cycle
     return w->backend->id == BPX_BACKEND_AUTO ? bpx__auto_choice(w->backend_state, w->n)
                                               : w->backend->id;
 }
@@ -518,6 +556,7 @@ static bpx_status compare(bpx_world *w, size_t *total, uint64_t *end)
     w->stats.pair_count = 0;
     uint64_t start = bpx__now_ns();
     bpx_cycle cycle = bpx__world_cycle(w);
+    bool periodic = bpx__world_periodic(w);
     if (bpx__world_margins(w)) { // the comparator sees the boxes grown; the gaps decide after
         if (!bpx__margins_grow_boxes(w))
             return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
@@ -525,20 +564,27 @@ static bpx_status compare(bpx_world *w, size_t *total, uint64_t *end)
         const bpx_box_arrays *g = &w->grown;
         cycle.boxes = (bpx_soa){{g->lo[0], g->lo[1], g->lo[2]}, {g->hi[0], g->hi[1], g->hi[2]}, w->n};
     }
-    bpx_status status = w->backend->compare(&w->backend_state, &cycle);
-    const bpx_backend_report *r = &cycle.report;
-    w->stats.rebuilt = r->rebuilt;
-    w->stats.transfer_in_ns = r->transfer_in_ns;
-    w->stats.transfer_out_ns = r->transfer_out_ns;
-    w->stats.device_ns = r->device_ns;
-    w->stats.bytes_in = r->bytes_in;
-    w->stats.bytes_out = r->bytes_out;
-    w->stats.device_share = r->device_share;
+    bpx_status status;
+    if (periodic) {
+        status = bpx__periodic_compare(w); // fills the stats of the backend's report itself
+    } else {
+        status = w->backend->compare(&w->backend_state, &cycle);
+        const bpx_backend_report *r = &cycle.report;
+        w->stats.rebuilt = r->rebuilt;
+        w->stats.transfer_in_ns = r->transfer_in_ns;
+        w->stats.transfer_out_ns = r->transfer_out_ns;
+        w->stats.device_ns = r->device_ns;
+        w->stats.bytes_in = r->bytes_in;
+        w->stats.bytes_out = r->bytes_out;
+        w->stats.device_share = r->device_share;
+    }
     if (status == BPX_OK) {
         bpx__filter_blocks(w);
         bpx__margins_filter_blocks(w);
         status = bpx__pair_filter_blocks(w);
     }
+    if (status == BPX_OK && periodic)
+        bpx__periodic_filter_images(w);
     if (status == BPX_OK)
         status = bpx__emitter_total(&w->emitter, total);
     *end = bpx__now_ns();
@@ -641,6 +687,45 @@ const bpx_pair *bpx_world_pairs(bpx_world *w, size_t *count)
     if (count)
         *count = total;
     return w->pairs.pairs;
+}
+
+const bpx_image_pair *bpx_world_image_pairs(bpx_world *w, size_t *count)
+{
+    if (count)
+        *count = 0;
+    size_t total = 0;
+    if (!w || !w->result_valid || bpx__emitter_total(&w->emitter, &total) != BPX_OK)
+        return NULL;
+    bpx_neighbor_list *images = &w->periodic.images;
+    if (!bpx__world_periodic(w)) {
+        // An open world's images are its pairs, shift 0: made when asked for.
+        const bpx_pair *pairs = bpx_world_pairs(w, NULL);
+        if (!pairs && total > 0)
+            return NULL; // no memory to merge them; the world's error says so
+        images->count = 0;
+        if (total > images->capacity) {
+            bpx_neighbor_list_free(images);
+            images->pairs = bpx__alloc(total * sizeof *images->pairs);
+            if (!images->pairs) {
+                bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                           "no memory for %zu image pairs", total);
+                return NULL;
+            }
+            images->capacity = total;
+        }
+        for (size_t k = 0; k < total; k++)
+            images->pairs[k] = (bpx_image_pair){pairs[k].i, pairs[k].j, {0, 0, 0}};
+        images->count = total;
+    }
+    if (count)
+        *count = images->count;
+    return images->pairs;
+}
+
+void bpx_world_period(const bpx_world *w, double period[3])
+{
+    for (int a = 0; a < 3 && period; a++)
+        period[a] = w ? w->def.period[a] : 0;
 }
 
 bpx_status bpx_world_copy_pairs(const bpx_world *w, bpx_pair *out, size_t capacity,

@@ -3,6 +3,7 @@
 
 #include "backend.h"
 #include "pair_set.h"
+#include "periodic.h"
 
 struct bpx_world {
     bpx_world_def def;
@@ -68,6 +69,8 @@ struct bpx_world {
     struct bpx_query_state *query;
     uint64_t boxes_version;
     bool boxes_on_device; // the boxes live in a device buffer (opencl, cuda): no queries
+
+    bpx_periodic periodic; // def.period set: the image search's state (periodic.c)
 
     bpx_cycle_stats stats;
     bpx_error error;

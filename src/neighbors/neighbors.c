@@ -24,6 +24,7 @@
 #include <string.h>
 
 #include "../core/alloc.h"
+#include "../core/periodic.h"
 #include "../core/validate.h"
 #include "search.h"
 
@@ -708,20 +709,36 @@ static void free_search(search *s, image_state *im)
     bpx__free(im->marked, (size_t)im->marked_capacity * sizeof *im->marked);
 }
 
+// A world of images kept between calls (a periodic world's), or none: one made per call.
+typedef struct keeper {
+    bpx_world **world;           // NULL: make one and destroy it
+    const bpx_world_def *def;    // how to make the kept one
+} keeper;
+
+static void done_with(const keeper *k, bpx_world *w)
+{
+    if (!k->world)
+        bpx_world_destroy(w);
+}
+
 // The candidates from a world of the images, decided into the list; or, with out_count (an
 // open search), into out as bpx_find_pairs would (CAPACITY when more than capacity).
-static bpx_status run(search *s, image_state *im, bpx_neighbor_list *list, bpx_pair *out,
-                      size_t capacity, size_t *out_count)
+static bpx_status run(search *s, image_state *im, const keeper *keep, bpx_neighbor_list *list,
+                      bpx_pair *out, size_t capacity, size_t *out_count)
 {
     bpx_world_def def = bpx_default_world_def();
     def.backend = s->def->backend;
     def.worker_count = s->def->worker_count;
     def.capacity_hint = s->n + s->ghost_count;
-    bpx_world *w;
-    bpx_status status = bpx_world_create(&def, &w);
-    if (status != BPX_OK)
+    if (keep->def)
+        def = *keep->def;
+    bpx_world *w = keep->world ? *keep->world : NULL;
+    bpx_status status = BPX_OK;
+    if (!w && (status = bpx_world_create(&def, &w)) != BPX_OK)
         return bpx__error(s->err, status, UINT32_MAX, -1, "%s (backend %s)",
                           bpx_status_string(status), bpx_backend_name(def.backend));
+    if (keep->world)
+        *keep->world = w;
     bool mine = false; // an error of this function's own, not the world's
     if (im->boxes == s->images) {
         status = bpx_world_set_boxes(w, im->boxes, s->n + s->ghost_count);
@@ -753,7 +770,7 @@ static bpx_status run(search *s, image_state *im, bpx_neighbor_list *list, bpx_p
         status = bpx_world_collide_into(w, out, capacity, &total);
         if (status == BPX_OK) {
             *out_count = decide_pairs(s, im, out, total);
-            bpx_world_destroy(w);
+            done_with(keep, w);
             return BPX_OK;
         }
         if (status == BPX_ERR_CAPACITY) {
@@ -766,14 +783,14 @@ static bpx_status run(search *s, image_state *im, bpx_neighbor_list *list, bpx_p
     if (status != BPX_OK) {
         if (s->err && !mine)
             *s->err = *bpx_world_error(w);
-        bpx_world_destroy(w);
+        done_with(keep, w);
         return status;
     }
     size_t count;
     const bpx_pair *candidates = bpx_world_pairs(w, &count);
     found_list imaged = {0};
     status = decide(s, im, candidates, count, list, &imaged);
-    bpx_world_destroy(w);
+    done_with(keep, w);
     if (status == BPX_OK)
         status = merge_imaged(s, &imaged, list);
     bpx__free(imaged.items, imaged.capacity * sizeof(found));
@@ -794,10 +811,13 @@ static bpx_status run(search *s, image_state *im, bpx_neighbor_list *list, bpx_p
 
 // bpx_find_neighbors; with out_count, into out as bpx_find_pairs would (open searches only).
 static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n,
-                       bpx_neighbor_list *list, bpx_pair *out, size_t capacity,
-                       size_t *out_count, bpx_error *err)
+                       const keeper *keep, bpx_neighbor_list *list, bpx_pair *out,
+                       size_t capacity, size_t *out_count, bpx_error *err)
 {
-    *list = (bpx_neighbor_list){0};
+    if (keep->world)
+        list->count = 0; // its arrays serve again
+    else
+        *list = (bpx_neighbor_list){0};
     if (!def || (!data && n > 0))
         return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "def is NULL, or data is NULL with n > 0");
@@ -841,7 +861,7 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
         s.ghost_count = (uint32_t)ghosts;
         status = make_images(&s, &im);
         if (status == BPX_OK)
-            status = run(&s, &im, list, out, capacity, out_count);
+            status = run(&s, &im, keep, list, out, capacity, out_count);
     }
     free_search(&s, &im);
     return status;
@@ -853,7 +873,8 @@ bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uin
     bpx__error_clear(err);
     if (!list)
         return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "list is NULL");
-    return find(def, data, n, list, NULL, 0, NULL, err);
+    static const keeper none = {NULL, NULL};
+    return find(def, data, n, &none, list, NULL, 0, NULL, err);
 }
 
 bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend backend,
@@ -868,5 +889,15 @@ bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend ba
     def.format = BPX_BOXES_F64;
     def.backend = backend;
     bpx_neighbor_list list;
-    return find(&def, boxes, n, &list, out, capacity, count, err);
+    static const keeper none = {NULL, NULL};
+    return find(&def, boxes, n, &none, &list, out, capacity, count, err);
+}
+
+bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const bpx_box *boxes, uint32_t n,
+                                    bpx_world **inner, const bpx_world_def *inner_def,
+                                    bpx_neighbor_list *list, bpx_error *err)
+{
+    bpx__error_clear(err);
+    keeper keep = {inner, inner_def};
+    return find(def, boxes, n, &keep, list, NULL, 0, NULL, err);
 }

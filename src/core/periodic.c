@@ -1,0 +1,190 @@
+// Periodic worlds: each cycle, the live boxes go to the image search (src/neighbors), which
+// runs on a world of images kept between cycles, on this world's backend and workers. Its
+// image pairs, exact and sorted by (i, j, shift), give the distinct pairs (i < j) that the
+// world's filters and events then see as any world's.
+#include "periodic.h"
+
+#include <string.h>
+
+#include "alloc.h"
+#include "objects.h"
+#include "validate.h"
+#include "world.h"
+
+bool bpx__world_periodic(const bpx_world *w)
+{
+    return w->def.period[0] > 0 || w->def.period[1] > 0 || w->def.period[2] > 0;
+}
+
+bpx_status bpx__period_check(const double period[3], bpx_error *err)
+{
+    for (int a = 0; a < 3; a++) {
+        double p = period[a];
+        // Past 2^1000 the image search's exact sums could overflow.
+        if (!(p >= 0 && p < 0x1p1000))
+            return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, a,
+                              "period[%d] = %g: a period must be finite, >= 0 (0: open) and "
+                              "below 2^1000",
+                              a, p);
+    }
+    return BPX_OK;
+}
+
+// The world of images runs its parallel work on this world's workers: no threads of its own.
+static void *run_on_world(bpx_task_fn *task, int item_count, int min_range, void *task_context,
+                          void *user_context)
+{
+    (void)min_range;
+    bpx__parallel_for(user_context, task, item_count, task_context);
+    return NULL; // done already
+}
+
+static void finish_nothing(void *user_task, void *user_context)
+{
+    (void)user_task;
+    (void)user_context;
+}
+
+static bool reserve(bpx_periodic *p, uint32_t n, bool ids)
+{
+    if (n <= p->capacity && (!ids || p->ids))
+        return true;
+    uint32_t want = n > p->capacity ? n : p->capacity;
+    bpx_box *boxes = bpx__alloc((size_t)want * sizeof *boxes);
+    uint32_t *id = ids ? bpx__alloc((size_t)want * sizeof *id) : NULL;
+    if (!boxes || (ids && !id)) {
+        bpx__free(boxes, (size_t)want * sizeof *boxes);
+        bpx__free(id, (size_t)want * sizeof *id);
+        return false;
+    }
+    bpx__free(p->boxes, (size_t)p->capacity * sizeof *p->boxes);
+    bpx__free(p->ids, (size_t)p->capacity * sizeof *p->ids);
+    p->boxes = boxes;
+    p->ids = id;
+    p->capacity = want;
+    return true;
+}
+
+bpx_status bpx__periodic_compare(bpx_world *w)
+{
+    bpx_periodic *p = &w->periodic;
+    p->images.count = 0;
+    uint32_t n = w->n, live = 0;
+    bool removed = false;
+    for (uint32_t i = 0; w->dead && i < n && !removed; i++)
+        removed = w->dead[i] != 0;
+    if (!reserve(p, n, removed))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u boxes of a periodic world", n);
+    // The live boxes, in id order (removed ids hold inert boxes, which the search refuses):
+    // ids keep their order, so the search's (i, j, shift) order is the ids'.
+    const bpx_box_arrays *b = &w->boxes;
+    for (uint32_t i = 0; i < n; i++) {
+        if (removed && w->dead[i])
+            continue;
+        bpx_box *out = &p->boxes[live];
+        for (int a = 0; a < 3; a++) {
+            out->min[a] = b->lo[a][i];
+            out->max[a] = b->hi[a][i];
+        }
+        if (removed)
+            p->ids[live] = i;
+        live++;
+    }
+    bpx_neighbor_def def = bpx_default_neighbor_def();
+    def.format = BPX_BOXES_F32;
+    memcpy(def.period, w->def.period, sizeof def.period);
+    def.backend = w->def.backend;
+    def.worker_count = w->executor.worker_count;
+    // The world of images: this world's definition, open, no events, margins or hooks of the
+    // caller's (its work goes to this world's executor).
+    bpx_world_def inner = w->def;
+    memset(inner.period, 0, sizeof inner.period);
+    inner.track_events = false;
+    inner.begin_margin = inner.end_margin = 0;
+    inner.capacity_hint = 0;
+    inner.worker_count = w->executor.worker_count;
+    inner.enqueue_task = run_on_world;
+    inner.finish_task = finish_nothing;
+    inner.user_task_context = &w->executor;
+    bpx_error err;
+    bpx_status status =
+        bpx__find_neighbors_kept(&def, p->boxes, live, &p->inner, &inner, &p->images, &err);
+    if (status != BPX_OK) {
+        uint32_t index = err.index < live && removed ? p->ids[err.index] : err.index;
+        return bpx__error(&w->error, status, index, err.axis, "periodic collide (%s): %s",
+                          bpx_backend_name(w->def.backend), err.message);
+    }
+    bpx_image_pair *images = p->images.pairs;
+    size_t count = p->images.count;
+    for (size_t k = 0; removed && k < count; k++) {
+        images[k].i = p->ids[images[k].i];
+        images[k].j = p->ids[images[k].j];
+    }
+    // The distinct pairs, in (i, j) order as the images are, into one block.
+    bpx_block *block;
+    status = bpx__emitter_one_block(&w->emitter, n, &block);
+    if (status == BPX_OK && !bpx__list_reserve(&block->hits, count))
+        status = BPX_ERR_OUT_OF_MEMORY;
+    if (status != BPX_OK)
+        return bpx__error(&w->error, status, UINT32_MAX, -1,
+                          "no memory for the pairs of %zu periodic images", count);
+    bpx_pair *hits = block->hits.pairs;
+    size_t distinct = 0;
+    for (size_t k = 0; k < count; k++) {
+        bpx_pair q = {images[k].i, images[k].j};
+        bool fresh = q.i != q.j && (distinct == 0 || hits[distinct - 1].i != q.i ||
+                                    hits[distinct - 1].j != q.j);
+        hits[distinct] = q;
+        distinct += fresh;
+    }
+    block->hits.count = distinct;
+    bpx_cycle_stats inner_stats = bpx_world_stats(p->inner);
+    block->tests = inner_stats.pair_tests;
+    w->stats.rebuilt = inner_stats.rebuilt;
+    w->stats.transfer_in_ns = inner_stats.transfer_in_ns;
+    w->stats.transfer_out_ns = inner_stats.transfer_out_ns;
+    w->stats.device_ns = inner_stats.device_ns;
+    w->stats.bytes_in = inner_stats.bytes_in;
+    w->stats.bytes_out = inner_stats.bytes_out;
+    w->stats.device_share = inner_stats.device_share;
+    return BPX_OK;
+}
+
+void bpx__periodic_filter_images(bpx_world *w)
+{
+    if (!bpx__objects_filtering(w))
+        return; // every pair found passed
+    bpx_image_pair *images = w->periodic.images.pairs;
+    size_t count = w->periodic.images.count, kept = 0, at = 0;
+    const bpx_pair_list *pairs = &w->emitter.blocks[0].hits; // the one block, filtered
+    for (size_t k = 0; k < count; k++) {
+        bpx_image_pair q = images[k];
+        bool keep;
+        if (q.i == q.j) {
+            keep = bpx__objects_may_pair(w, q.i, q.i);
+        } else {
+            bpx_pair key = {q.i, q.j};
+            while (at < pairs->count && bpx__pair_less(pairs->pairs[at], key))
+                at++;
+            keep = at < pairs->count && pairs->pairs[at].i == q.i && pairs->pairs[at].j == q.j;
+        }
+        images[kept] = q;
+        kept += keep;
+    }
+    w->periodic.images.count = kept;
+}
+
+bpx_backend bpx__periodic_backend(const bpx_world *w)
+{
+    return w->periodic.inner ? bpx_world_backend(w->periodic.inner) : BPX_BACKEND_COUNT;
+}
+
+void bpx__periodic_free(bpx_periodic *p)
+{
+    bpx_world_destroy(p->inner);
+    bpx__free(p->boxes, (size_t)p->capacity * sizeof *p->boxes);
+    bpx__free(p->ids, (size_t)p->capacity * sizeof *p->ids);
+    bpx_neighbor_list_free(&p->images);
+    *p = (bpx_periodic){0};
+}

@@ -1,0 +1,38 @@
+// Periodic worlds (bpx_world_def.period): the cycle's pairs over every periodic image, found by
+// the image search of src/neighbors on the world's backend and workers.
+#pragma once
+
+#include "bpx/bpx.h"
+
+/// What a periodic world keeps between cycles: the world of images the search runs on (its
+/// backend state, sap's sorted lists included, carries over), the live boxes handed to it, and
+/// the image pairs of the last cycle.
+typedef struct bpx_periodic {
+    bpx_world *inner;
+    bpx_box *boxes;    // the live boxes, in id order
+    uint32_t *ids;     // boxes[k]'s id, when some ids are removed
+    uint32_t capacity; // of boxes and ids
+    bpx_neighbor_list images; // sorted by (i, j, shift); filtered as the pairs are
+} bpx_periodic;
+
+struct bpx_world;
+
+/// Whether the world has a periodic axis.
+bool bpx__world_periodic(const struct bpx_world *w);
+/// Checks a period as bpx_world_create does; names the axis in err.
+bpx_status bpx__period_check(const double period[3], bpx_error *err);
+/// The comparator of a periodic world: the image pairs into w->periodic.images, the distinct
+/// (i, j) pairs (i < j) into one block of the emitter, for the world's filters to follow.
+bpx_status bpx__periodic_compare(struct bpx_world *w);
+/// After the filters: keeps the image pairs of the pairs that passed them (a box and its own
+/// image: when the box would pair with a box of its own filter and group).
+void bpx__periodic_filter_images(struct bpx_world *w);
+/// The backend the last periodic cycle ran (auto's choice), or BPX_BACKEND_COUNT before one.
+bpx_backend bpx__periodic_backend(const struct bpx_world *w);
+void bpx__periodic_free(bpx_periodic *p);
+
+/// bpx_find_neighbors on float32 boxes, on the world of images *inner (made with inner_def at
+/// the first call and kept), into list (emptied; its arrays kept). neighbors.c.
+bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const bpx_box *boxes, uint32_t n,
+                                    bpx_world **inner, const bpx_world_def *inner_def,
+                                    bpx_neighbor_list *list, bpx_error *err);
