@@ -143,6 +143,8 @@ static bpx_status create_world(const bpx_world_def *def, bpx_world **world, bpx_
     err->status = status;
     err->index = UINT32_MAX;
     err->axis = -1;
+    if (status == BPX_ERR_INVALID_ARGUMENT && bpx_world_def_check(def, err) != BPX_OK)
+        return status; // the check names the field
     if (status == BPX_ERR_BACKEND_UNAVAILABLE) {
         bpx_backend_info info = bpx_backend_query(def->backend);
         if (!info.available)
@@ -306,14 +308,16 @@ static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
     static const char where[] = "World";
     static char *keywords[] = {"backend",       "simd",         "threads",    "track_events",
                                "spin_us",       "capacity_hint", "begin_margin", "end_margin",
-                               NULL};
+                               "period",        NULL};
     const char *backend_name = "auto", *simd_name = "auto";
     int threads = 1, track_events = 0, spin_us = 0;
     unsigned long capacity_hint = 0;
     float begin_margin = 0.0f, end_margin = 0.0f;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|ssipikff", keywords, &backend_name,
+    double period[3] = {0, 0, 0};
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|ssipikff(ddd)", keywords, &backend_name,
                                      &simd_name, &threads, &track_events, &spin_us,
-                                     &capacity_hint, &begin_margin, &end_margin))
+                                     &capacity_hint, &begin_margin, &end_margin, &period[0],
+                                     &period[1], &period[2]))
         return -1;
     if (self->world) {
         raise_status(where, BPX_ERR_BAD_STATE, "the world is already initialised");
@@ -334,6 +338,7 @@ static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
     def.capacity_hint = capacity_hint > BPX_MAX_BOXES ? BPX_MAX_BOXES : (uint32_t)capacity_hint;
     def.begin_margin = begin_margin;
     def.end_margin = end_margin;
+    memcpy(def.period, period, sizeof period);
     if (!self->lock && !(self->lock = PyThread_allocate_lock())) {
         PyErr_NoMemory();
         return -1;
@@ -345,11 +350,6 @@ static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
     status = create_world(&def, &world, &err);
     Py_END_ALLOW_THREADS
     if (status != BPX_OK) {
-        if (status == BPX_ERR_INVALID_ARGUMENT)
-            snprintf(err.message, sizeof err.message,
-                     "threads is %d (0 .. 256), or the margins %g, %g are not finite and >= 0 "
-                     "with end_margin >= begin_margin (or 0)",
-                     threads, (double)begin_margin, (double)end_margin);
         raise_error(where, &err);
         return -1;
     }
@@ -873,6 +873,9 @@ static PyMethodDef World_methods[] = {
     {"set_pair_filter", (PyCFunction)World_set_pair_filter, METH_O,
      "bpx_world_set_pair_filter(callable(i, j, user_data_i, user_data_j) -> bool, or None)"},
     {"pairs", (PyCFunction)World_pairs, METH_NOARGS, "bpx_world_pairs (a copy)"},
+    {"image_pairs", (PyCFunction)World_image_pairs, METH_NOARGS,
+     "bpx_world_image_pairs -> (i, j, shifts) as bytes"},
+    {"period", (PyCFunction)World_period, METH_NOARGS, "bpx_world_period -> (x, y, z)"},
     {"events", (PyCFunction)World_events, METH_NOARGS, "bpx_world_pair_events (copies)"},
     {"stats", (PyCFunction)World_stats, METH_NOARGS, "bpx_world_stats as a dict"},
     {"box_count", (PyCFunction)World_box_count, METH_NOARGS, "bpx_world_box_count"},

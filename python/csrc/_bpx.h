@@ -84,6 +84,8 @@ PyObject *collide_to_bytes(const char *where, bpx_world *world);
 /// World.collide(), World.pairs(), World.events().
 PyObject *World_collide(WorldObject *self, PyObject *unused);
 PyObject *World_pairs(WorldObject *self, PyObject *unused);
+PyObject *World_image_pairs(WorldObject *self, PyObject *unused);
+PyObject *World_period(WorldObject *self, PyObject *unused);
 PyObject *World_events(WorldObject *self, PyObject *unused);
 /// _set_max_pairs(count) -> previous: lowers the pair limit for the tests (0: the real one).
 PyObject *py_set_max_pairs(PyObject *module, PyObject *arg);

@@ -4,8 +4,31 @@
 
 #include <string.h>
 
-// The list's pairs as bytearrays: (i, j) rows of bpx_pair when pairs_only, else the columns
-// i, j (uint32) and the shifts (3 int32 a pair), split here so that NumPy takes them as they are.
+// Image pairs as the columns i, j (uint32) and the shifts (3 int32 a pair), bytearrays, split
+// here so that NumPy takes them as they are.
+PyObject *image_pair_columns(const bpx_image_pair *pairs, size_t count)
+{
+    char *i = NULL, *j = NULL, *shifts = NULL;
+    PyObject *columns[3] = {new_bytes(count * sizeof(uint32_t), &i),
+                            new_bytes(count * sizeof(uint32_t), &j),
+                            new_bytes(count * 3 * sizeof(int32_t), &shifts)};
+    if (!columns[0] || !columns[1] || !columns[2]) {
+        for (int c = 0; c < 3; c++)
+            Py_XDECREF(columns[c]);
+        return NULL;
+    }
+    for (size_t k = 0; k < count; k++) {
+        ((uint32_t *)i)[k] = pairs[k].i;
+        ((uint32_t *)j)[k] = pairs[k].j;
+        memcpy((int32_t *)shifts + 3 * k, pairs[k].shift, sizeof pairs[k].shift);
+    }
+    PyObject *out = PyTuple_Pack(3, columns[0], columns[1], columns[2]);
+    for (int c = 0; c < 3; c++)
+        Py_DECREF(columns[c]);
+    return out;
+}
+
+// The list's pairs as bytearrays: (i, j) rows of bpx_pair when pairs_only, else the columns.
 static PyObject *pairs_bytes(const bpx_neighbor_list *list, int pairs_only)
 {
     if (pairs_only) {
@@ -16,25 +39,7 @@ static PyObject *pairs_bytes(const bpx_neighbor_list *list, int pairs_only)
                 ((bpx_pair *)data)[k] = (bpx_pair){list->pairs[k].i, list->pairs[k].j};
         return out;
     }
-    char *i = NULL, *j = NULL, *shifts = NULL;
-    PyObject *columns[3] = {new_bytes(list->count * sizeof(uint32_t), &i),
-                            new_bytes(list->count * sizeof(uint32_t), &j),
-                            new_bytes(list->count * 3 * sizeof(int32_t), &shifts)};
-    if (!columns[0] || !columns[1] || !columns[2]) {
-        for (int c = 0; c < 3; c++)
-            Py_XDECREF(columns[c]);
-        return NULL;
-    }
-    for (size_t k = 0; k < list->count; k++) {
-        const bpx_image_pair *p = &list->pairs[k];
-        ((uint32_t *)i)[k] = p->i;
-        ((uint32_t *)j)[k] = p->j;
-        memcpy((int32_t *)shifts + 3 * k, p->shift, sizeof p->shift);
-    }
-    PyObject *out = PyTuple_Pack(3, columns[0], columns[1], columns[2]);
-    for (int c = 0; c < 3; c++)
-        Py_DECREF(columns[c]);
-    return out;
+    return image_pair_columns(list->pairs, list->count);
 }
 
 PyObject *py_find_neighbors(PyObject *module, PyObject *args)
@@ -91,4 +96,33 @@ PyObject *py_find_neighbors(PyObject *module, PyObject *args)
     Py_DECREF(pairs);
     Py_DECREF(distances);
     return out;
+}
+
+PyObject *World_image_pairs(WorldObject *self, PyObject *unused)
+{
+    (void)unused;
+    static const char where[] = "World.image_pairs";
+    if (world_enter(self, where) != 0)
+        return NULL;
+    size_t count = 0;
+    const bpx_image_pair *pairs = bpx_world_image_pairs(self->world, &count);
+    PyObject *out;
+    if (!pairs && bpx_world_error(self->world)->status == BPX_ERR_OUT_OF_MEMORY)
+        out = raise_error(where, bpx_world_error(self->world));
+    else
+        out = image_pair_columns(pairs, count);
+    world_leave(self);
+    return out;
+}
+
+PyObject *World_period(WorldObject *self, PyObject *unused)
+{
+    (void)unused;
+    static const char where[] = "World.period";
+    if (world_enter(self, where) != 0)
+        return NULL;
+    double period[3];
+    bpx_world_period(self->world, period);
+    world_leave(self);
+    return Py_BuildValue("(ddd)", period[0], period[1], period[2]);
 }

@@ -66,7 +66,7 @@ def exact_array(array: np.ndarray, what: str = "boxes") -> Tuple[np.ndarray, boo
     return np.ascontiguousarray(array, dtype=np.float64), True
 
 
-def _period(cell: Any, pbc: Any, what: str) -> Tuple[float, float, float]:
+def period_of(cell: Any, pbc: Any, what: str) -> Tuple[float, float, float]:
     if cell is None:
         if pbc is not True and pbc is not False and np.any(pbc):
             raise InvalidArgumentError(f"{what}: pbc is set but no cell was given")
@@ -167,7 +167,7 @@ def neighbor_pairs(
         raise InvalidArgumentError(f"{what}: cutoff must be a number, got {cutoff!r}") from None
     if vectors and not points:
         raise InvalidArgumentError(f"{what}: vectors are for points, not boxes")
-    period = _period(cell, pbc, what)
+    period = period_of(cell, pbc, what)
     fmt = (_POINTS_F64 if f64 else _POINTS_F32) if points else (_BOXES_F64 if f64 else _BOXES_F32)
     raw, raw_distances = _bpx.find_neighbors(
         what, data, fmt, period, cutoff, _METRICS[metric], bool(distances), False, backend,
@@ -198,7 +198,7 @@ def periodic_pairs(
 ) -> Tuple[np.ndarray, np.ndarray]:
     """find_pairs over a periodic cell: the box metric at cutoff 0 (Algorithm 1's closed
     intervals) over every image, as pairs (k, 2) and their shifts (k, 3)."""
-    period = _period(cell, pbc, "find_pairs")
+    period = period_of(cell, pbc, "find_pairs")
     raw, _ = _bpx.find_neighbors(
         "find_pairs", boxes, _BOXES_F64 if f64 else _BOXES_F32, period, 0.0, _METRICS["box"],
         False, False, backend, threads,

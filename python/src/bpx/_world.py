@@ -19,6 +19,7 @@ from ._arrays import (
 )
 from ._core import check_backend, check_threads, converted_note
 from ._errors import DTypeError, InvalidArgumentError
+from ._neighbors import period_of
 from ._query import (
     ALL,
     BatchHits,
@@ -122,6 +123,13 @@ class World:
         spin_us: microseconds a worker spins for the next cycle before it sleeps (0: 200;
             negative: never spin).
         capacity_hint: boxes to reserve memory for up front.
+        begin_margin, end_margin: contact margins (not with a cell).
+        cell, pbc: a periodic cell, as for ``neighbor_pairs`` (one length, three, or a diagonal
+            3x3 matrix; ``pbc`` says which axes are periodic, default all). Then box j pairs
+            with box i when any periodic image of j (j moved by whole cell lengths) overlaps
+            i: ``pairs``, ``events``, filters and exclusions stay on the distinct (i, j), and
+            ``image_pairs()`` gives every overlapping image with its shift. Boxes need not lie
+            inside the cell.
     """
 
     def __init__(
@@ -135,6 +143,8 @@ class World:
         capacity_hint: int = 0,
         begin_margin: float = 0.0,
         end_margin: float = 0.0,
+        cell: Any = None,
+        pbc: Any = True,
     ) -> None:
         backend = check_backend(backend, "World")
         threads = check_threads(threads, "World")
@@ -157,6 +167,7 @@ class World:
             int(capacity_hint),
             begin,
             end,
+            period_of(cell, pbc, "World"),
         )
         self._requested = backend
         self._threads = threads
@@ -333,6 +344,22 @@ class World:
     def pairs(self) -> np.ndarray:
         """The last collide's pairs again (a new array each time; empty after an error)."""
         return pairs_from_bytes(self._c.pairs())
+
+    def image_pairs(self) -> Tuple[np.ndarray, np.ndarray]:
+        """The last collide's pairs over every periodic image (``bpx_world_image_pairs``):
+        (pairs (k, 2) uint32, shifts (k, 3) int32), sorted by (i, j, shift). Box i and box j
+        moved by ``shift * cell`` overlap; a pair of boxes that meet in several images (one
+        wider than half the cell) is listed once per image, and a box at least a cell wide
+        meets its own images (i == j, the shift's first non-zero component positive). Without
+        a cell: the pairs, with shift 0."""
+        i, j, shifts = self._c.image_pairs()
+        pairs = np.stack([np.frombuffer(i, np.uint32), np.frombuffer(j, np.uint32)], axis=1)
+        return pairs, np.frombuffer(shifts, np.int32).reshape(-1, 3)
+
+    @property
+    def period(self) -> Tuple[float, float, float]:
+        """The cell's length on each axis, 0 on open ones (a restored snapshot's cell)."""
+        return self._c.period()
 
     @property
     def events(self) -> PairEvents:
