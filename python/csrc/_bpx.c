@@ -9,8 +9,9 @@
 // a time (bpx.h), so each World holds a lock that its methods take; a second Python thread
 // calling the same World waits for the first instead of racing it.
 //
-// The lock is in access.c, what returns pairs in pairs.c, the query methods of World in query.c
-// and prepared.c; _bpx.h is what the files share.
+// The lock is in access.c, find_pairs and what returns pairs in pairs.c, the neighbour lists
+// and periodic pairs in neighbors.c, the query methods of World in query.c and prepared.c;
+// _bpx.h is what the files share.
 #include "_bpx.h"
 
 #include <stdio.h>
@@ -23,7 +24,7 @@ static PyObject *error_factory;
 
 // Address of the last box, extent or centre buffer handed to bpx: the tests compare it with the
 // NumPy array's own data pointer to check that nothing was copied on the way.
-static uintptr_t last_input_address;
+uintptr_t last_input_address;
 
 // ---------------------------------------------------------------------------------------------
 // Errors
@@ -135,7 +136,7 @@ int backend_from_name(const char *where, const char *name, bpx_backend *backend)
 }
 
 // Creates a world, naming the reason when its backend or SIMD width cannot run here.
-static bpx_status create_world(const bpx_world_def *def, bpx_world **world, bpx_error *err)
+bpx_status create_world(const bpx_world_def *def, bpx_world **world, bpx_error *err)
 {
     bpx_status status = bpx_world_create(def, world);
     if (status == BPX_OK)
@@ -157,101 +158,6 @@ static bpx_status create_world(const bpx_world_def *def, bpx_world **world, bpx_
         snprintf(err->message, sizeof err->message, "%s", bpx_status_string(status));
     }
     return status;
-}
-
-// ---------------------------------------------------------------------------------------------
-// One-shot
-
-PyDoc_STRVAR(find_pairs_doc,
-             "find_pairs(boxes, backend, threads) -> bytearray\n\n"
-             "Pairs of a C-contiguous float32 buffer of 6 floats per box, as 2 uint32 per pair.");
-
-static PyObject *py_find_pairs(PyObject *module, PyObject *args)
-{
-    (void)module;
-    static const char where[] = "find_pairs";
-    PyObject *obj;
-    const char *backend_name;
-    int threads;
-    if (!PyArg_ParseTuple(args, "Osi", &obj, &backend_name, &threads))
-        return NULL;
-    bpx_world_def def = bpx_default_world_def();
-    if (backend_from_name(where, backend_name, &def.backend) != 0)
-        return NULL;
-    Py_buffer view;
-    uint32_t n;
-    if (get_rows(where, obj, 'f', 6, &view, &n) != 0)
-        return NULL;
-    last_input_address = (uintptr_t)view.buf;
-    def.worker_count = threads;
-    def.capacity_hint = n;
-    bpx_world *world = NULL;
-    bpx_error err = {0};
-    bpx_status status;
-    Py_BEGIN_ALLOW_THREADS
-    status = create_world(&def, &world, &err);
-    if (status == BPX_OK) {
-        status = bpx_world_set_boxes(world, (const bpx_box *)view.buf, n);
-        if (status != BPX_OK)
-            err = *bpx_world_error(world);
-    }
-    Py_END_ALLOW_THREADS
-    PyBuffer_Release(&view); // the world holds its own copy of the boxes from here
-    PyObject *out = status == BPX_OK ? collide_to_bytes(where, world) : raise_error(where, &err);
-    Py_BEGIN_ALLOW_THREADS
-    bpx_world_destroy(world);
-    Py_END_ALLOW_THREADS
-    return out;
-}
-
-// The C timing the benchmark sets Python's overhead against: the fastest of `repeats` calls of
-// bpx_find_pairs (one thread) on the same memory, into a buffer already big enough, in ns.
-static PyObject *py_time_c_find_pairs(PyObject *module, PyObject *args)
-{
-    (void)module;
-    static const char where[] = "_time_c_find_pairs";
-    PyObject *obj;
-    const char *backend_name;
-    int repeats;
-    if (!PyArg_ParseTuple(args, "Osi", &obj, &backend_name, &repeats))
-        return NULL;
-    bpx_backend backend;
-    if (backend_from_name(where, backend_name, &backend) != 0)
-        return NULL;
-    Py_buffer view;
-    uint32_t n;
-    if (get_rows(where, obj, 'f', 6, &view, &n) != 0)
-        return NULL;
-    size_t count = 0;
-    bpx_error err;
-    bpx_status status = bpx_find_pairs(view.buf, n, backend, NULL, 0, &count, &err);
-    if (status != BPX_OK && status != BPX_ERR_CAPACITY) {
-        PyBuffer_Release(&view);
-        return raise_error(where, &err);
-    }
-    bpx_pair *out = PyMem_RawMalloc(count ? count * sizeof(bpx_pair) : 1);
-    if (!out) {
-        PyBuffer_Release(&view);
-        return PyErr_NoMemory();
-    }
-    uint64_t best = UINT64_MAX;
-    Py_BEGIN_ALLOW_THREADS
-    for (int r = 0; r < repeats && status != BPX_ERR_OUT_OF_MEMORY; r++) {
-        struct timespec t0, t1;
-        clock_gettime(CLOCK_MONOTONIC, &t0);
-        status = bpx_find_pairs(view.buf, n, backend, out, count, &count, &err);
-        clock_gettime(CLOCK_MONOTONIC, &t1);
-        uint64_t ns = (uint64_t)(t1.tv_sec - t0.tv_sec) * 1000000000u +
-                      (uint64_t)(t1.tv_nsec - t0.tv_nsec);
-        if (ns < best)
-            best = ns;
-    }
-    Py_END_ALLOW_THREADS
-    PyMem_RawFree(out);
-    PyBuffer_Release(&view);
-    if (status != BPX_OK)
-        return raise_error(where, &err);
-    return PyLong_FromUnsignedLongLong(best);
 }
 
 static PyObject *py_last_input_address(PyObject *module, PyObject *unused)

@@ -51,6 +51,10 @@ int get_rows(const char *where, PyObject *obj, char kind, Py_ssize_t items_per_r
              uint32_t *rows);
 /// Parses a backend name; on failure raises UnknownBackendError listing the names, returns -1.
 int backend_from_name(const char *where, const char *name, bpx_backend *backend);
+// Creates a world, naming the reason when its backend or SIMD width cannot run here.
+bpx_status create_world(const bpx_world_def *def, bpx_world **world, bpx_error *err);
+// Address of the last box buffer handed to bpx (the no-copy tests read it).
+extern uintptr_t last_input_address;
 /// A new uninitialised bytearray of size bytes; *data receives its memory.
 PyObject *new_bytes(size_t size, char **data);
 
@@ -84,6 +88,9 @@ PyObject *collide_to_bytes(const char *where, bpx_world *world);
 /// World.collide(), World.pairs(), World.events().
 PyObject *World_collide(WorldObject *self, PyObject *unused);
 PyObject *World_pairs(WorldObject *self, PyObject *unused);
+extern const char find_pairs_doc[];
+PyObject *py_find_pairs(PyObject *module, PyObject *args);
+PyObject *py_time_c_find_pairs(PyObject *module, PyObject *args);
 PyObject *World_image_pairs(WorldObject *self, PyObject *unused);
 PyObject *World_period(WorldObject *self, PyObject *unused);
 PyObject *World_events(WorldObject *self, PyObject *unused);
