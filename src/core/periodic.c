@@ -109,7 +109,8 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     inner.user_task_context = &w->executor;
     bpx_error err;
     bpx_status status =
-        bpx__find_neighbors_kept(&def, p->boxes, live, &p->inner, &inner, &p->images, &err);
+        bpx__find_neighbors_kept(&def, p->boxes, live, &p->inner, &inner, &p->images_in,
+                                 &p->images_in_capacity, &p->images, &err);
     if (status != BPX_OK) {
         uint32_t index = err.index < live && removed ? p->ids[err.index] : err.index;
         return bpx__error(&w->error, status, index, err.axis, "periodic collide (%s): %s",
@@ -185,6 +186,7 @@ void bpx__periodic_free(bpx_periodic *p)
     bpx_world_destroy(p->inner);
     bpx__free(p->boxes, (size_t)p->capacity * sizeof *p->boxes);
     bpx__free(p->ids, (size_t)p->capacity * sizeof *p->ids);
+    bpx__free(p->images_in, p->images_in_capacity * sizeof *p->images_in);
     bpx_neighbor_list_free(&p->images);
     *p = (bpx_periodic){0};
 }

@@ -12,6 +12,8 @@ typedef struct bpx_periodic {
     bpx_box *boxes;    // the live boxes, in id order
     uint32_t *ids;     // boxes[k]'s id, when some ids are removed
     uint32_t capacity; // of boxes and ids
+    bpx_box *images_in; // the boxes with their images, as the world of images gets them
+    size_t images_in_capacity;
     bpx_neighbor_list images; // sorted by (i, j, shift); filtered as the pairs are
 } bpx_periodic;
 
@@ -35,4 +37,5 @@ void bpx__periodic_free(bpx_periodic *p);
 /// the first call and kept), into list (emptied; its arrays kept). neighbors.c.
 bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const bpx_box *boxes, uint32_t n,
                                     bpx_world **inner, const bpx_world_def *inner_def,
+                                    bpx_box **scratch, size_t *scratch_capacity,
                                     bpx_neighbor_list *list, bpx_error *err);

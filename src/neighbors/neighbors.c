@@ -705,6 +705,8 @@ static void free_search(search *s, image_state *im)
 typedef struct keeper {
     bpx_world **world;           // NULL: make one and destroy it
     const bpx_world_def *def;    // how to make the kept one
+    bpx_box **boxes;             // the kept world's boxes, images in place, and their room
+    size_t *capacity;
 } keeper;
 
 static void done_with(const keeper *k, bpx_world *w)
@@ -732,7 +734,28 @@ static bpx_status run(search *s, image_state *im, const keeper *keep, bpx_neighb
     if (keep->world)
         *keep->world = w;
     bool mine = false; // an error of this function's own, not the world's
-    if (im->boxes == s->images) {
+    size_t image_total = (size_t)s->n + s->ghost_count;
+    if (keep->world && im->boxes != s->images) {
+        // A kept world gets every box in one set_boxes, so that its ids stay put and its
+        // backend's state (sap's lists) carries over: no removed ids, no count that shrinks
+        // between the calls.
+        if (image_total > *keep->capacity) {
+            bpx__free(*keep->boxes, *keep->capacity * sizeof **keep->boxes);
+            *keep->capacity = 0;
+            if (!(*keep->boxes = bpx__alloc(image_total * sizeof **keep->boxes)))
+                return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                                  "no memory for %zu periodic images", image_total);
+            *keep->capacity = image_total;
+        }
+        bpx_box *all = *keep->boxes;
+        if (s->n)
+            memcpy(all, im->boxes, (size_t)s->n * sizeof *all);
+        for (uint32_t m = 0; m < im->moved; m++)
+            all[im->moved_ids[m]] = im->moved_boxes[m];
+        if (s->ghost_count)
+            memcpy(all + s->n, im->ghost_boxes, (size_t)s->ghost_count * sizeof *all);
+        status = bpx_world_set_boxes(w, all, (uint32_t)image_total);
+    } else if (im->boxes == s->images) {
         status = bpx_world_set_boxes(w, im->boxes, s->n + s->ghost_count);
     } else {
         // The objects themselves, the wrapped ones moved, the ghosts added: ids n, n + 1, ...
@@ -863,7 +886,7 @@ bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uin
     bpx__error_clear(err);
     if (!list)
         return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "list is NULL");
-    static const keeper none = {NULL, NULL};
+    static const keeper none = {0};
     return find(def, data, n, &none, list, NULL, 0, NULL, err);
 }
 
@@ -879,15 +902,16 @@ bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend ba
     def.format = BPX_BOXES_F64;
     def.backend = backend;
     bpx_neighbor_list list;
-    static const keeper none = {NULL, NULL};
+    static const keeper none = {0};
     return find(&def, boxes, n, &none, &list, out, capacity, count, err);
 }
 
 bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const bpx_box *boxes, uint32_t n,
                                     bpx_world **inner, const bpx_world_def *inner_def,
+                                    bpx_box **scratch, size_t *scratch_capacity,
                                     bpx_neighbor_list *list, bpx_error *err)
 {
     bpx__error_clear(err);
-    keeper keep = {inner, inner_def};
+    keeper keep = {inner, inner_def, scratch, scratch_capacity};
     return find(def, boxes, n, &keep, list, NULL, 0, NULL, err);
 }
