@@ -231,6 +231,14 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
     const double *origin = im->origin;
     double half = s->def->cutoff / 2;
     uint64_t total = 0;
+    // A box in the cell on an axis (lower face in [o, o + L), upper face below o + L by more
+    // than images_below's slack, at most 2^-40 (4 magnitude + L) for w = 0; twice that covers
+    // its rounding) has w = 0 and no image there: decided without images_below's divisions.
+    double inside_slack[3], near_limit[3];
+    for (int a = 0; a < 3; a++) {
+        inside_slack[a] = 0x1p-39 * (4 * im->magnitude + s->period[a]);
+        near_limit[a] = 0x1p28 * s->period[a];
+    }
     for (uint32_t k = 0; k < s->n; k++) {
         double lo[3], hi[3];
         object_box(&s->in, k, lo, hi);
@@ -256,6 +264,10 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
             s->wrap[k][a] = 0;
             if (L == 0)
                 continue;
+            double grown_lo = lo[a] - half, from_origin = grown_lo - origin[a];
+            if (from_origin >= 0 && from_origin < L && fabs(grown_lo) < near_limit[a] &&
+                (hi[a] + half - origin[a]) + inside_slack[a] < L)
+                continue; // w = 0, one copy
             // Within 2^29 periods of 0 (and of the cell, so that shifts fit): counted from 0,
             // wherever the cell lies, so that the limit is the caller's to know.
             double from_zero = lo[a] - half;
