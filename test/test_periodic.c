@@ -539,6 +539,8 @@ static void test_bad(void)
             char name[16];
             snprintf(name, sizeof name, "period[%d]", a);
             CHECK_MSG(strstr(err.message, name) != NULL && err.axis == a, "%s", err.message);
+            if (getenv("BPX_TEST_VERBOSE") && k == 0 && a == 1)
+                printf("bad period: %s\n", err.message);
         }
     bpx_world_def def = bpx_default_world_def();
     def.period[0] = 10;
@@ -559,6 +561,8 @@ static void test_bad(void)
     CHECK_STATUS(bpx_world_set_boxes(w, boxes, 3), BPX_OK);
     CHECK_STATUS(bpx_world_collide(w), BPX_ERR_TOO_MANY_BOXES);
     const bpx_error *e = bpx_world_error(w);
+    if (getenv("BPX_TEST_VERBOSE"))
+        printf("cell too small: %s\n", e->message);
     CHECK_MSG(strstr(e->message, "periodic") != NULL && e->index == 0, "%s (index %u)",
               e->message, e->index);
     size_t count = 99;
