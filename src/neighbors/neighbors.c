@@ -337,6 +337,16 @@ static bool image_is_box(const search *s, uint32_t k, const bpx_box *b)
     return same;
 }
 
+void bpx__round_boxes64_soa(const bpx_box64 *in, uint32_t n, float *const lo[3],
+                            float *const hi[3])
+{
+    for (uint32_t k = 0; k < n; k++)
+        for (int a = 0; a < 3; a++) {
+            lo[a][k] = round_down(in[k].min[a]);
+            hi[a][k] = round_up(in[k].max[a]);
+        }
+}
+
 // Open, no cutoff, float64 boxes: each image is the box rounded outward, nothing added (as
 // image_box, but for the sign of a zero); exact[k] whether it is the box. Returns how many are.
 static uint32_t round_boxes64(const bpx_box64 *in, uint32_t n, bpx_box *out, uint8_t *exact)
@@ -918,7 +928,7 @@ bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend ba
     return find(&def, boxes, n, &none, &list, out, capacity, count, err);
 }
 
-bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const bpx_box *boxes, uint32_t n,
+bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const void *boxes, uint32_t n,
                                     bpx_world **inner, const bpx_world_def *inner_def,
                                     bpx_box **scratch, size_t *scratch_capacity,
                                     bpx_neighbor_list *list, bpx_error *err)
