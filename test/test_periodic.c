@@ -539,6 +539,8 @@ static void test_bad(void)
             char name[16];
             snprintf(name, sizeof name, "period[%d]", a);
             CHECK_MSG(strstr(err.message, name) != NULL && err.axis == a, "%s", err.message);
+            if (getenv("BPX_TEST_VERBOSE") && k == 0 && a == 1)
+                printf("bad period: %s\n", err.message);
         }
     bpx_world_def def = bpx_default_world_def();
     def.period[0] = 10;
@@ -559,6 +561,8 @@ static void test_bad(void)
     CHECK_STATUS(bpx_world_set_boxes(w, boxes, 3), BPX_OK);
     CHECK_STATUS(bpx_world_collide(w), BPX_ERR_TOO_MANY_BOXES);
     const bpx_error *e = bpx_world_error(w);
+    if (getenv("BPX_TEST_VERBOSE"))
+        printf("cell too small: %s\n", e->message);
     CHECK_MSG(strstr(e->message, "periodic") != NULL && e->index == 0, "%s (index %u)",
               e->message, e->index);
     size_t count = 99;
@@ -575,6 +579,170 @@ static void test_bad(void)
     bpx_world_pairs(w, &count);
     CHECK(count == 1);
     bpx_world_destroy(w);
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// Float64 boxes (bpx_world_set_boxes64): the exact answer where float32 would round
+
+// Every image pair of float64 boxes, each test in long double (64 bits of mantissa at least:
+// a coordinate plus a shift of a few periods is exact at these scales).
+static void brute64(const bpx_box64 *boxes, uint32_t n, const double period[3], image_list *out)
+{
+    out->count = 0;
+    for (uint32_t i = 0; i < n; i++)
+        for (uint32_t j = i; j < n; j++) {
+            int32_t lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+            for (int a = 0; a < 3; a++)
+                if (period[a] > 0) {
+                    lo[a] = (int32_t)floor((boxes[i].min[a] - boxes[j].max[a]) / period[a]) - 1;
+                    hi[a] = (int32_t)ceil((boxes[i].max[a] - boxes[j].min[a]) / period[a]) + 1;
+                }
+            int32_t s[3];
+            for (s[0] = lo[0]; s[0] <= hi[0]; s[0]++)
+                for (s[1] = lo[1]; s[1] <= hi[1]; s[1]++)
+                    for (s[2] = lo[2]; s[2] <= hi[2]; s[2]++) {
+                        int first = s[0] ? s[0] : s[1] ? s[1] : s[2];
+                        if (i == j && first <= 0)
+                            continue;
+                        bool yes = true;
+                        for (int a = 0; a < 3; a++) {
+                            long double t = (long double)s[a] * period[a];
+                            yes &= (long double)boxes[j].min[a] + t <= boxes[i].max[a] &&
+                                   (long double)boxes[i].min[a] <= (long double)boxes[j].max[a] + t;
+                        }
+                        if (yes)
+                            push(out, (bpx_image_pair){i, j, {s[0], s[1], s[2]}});
+                    }
+        }
+}
+
+// Boxes at scale S in chains: each box's min on an axis 1 ulp below, at or 1 ulp above its
+// predecessor's max, so that float32 rounding would merge many that do not touch.
+static void chain_boxes64(scene_rng *r, double S, bool integers, uint32_t n, bpx_box64 *out)
+{
+    for (uint32_t k = 0; k < n; k++)
+        for (int a = 0; a < 3; a++) {
+            double size = integers ? (double)(1 + scene_rng_below(r, 40)) : S * 0.01 * (1 + scene_rng_below(r, 8));
+            double lo;
+            uint32_t how = scene_rng_below(r, 4);
+            if (k > 0 && how < 3) {
+                double edge = out[k - 1].max[a];
+                lo = how == 0 ? nextafter(edge, -INFINITY) : how == 1 ? edge : nextafter(edge, INFINITY);
+                if (integers)
+                    lo = how == 0 ? edge - 1 : how == 1 ? edge : edge + 1;
+            } else {
+                lo = integers ? 0x1p25 + 2 * scene_rng_below(r, 64) + 1 : S * (1 + 0.002 * scene_rng_below(r, 100));
+            }
+            out[k].min[a] = lo;
+            out[k].max[a] = lo + size;
+        }
+}
+
+static void test_float64(void)
+{
+    enum { N = 70 };
+    static const struct {
+        double scale;
+        bool integers;
+    } scales[] = {{1e6, false}, {1e-30, false}, {0x1p25, true}};
+    image_list want = {0};
+    bpx_pair want_pairs[N * N];
+    bpx_pair found[N * N];
+    bpx_box64 boxes[N];
+    for (size_t sc = 0; sc < sizeof scales / sizeof scales[0]; sc++)
+        for (int periodic = 0; periodic < 2; periodic++) {
+            scene_rng r;
+            scene_rng_seed(&r, 300 + sc);
+            check_set_seed(300 + sc);
+            chain_boxes64(&r, scales[sc].scale, scales[sc].integers, N, boxes);
+            double S = scales[sc].integers ? 0x1p25 : scales[sc].scale;
+            double period[3] = {0, 0, 0};
+            if (periodic) { // a cell about as wide as the chains, so some pairs are images
+                period[0] = 0.5 * S;
+                period[2] = scales[sc].integers ? 256 : 0.25 * S;
+            }
+            brute64(boxes, N, period, &want);
+            size_t want_count = distinct(&want, want_pairs);
+            // Float32 rounding would pair more: the test means something.
+            size_t rounded = 0;
+            for (uint32_t i = 0; i < N && !periodic; i++)
+                for (uint32_t j = i + 1; j < N; j++) {
+                    bool yes = true;
+                    for (int a = 0; a < 3; a++)
+                        yes &= (float)boxes[j].min[a] <= (float)boxes[i].max[a] &&
+                               (float)boxes[i].min[a] <= (float)boxes[j].max[a];
+                    rounded += yes;
+                }
+            if (getenv("BPX_TEST_VERBOSE"))
+                printf("float64 scale %g periodic %d: %zu pairs, %zu images; float32 rounding "
+                       "%zu\n", S, periodic, want_count, want.count, rounded);
+            CHECK(periodic || rounded > want_count);
+            if (!periodic) { // the one-shot call agrees
+                size_t count = 0;
+                CHECK_STATUS(bpx_find_pairs_f64(boxes, N, BPX_BACKEND_AUTO, found, N * N, &count,
+                                                NULL),
+                             BPX_OK);
+                CHECK(same_pairs(found, count, want_pairs, want_count));
+            }
+            for (int b = 0; b < BACKENDS; b++) {
+                if (!bpx_backend_query(cpu_backends[b]).available)
+                    continue;
+                for (int workers = 1; workers <= 3; workers += 2) {
+                    check_set_context("float64 scale %g periodic %d backend %s workers %d", S,
+                                      periodic, bpx_backend_name(cpu_backends[b]), workers);
+                    bpx_world *w = make(cpu_backends[b], workers, period, true);
+                    if (!w)
+                        continue;
+                    CHECK_STATUS(bpx_world_set_boxes64(w, boxes, N), BPX_OK);
+                    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+                    size_t count = 0, images = 0;
+                    const bpx_pair *pairs = bpx_world_pairs(w, &count);
+                    CHECK_MSG(same_pairs(pairs, count, want_pairs, want_count),
+                              "%zu pairs, want %zu", count, want_count);
+                    const bpx_image_pair *got = bpx_world_image_pairs(w, &images);
+                    if (periodic)
+                        CHECK_MSG(same_images(got, images, &want), "%zu images, want %zu",
+                                  images, want.count);
+                    bpx_pair_events ev;
+                    CHECK_STATUS(bpx_world_pair_events(w, &ev), BPX_OK);
+                    CHECK(ev.began_count == want_count && ev.ended_count == 0);
+                    // Float64 boxes are set whole; float32 boxes by id come back with set_boxes.
+                    uint32_t id = 0;
+                    bpx_box one = {{0, 0, 0}, {1, 1, 1}};
+                    CHECK_STATUS(bpx_world_add_boxes(w, &one, 1, &id), BPX_ERR_BAD_STATE);
+                    CHECK_STATUS(bpx_world_remove_boxes(w, &id, 1), BPX_ERR_BAD_STATE);
+                    CHECK_STATUS(bpx_world_move_boxes(w, &id, &one, 1), BPX_ERR_BAD_STATE);
+                    size_t size = 0;
+                    CHECK_STATUS(bpx_world_snapshot(w, NULL, 0, &size), BPX_ERR_BAD_STATE);
+                    // The same boxes again: nothing begins or ends.
+                    CHECK_STATUS(bpx_world_set_boxes64(w, boxes, N), BPX_OK);
+                    CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+                    CHECK_STATUS(bpx_world_pair_events(w, &ev), BPX_OK);
+                    CHECK(ev.began_count == 0 && ev.ended_count == 0);
+                    CHECK_STATUS(bpx_world_set_boxes(w, &one, 1), BPX_OK);
+                    CHECK_STATUS(bpx_world_add_boxes(w, &one, 1, &id), BPX_OK);
+                    bpx_world_destroy(w);
+                }
+            }
+        }
+    // Bad float64 boxes are named; a world with margins refuses them.
+    check_set_context("float64 bad boxes");
+    bpx_world *w = make(BPX_BACKEND_AUTO, 1, (double[3]){0, 0, 0}, false);
+    boxes[3].min[1] = NAN;
+    CHECK_STATUS(bpx_world_set_boxes64(w, boxes, N), BPX_ERR_NOT_FINITE);
+    CHECK(bpx_world_error(w)->index == 3 && bpx_world_error(w)->axis == 1);
+    boxes[3].min[1] = boxes[3].max[1] + 1;
+    CHECK_STATUS(bpx_world_set_boxes64(w, boxes, N), BPX_ERR_MIN_GREATER_THAN_MAX);
+    CHECK(bpx_world_error(w)->index == 3 && bpx_world_error(w)->axis == 1);
+    CHECK_STATUS(bpx_world_set_boxes64(w, NULL, 2), BPX_ERR_NULL_ARGUMENT);
+    bpx_world_destroy(w);
+    bpx_world_def def = bpx_default_world_def();
+    def.begin_margin = 1;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes64(w, boxes, 2), BPX_ERR_BAD_STATE);
+    bpx_world_destroy(w);
+    free(want.pairs);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -672,6 +840,7 @@ int main(void)
     test_rules_and_events();
     test_two_phase();
     test_snapshot();
+    test_float64();
     test_out_of_memory();
     CHECK(bpx_allocated_bytes() == start);
     return check_finish("test_periodic", 1);

@@ -86,6 +86,21 @@ BPX_API bpx_status bpx_world_update_centres(bpx_world *world, const float *centr
 /// the error names the first offending box. On error the world is unchanged.
 BPX_API bpx_status bpx_world_set_boxes(bpx_world *world, const bpx_box *boxes, uint32_t n);
 
+/// General mode in float64 (bpx_box64, neighbors.h): sets the n current boxes as doubles, exact.
+/// The world keeps them; the comparator runs on them rounded outward to float32 (so no pair is
+/// lost) and every candidate is decided on the doubles (closed intervals, compared exactly), so
+/// pairs, image pairs (periodic worlds) and events are the exact float64 answer: boxes 1 ulp
+/// apart at 1e6, or at 1e-30, do not pair, where their float32 roundings would. Ids, filters
+/// and the modes as bpx_world_set_boxes. Float64 boxes are set whole: add, move and remove by
+/// id are BAD_STATE until bpx_world_set_boxes or bpx_world_load_extents gives the world float32
+/// boxes again. Queries see the float32 boxes rounded outward. Not with contact margins
+/// (BAD_STATE), snapshots (BAD_STATE while float64 boxes are set) or device-resident calls.
+/// Cost: a rounding pass and a copy of the doubles per call, and per candidate pair one test
+/// of 48 bytes of doubles.
+/// Errors: NULL_ARGUMENT, TOO_MANY_BOXES, NOT_FINITE, MIN_GREATER_THAN_MAX (naming the first bad
+/// box and axis), BAD_STATE, OUT_OF_MEMORY. On error the world is unchanged.
+BPX_API bpx_status bpx_world_set_boxes64(bpx_world *world, const bpx_box64 *boxes, uint32_t n);
+
 /// Number of boxes in the world (the paper's n register): the highest id in use + 1 when boxes
 /// were added and removed one by one.
 BPX_API uint32_t bpx_world_box_count(const bpx_world *world);

@@ -186,7 +186,8 @@ typedef struct bpx_world_def {
     /// INVALID_ARGUMENT (bpx_world_def_check names the axis). A periodic world pairs i and j
     /// when any image of j (j moved by whole periods) overlaps i; bpx_world_pairs stays the
     /// distinct (i, j) pairs and bpx_world_image_pairs gives every image with its shift. Not
-    /// with contact margins (INVALID_ARGUMENT). Double, as bpx_neighbor_def.period.
+    /// with contact margins (INVALID_ARGUMENT); queries ignore the period. Double, as
+    /// bpx_neighbor_def.period. docs/neighbors.md, "Periodic worlds".
     double period[3];
 } bpx_world_def;
 

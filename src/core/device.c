@@ -23,6 +23,10 @@ static bpx_status device_ops(bpx_world *w, bpx_backend backend, const bpx_device
         return bpx__error(&w->error, BPX_ERR_BACKEND_UNAVAILABLE, UINT32_MAX, -1,
                           "the world's backend is %s, not %s", w->backend->name,
                           bpx_backend_name(backend));
+    if (w->boxes64_set)
+        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          "device-resident calls on a world of float64 boxes: use "
+                          "bpx_world_set_boxes first, or bpx_world_collide");
     if (bpx__world_periodic(w)) // the images are made on the host
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
                           "device-resident calls on a periodic world: use bpx_world_collide");

@@ -207,6 +207,15 @@ void bpx__objects_free(bpx_world *w)
 // ---------------------------------------------------------------------------------------------
 // Add, remove, move
 
+// Float64 boxes are kept whole: a float32 box by id would leave them half exact.
+static bpx_status float64_set_whole(bpx_world *w, const char *call)
+{
+    return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                      "%s: the world holds float64 boxes (bpx_world_set_boxes64), which are "
+                      "set whole",
+                      call);
+}
+
 bpx_status bpx_world_add_boxes(bpx_world *w, const bpx_box *boxes, uint32_t count,
                                uint32_t *out_ids)
 {
@@ -219,6 +228,8 @@ bpx_status bpx_world_add_boxes(bpx_world *w, const bpx_box *boxes, uint32_t coun
     if (w->extents_loaded)
         return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
                           "add_boxes: the world is in the two-phase mode (load_extents)");
+    if (w->boxes64_set)
+        return float64_set_whole(w, "add_boxes");
     // The count first: a count past the limit is refused before its boxes are read.
     uint32_t reused = count < w->free_count ? count : w->free_count;
     uint64_t new_n = (uint64_t)w->n + (count - reused);
@@ -275,6 +286,8 @@ bpx_status bpx_world_remove_boxes(bpx_world *w, const uint32_t *ids, uint32_t co
         return entered;
     if (count && !ids)
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "ids is NULL");
+    if (w->boxes64_set)
+        return float64_set_whole(w, "remove_boxes");
     if (!bpx__objects_reserve(w, w->n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1, "no memory");
     bpx_status status = check_ids(w, ids, count, "remove_boxes");
@@ -297,6 +310,8 @@ bpx_status bpx_world_move_boxes(bpx_world *w, const uint32_t *ids, const bpx_box
     if (count && (!ids || !boxes))
         return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1,
                           "ids or boxes is NULL");
+    if (w->boxes64_set)
+        return float64_set_whole(w, "move_boxes");
     if (!bpx__objects_reserve(w, w->n))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1, "no memory");
     bpx_status status = bpx__check_boxes(boxes, count, &w->error);

@@ -73,6 +73,8 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     bool removed = false;
     for (uint32_t i = 0; w->dead && i < n && !removed; i++)
         removed = w->dead[i] != 0;
+    if (w->boxes64_set) // float64 boxes: all live (they are set whole), searched as they are
+        n = 0;
     if (!reserve(p, n, removed))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u boxes of a periodic world", n);
@@ -92,7 +94,12 @@ bpx_status bpx__periodic_compare(bpx_world *w)
         live++;
     }
     bpx_neighbor_def def = bpx_default_neighbor_def();
-    def.format = BPX_BOXES_F32;
+    def.format = w->boxes64_set ? BPX_BOXES_F64 : BPX_BOXES_F32;
+    const void *data = p->boxes;
+    if (w->boxes64_set) {
+        data = w->boxes64;
+        live = n = w->n;
+    }
     memcpy(def.period, w->def.period, sizeof def.period);
     def.backend = w->def.backend;
     def.worker_count = w->executor.worker_count;
@@ -109,7 +116,8 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     inner.user_task_context = &w->executor;
     bpx_error err;
     bpx_status status =
-        bpx__find_neighbors_kept(&def, p->boxes, live, &p->inner, &inner, &p->images, &err);
+        bpx__find_neighbors_kept(&def, data, live, &p->inner, &inner, &p->images_in,
+                                 &p->images_in_capacity, &p->images, &err);
     if (status != BPX_OK) {
         uint32_t index = err.index < live && removed ? p->ids[err.index] : err.index;
         return bpx__error(&w->error, status, index, err.axis, "periodic collide (%s): %s",
@@ -185,6 +193,7 @@ void bpx__periodic_free(bpx_periodic *p)
     bpx_world_destroy(p->inner);
     bpx__free(p->boxes, (size_t)p->capacity * sizeof *p->boxes);
     bpx__free(p->ids, (size_t)p->capacity * sizeof *p->ids);
+    bpx__free(p->images_in, p->images_in_capacity * sizeof *p->images_in);
     bpx_neighbor_list_free(&p->images);
     *p = (bpx_periodic){0};
 }

@@ -12,6 +12,8 @@ typedef struct bpx_periodic {
     bpx_box *boxes;    // the live boxes, in id order
     uint32_t *ids;     // boxes[k]'s id, when some ids are removed
     uint32_t capacity; // of boxes and ids
+    bpx_box *images_in; // the boxes with their images, as the world of images gets them
+    size_t images_in_capacity;
     bpx_neighbor_list images; // sorted by (i, j, shift); filtered as the pairs are
 } bpx_periodic;
 
@@ -31,8 +33,13 @@ void bpx__periodic_filter_images(struct bpx_world *w);
 bpx_backend bpx__periodic_backend(const struct bpx_world *w);
 void bpx__periodic_free(bpx_periodic *p);
 
-/// bpx_find_neighbors on float32 boxes, on the world of images *inner (made with inner_def at
+/// Float64 boxes rounded outward to float32 (no pair is lost), into SoA arrays. neighbors.c.
+void bpx__round_boxes64_soa(const bpx_box64 *in, uint32_t n, float *const lo[3],
+                            float *const hi[3]);
+
+/// bpx_find_neighbors on float32 boxes (def->format BPX_BOXES_F32) or float64 ones, on the world of images *inner (made with inner_def at
 /// the first call and kept), into list (emptied; its arrays kept). neighbors.c.
-bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const bpx_box *boxes, uint32_t n,
+bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const void *boxes, uint32_t n,
                                     bpx_world **inner, const bpx_world_def *inner_def,
+                                    bpx_box **scratch, size_t *scratch_capacity,
                                     bpx_neighbor_list *list, bpx_error *err);

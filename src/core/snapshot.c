@@ -136,7 +136,7 @@ bpx_status bpx_world_snapshot(const bpx_world *world, void *buffer, size_t capac
 {
     if (!world || !size || (capacity && !buffer))
         return BPX_ERR_NULL_ARGUMENT;
-    if (world->boxes_on_device)
+    if (world->boxes_on_device || world->boxes64_set) // float64 boxes: not in the format yet
         return BPX_ERR_BAD_STATE;
     bpx_world *w = (bpx_world *)world; // read only: the column table takes a mutable world
     writer measure = {NULL, HEADER_SIZE};
@@ -483,6 +483,7 @@ bpx_status bpx_world_restore(bpx_world *w, const void *buffer, size_t size)
         memcpy(w->previous.pairs, s.pairs, sizeof(bpx_pair) * s.last);
     w->previous.count = s.last;
     memcpy(w->def.period, s.period, sizeof w->def.period);
+    w->boxes64_set = false; // the snapshot's boxes are float32
     // The last result is not the restored world's: pairs and events read as none until the
     // next collide, which reports its events against the restored pairs.
     w->result_valid = w->merged = w->events_valid = false;

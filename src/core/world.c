@@ -2,6 +2,7 @@
 #include "world.h"
 
 #include <float.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -210,6 +211,7 @@ void bpx_world_destroy(bpx_world *w)
     bpx__objects_free(w);
     bpx__query_free(w);
     bpx__periodic_free(&w->periodic);
+    bpx__free(w->boxes64, (size_t)w->boxes64_capacity * sizeof *w->boxes64);
     free_boxes(w);
     bpx__free(w, sizeof *w);
 }
@@ -427,9 +429,86 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
     bpx__boxes_swap_in_spare(w, n);
     // The boxes no longer come from the loaded extents: centres would rebuild stale boxes.
     w->extents_loaded = false;
+    w->boxes64_set = false;
     tell_backend(w, NULL);
     w->stats.update_ns = bpx__now_ns() - start;
     return BPX_OK;
+}
+
+bpx_status bpx_world_set_boxes64(bpx_world *w, const bpx_box64 *boxes, uint32_t n)
+{
+    bpx_status entered = bpx__world_enter(w, "set_boxes64");
+    if (entered != BPX_OK)
+        return entered;
+    uint64_t start = bpx__now_ns();
+    if (n > BPX_MAX_BOXES)
+        return bpx__error(&w->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
+                          "%u boxes exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
+    if (!boxes && n > 0)
+        return bpx__error(&w->error, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "boxes is NULL");
+    if (bpx__world_margins(w)) // the gap would be measured on the float32 boxes
+        return bpx__error(&w->error, BPX_ERR_BAD_STATE, UINT32_MAX, -1,
+                          "set_boxes64: a world with contact margins takes float32 boxes");
+    for (uint32_t k = 0; k < n; k++) {
+        for (int a = 0; a < 3; a++)
+            if (!isfinite(boxes[k].min[a]) || !isfinite(boxes[k].max[a]))
+                return bpx__error(&w->error, BPX_ERR_NOT_FINITE, k, a,
+                                  "box %u: a coordinate on axis %c is not finite", k, "xyz"[a]);
+        for (int a = 0; a < 3; a++)
+            if (boxes[k].min[a] > boxes[k].max[a])
+                return bpx__error(&w->error, BPX_ERR_MIN_GREATER_THAN_MAX, k, a,
+                                  "box %u: min %g > max %g on axis %c", k, boxes[k].min[a],
+                                  boxes[k].max[a], "xyz"[a]);
+    }
+    // Everything that can fail first, the per-id arrays last (they commit on success).
+    bpx_box64 *keep = w->boxes64;
+    bool grow = n > w->boxes64_capacity;
+    if (grow && !(keep = bpx__alloc((size_t)n * sizeof *keep)))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u float64 boxes", n);
+    if (!bpx__box_arrays_reserve(&w->spare, n) || !bpx__objects_reset(w, n)) {
+        if (grow)
+            bpx__free(keep, (size_t)n * sizeof *keep);
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u boxes", n);
+    }
+    if (grow) {
+        bpx__free(w->boxes64, (size_t)w->boxes64_capacity * sizeof *w->boxes64);
+        w->boxes64 = keep;
+        w->boxes64_capacity = n;
+    }
+    if (n)
+        memcpy(w->boxes64, boxes, (size_t)n * sizeof *boxes);
+    float *const lo[3] = {w->spare.lo[0], w->spare.lo[1], w->spare.lo[2]};
+    float *const hi[3] = {w->spare.hi[0], w->spare.hi[1], w->spare.hi[2]};
+    bpx__round_boxes64_soa(boxes, n, lo, hi);
+    bpx__boxes_swap_in_spare(w, n);
+    w->extents_loaded = false;
+    w->boxes64_set = true;
+    tell_backend(w, NULL);
+    w->stats.update_ns = bpx__now_ns() - start;
+    return BPX_OK;
+}
+
+// Float64 boxes: the comparator's candidates (float32 boxes rounded outward) kept where the
+// doubles overlap. Closed intervals of doubles compare exactly: no sums, nothing rounded.
+static void filter_boxes64(bpx_world *w)
+{
+    const bpx_box64 *b = w->boxes64;
+    for (int k = 0; k < w->emitter.block_count; k++) {
+        bpx_pair_list *hits = &w->emitter.blocks[k].hits;
+        size_t kept = 0;
+        for (size_t h = 0; h < hits->count; h++) {
+            bpx_pair p = hits->pairs[h];
+            const bpx_box64 *x = &b[p.i], *y = &b[p.j];
+            bool yes = true;
+            for (int a = 0; a < 3; a++)
+                yes &= y->min[a] <= x->max[a] && x->min[a] <= y->max[a];
+            hits->pairs[kept] = p;
+            kept += yes;
+        }
+        hits->count = kept;
+    }
 }
 
 bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
@@ -487,6 +566,7 @@ bpx_status bpx_world_load_extents(bpx_world *w, const float *minima, uint32_t n)
         }
     w->extent_count = n;
     w->extents_loaded = true;
+    w->boxes64_set = false;
     bpx__boxes_swap_in_spare(w, n);
     tell_backend(w, NULL);
     return BPX_OK;
@@ -578,6 +658,8 @@ static bpx_status compare(bpx_world *w, size_t *total, uint64_t *end)
         w->stats.bytes_out = r->bytes_out;
         w->stats.device_share = r->device_share;
     }
+    if (status == BPX_OK && w->boxes64_set && !periodic) // the image search decided them
+        filter_boxes64(w);
     if (status == BPX_OK) {
         bpx__filter_blocks(w);
         bpx__margins_filter_blocks(w);

@@ -72,6 +72,12 @@ struct bpx_world {
 
     bpx_periodic periodic; // def.period set: the image search's state (periodic.c)
 
+    // bpx_world_set_boxes64: the float64 boxes, which decide each candidate of the float32
+    // boxes (rounded outward) that the comparator sees.
+    bpx_box64 *boxes64;
+    uint32_t boxes64_capacity;
+    bool boxes64_set;
+
     bpx_cycle_stats stats;
     bpx_error error;
 };

@@ -232,6 +232,14 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
     const double *origin = im->origin;
     double half = s->def->cutoff / 2;
     uint64_t total = 0;
+    // A box in the cell on an axis (lower face in [o, o + L), upper face below o + L by more
+    // than images_below's slack, at most 2^-40 (4 magnitude + L) for w = 0; twice that covers
+    // its rounding) has w = 0 and no image there: decided without images_below's divisions.
+    double inside_slack[3], near_limit[3];
+    for (int a = 0; a < 3; a++) {
+        inside_slack[a] = 0x1p-39 * (4 * im->magnitude + s->period[a]);
+        near_limit[a] = 0x1p28 * s->period[a];
+    }
     for (uint32_t k = 0; k < s->n; k++) {
         double lo[3], hi[3];
         object_box(&s->in, k, lo, hi);
@@ -257,6 +265,10 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
             s->wrap[k][a] = 0;
             if (L == 0)
                 continue;
+            double grown_lo = lo[a] - half, from_origin = grown_lo - origin[a];
+            if (from_origin >= 0 && from_origin < L && fabs(grown_lo) < near_limit[a] &&
+                (hi[a] + half - origin[a]) + inside_slack[a] < L)
+                continue; // w = 0, one copy
             // Within 2^29 periods of 0 (and of the cell, so that shifts fit): counted from 0,
             // wherever the cell lies, so that the limit is the caller's to know.
             double from_zero = lo[a] - half;
@@ -331,6 +343,16 @@ static bool image_is_box(const search *s, uint32_t k, const bpx_box *b)
     for (int a = 0; a < 3; a++)
         same &= (double)b->min[a] == lo[a] && (double)b->max[a] == hi[a];
     return same;
+}
+
+void bpx__round_boxes64_soa(const bpx_box64 *in, uint32_t n, float *const lo[3],
+                            float *const hi[3])
+{
+    for (uint32_t k = 0; k < n; k++)
+        for (int a = 0; a < 3; a++) {
+            lo[a][k] = round_down(in[k].min[a]);
+            hi[a][k] = round_up(in[k].max[a]);
+        }
 }
 
 // Open, no cutoff, float64 boxes: each image is the box rounded outward, nothing added (as
@@ -713,6 +735,8 @@ static void free_search(search *s, image_state *im)
 typedef struct keeper {
     bpx_world **world;           // NULL: make one and destroy it
     const bpx_world_def *def;    // how to make the kept one
+    bpx_box **boxes;             // the kept world's boxes, images in place, and their room
+    size_t *capacity;
 } keeper;
 
 static void done_with(const keeper *k, bpx_world *w)
@@ -740,7 +764,28 @@ static bpx_status run(search *s, image_state *im, const keeper *keep, bpx_neighb
     if (keep->world)
         *keep->world = w;
     bool mine = false; // an error of this function's own, not the world's
-    if (im->boxes == s->images) {
+    size_t image_total = (size_t)s->n + s->ghost_count;
+    if (keep->world && im->boxes != s->images) {
+        // A kept world gets every box in one set_boxes, so that its ids stay put and its
+        // backend's state (sap's lists) carries over: no removed ids, no count that shrinks
+        // between the calls.
+        if (image_total > *keep->capacity) {
+            bpx__free(*keep->boxes, *keep->capacity * sizeof **keep->boxes);
+            *keep->capacity = 0;
+            if (!(*keep->boxes = bpx__alloc(image_total * sizeof **keep->boxes)))
+                return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                                  "no memory for %zu periodic images", image_total);
+            *keep->capacity = image_total;
+        }
+        bpx_box *all = *keep->boxes;
+        if (s->n)
+            memcpy(all, im->boxes, (size_t)s->n * sizeof *all);
+        for (uint32_t m = 0; m < im->moved; m++)
+            all[im->moved_ids[m]] = im->moved_boxes[m];
+        if (s->ghost_count)
+            memcpy(all + s->n, im->ghost_boxes, (size_t)s->ghost_count * sizeof *all);
+        status = bpx_world_set_boxes(w, all, (uint32_t)image_total);
+    } else if (im->boxes == s->images) {
         status = bpx_world_set_boxes(w, im->boxes, s->n + s->ghost_count);
     } else {
         // The objects themselves, the wrapped ones moved, the ghosts added: ids n, n + 1, ...
@@ -873,7 +918,7 @@ bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uin
     bpx__error_clear(err);
     if (!list)
         return bpx__error(err, BPX_ERR_NULL_ARGUMENT, UINT32_MAX, -1, "list is NULL");
-    static const keeper none = {NULL, NULL};
+    static const keeper none = {0};
     return find(def, data, n, &none, list, NULL, 0, NULL, err);
 }
 
@@ -889,15 +934,16 @@ bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend ba
     def.format = BPX_BOXES_F64;
     def.backend = backend;
     bpx_neighbor_list list;
-    static const keeper none = {NULL, NULL};
+    static const keeper none = {0};
     return find(&def, boxes, n, &none, &list, out, capacity, count, err);
 }
 
-bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const bpx_box *boxes, uint32_t n,
+bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const void *boxes, uint32_t n,
                                     bpx_world **inner, const bpx_world_def *inner_def,
+                                    bpx_box **scratch, size_t *scratch_capacity,
                                     bpx_neighbor_list *list, bpx_error *err)
 {
     bpx__error_clear(err);
-    keeper keep = {inner, inner_def};
+    keeper keep = {inner, inner_def, scratch, scratch_capacity};
     return find(def, boxes, n, &keep, list, NULL, 0, NULL, err);
 }
