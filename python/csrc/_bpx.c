@@ -646,9 +646,13 @@ static PyObject *World_snapshot(WorldObject *self, PyObject *unused)
             Py_END_ALLOW_THREADS
         }
     }
-    if (bytes && status != BPX_OK) {
+    if (status != BPX_OK && !PyErr_Occurred()) {
         Py_CLEAR(bytes);
-        raise_status(where, status, "the world's state could not be written");
+        raise_status(where, status,
+                     status == BPX_ERR_BAD_STATE
+                         ? "the world holds float64 boxes (set_boxes with values float32 does "
+                           "not hold) or boxes in a device buffer, which snapshots do not carry"
+                         : "the world's state could not be written");
     }
     world_leave(self);
     return bytes;
@@ -762,6 +766,7 @@ static PyMethodDef World_methods[] = {
     {"load_extents", (PyCFunction)World_load_extents, METH_O, "bpx_world_load_extents"},
     {"update_centres", (PyCFunction)World_update_centres, METH_O, "bpx_world_update_centres"},
     {"set_boxes", (PyCFunction)World_set_boxes, METH_O, "bpx_world_set_boxes"},
+    {"set_boxes64", (PyCFunction)World_set_boxes64, METH_O, "bpx_world_set_boxes64"},
     {"add_boxes", (PyCFunction)World_add_boxes, METH_O, "bpx_world_add_boxes -> ids"},
     {"remove_boxes", (PyCFunction)World_remove_boxes, METH_O, "bpx_world_remove_boxes"},
     {"move_boxes", (PyCFunction)World_move_boxes, METH_VARARGS, "bpx_world_move_boxes"},

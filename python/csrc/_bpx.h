@@ -93,6 +93,7 @@ PyObject *py_find_pairs(PyObject *module, PyObject *args);
 PyObject *py_time_c_find_pairs(PyObject *module, PyObject *args);
 PyObject *World_image_pairs(WorldObject *self, PyObject *unused);
 PyObject *World_period(WorldObject *self, PyObject *unused);
+PyObject *World_set_boxes64(WorldObject *self, PyObject *obj);
 PyObject *World_events(WorldObject *self, PyObject *unused);
 /// _set_max_pairs(count) -> previous: lowers the pair limit for the tests (0: the real one).
 PyObject *py_set_max_pairs(PyObject *module, PyObject *arg);

@@ -126,3 +126,26 @@ PyObject *World_period(WorldObject *self, PyObject *unused)
     world_leave(self);
     return Py_BuildValue("(ddd)", period[0], period[1], period[2]);
 }
+
+// set_boxes64(float64 (n, 6)): bpx_world_set_boxes64, the world's exact float64 mode.
+PyObject *World_set_boxes64(WorldObject *self, PyObject *obj)
+{
+    static const char where[] = "World.set_boxes";
+    if (world_enter(self, where) != 0)
+        return NULL;
+    Py_buffer view;
+    uint32_t n;
+    if (get_rows(where, obj, 'd', 6, &view, &n) != 0) {
+        world_leave(self);
+        return NULL;
+    }
+    bpx_status status;
+    Py_BEGIN_ALLOW_THREADS
+    status = bpx_world_set_boxes64(self->world, view.buf, n);
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&view);
+    PyObject *result = status == BPX_OK ? Py_NewRef(Py_None)
+                                        : raise_error(where, bpx_world_error(self->world));
+    world_leave(self);
+    return result;
+}

@@ -137,3 +137,70 @@ def test_bad_cells_and_margins():
         pairs, shifts = w.image_pairs()
         assert pairs.tolist() == [[0, 1]] and shifts.tolist() == [[0, 0, 0]]
         assert w.period == (0.0, 0.0, 0.0)
+
+
+def test_float64_boxes_are_exact_in_a_world():
+    x = 1e6
+    up = np.nextafter(x, 2 * x)
+    apart = np.array([[x / 2, 0, 0, x, 1, 1], [up, 0, 0, 2 * x, 1, 1]])  # one float64 ulp
+    with bpx.World(track_events=True) as w:
+        w.set_boxes(apart)
+        assert w.collide().shape == (0, 2)
+        with pytest.raises(bpx.StateError, match="float64"):
+            w.add(np.zeros((1, 6), np.float32))
+        with pytest.raises(bpx.StateError, match="float64"):
+            w.snapshot()
+        w.set_boxes(apart, exact=False)  # rounded to float32: they touch
+        assert w.collide().tolist() == [[0, 1]]
+        w.add(np.zeros((1, 6), np.float32))  # a float32 world again
+        # float64 values float32 holds take the float32 path: add and move keep working
+        w.set_boxes(np.array([[0, 0, 0, 1, 1, 1], [1, 1, 1, 2, 2, 2]], np.float64))
+        w.move([1], np.array([[0.5, 0.5, 0.5, 2, 2, 2]]))
+        assert w.collide().tolist() == [[0, 1]]
+        snapshot = w.snapshot()
+        assert len(snapshot) > 0
+        # integers past 2^24 and tiny values, exact
+        ints = np.array([[16777217, 0, 0, 16777217, 0, 0], [0, 0, 0, 16777216, 0, 0]])
+        w.set_boxes(ints)
+        assert w.collide().shape == (0, 2)
+        tiny = np.array([[0, 0, 0, 1e-30, 1, 1], [np.nextafter(1e-30, 1), 0, 0, 1, 1, 1]])
+        w.set_boxes(tiny)
+        assert w.collide().shape == (0, 2)
+        w.set_boxes(tiny, exact=False)
+        assert w.collide().tolist() == [[0, 1]]
+        with pytest.raises(bpx.InvalidArgumentError, match="2\\^53"):
+            w.set_boxes(np.array([[0, 0, 0, 2**53 + 1, 1, 1]], dtype=np.int64))
+        with pytest.raises(bpx.NotFiniteError):
+            w.set_boxes(np.array([[0, 0, 0, np.nan, 1, 1], [0, 0, 0, 1, 1, 1.5]]))
+
+
+@pytest.mark.parametrize("backend", CPU_BACKENDS)
+def test_float64_world_against_brute_force(backend):
+    rng = np.random.default_rng(12)
+    lo = rng.uniform(0, 10, size=(150, 3))
+    boxes = np.concatenate([lo, lo + rng.uniform(0, 1.5, size=(150, 3))], axis=1)
+    # each odd box starts one float64 ulp past its even neighbour's end on x, the same on y, z
+    boxes[1::2] = boxes[0::2]
+    boxes[1::2, 0] = np.nextafter(boxes[0::2, 3], np.inf)
+    boxes[1::2, 3] = boxes[1::2, 0] + 1.0
+    with bpx.World(backend, 2) as w:
+        w.set_boxes(boxes)
+        got = w.collide()
+    want = [
+        [i, j]
+        for i in range(150)
+        for j in range(i + 1, 150)
+        if np.all(boxes[i, :3] <= boxes[j, 3:]) and np.all(boxes[j, :3] <= boxes[i, 3:])
+    ]
+    assert got.tolist() == want
+    assert [0, 1] not in want
+    with bpx.World(backend) as w:  # rounded to float32, the neighbours touch
+        w.set_boxes(boxes, exact=False)
+        assert [0, 1] in w.collide().tolist()
+    # a periodic float64 world: the same as find_pairs with the cell
+    with bpx.World(backend, cell=10.0) as w:
+        w.set_boxes(boxes)
+        w.collide()
+        pairs, shifts = w.image_pairs()
+    want_pairs, want_shifts = bpx.find_pairs(boxes, cell=10.0, return_shifts=True)
+    assert np.array_equal(pairs, want_pairs) and np.array_equal(shifts, want_shifts)

@@ -19,7 +19,7 @@ from ._arrays import (
 )
 from ._core import check_backend, check_threads, converted_note
 from ._errors import DTypeError, InvalidArgumentError
-from ._neighbors import period_of
+from ._neighbors import exact_array, period_of
 from ._query import (
     ALL,
     BatchHits,
@@ -220,12 +220,41 @@ class World:
 
     # -- the general mode ---------------------------------------------------------------------
 
-    def set_boxes(self, boxes: Any = None, *, mins: Any = None, maxs: Any = None) -> None:
+    def set_boxes(
+        self,
+        boxes: Any = None,
+        *,
+        mins: Any = None,
+        maxs: Any = None,
+        exact: Optional[bool] = None,
+    ) -> None:
         """Replaces every box: (n, 6) or (n, 2, 3), or ``mins=`` and ``maxs=`` (n, 3). Ids
-        become 0 .. n-1; an id in use below both the old and the new n keeps its filter."""
-        array, converted = boxes_array(boxes, "World.set_boxes: boxes", mins, maxs)
-        with converted_note(converted):
-            self._c.set_boxes(array)
+        become 0 .. n-1; an id in use below both the old and the new n keeps its filter.
+
+        float64 boxes (and integers wider than 16 bits, up to 2^53) that float32 cannot hold
+        exactly are answered exactly (``bpx_world_set_boxes64``): the comparator on the boxes
+        rounded outward, each candidate decided on the doubles, so boxes one float64 ulp apart
+        do not pair. The world then holds float64 boxes: ``add``, ``move`` and ``remove``,
+        margins and snapshots raise StateError until boxes float32 holds are set again.
+        ``exact=False`` rounds them to float32 instead (the old way: every call then works);
+        ``exact=True`` takes the float64 way for float64 input even where float32 holds the
+        values."""
+        what = "World.set_boxes: boxes"
+        if exact is False:
+            array, converted = boxes_array(boxes, what, mins, maxs)
+            with converted_note(converted):
+                self._c.set_boxes(array)
+            return
+        array, f64 = boxes_array(boxes, what, mins, maxs, convert=exact_array)
+        if f64 and not exact:
+            with np.errstate(over="ignore", invalid="ignore"):
+                narrow = array.astype(np.float32)
+            if np.array_equal(narrow, array):  # float32 holds every value: nothing to lose
+                array, f64 = narrow, False
+        if f64:
+            self._c.set_boxes64(array)
+        else:
+            self._c.set_boxes(np.ascontiguousarray(array, dtype=np.float32))
 
     def add(self, boxes: Any) -> np.ndarray:
         """Adds boxes ((k, 6) or (k, 2, 3)); returns their ids, (k,) uint32: freed ids first,
