@@ -317,12 +317,77 @@ static void bad_buffers(void)
     bpx_world_destroy(target);
 }
 
+// A pair filter whose answer depends on its own state (every other pair it is asked about is
+// refused): a restored world keeps the decisions the saved one made, so a filter that would
+// answer otherwise is asked only about pairs that begin after the restore.
+typedef struct counting_filter {
+    int calls;
+    bool refuse_odd;
+} counting_filter;
+
+static bool count_and_decide(uint32_t i, uint32_t j, uint64_t user_i, uint64_t user_j,
+                             void *context)
+{
+    (void)i, (void)j, (void)user_i, (void)user_j;
+    counting_filter *f = context;
+    bool odd = f->calls++ % 2;
+    return !(f->refuse_odd && odd);
+}
+
+static void filter_decisions(void)
+{
+    check_set_context("pair filter decisions");
+    enum { n = 300 };
+    bpx_box boxes[n];
+    scene_rng r;
+    scene_rng_seed(&r, 17);
+    for (int k = 0; k < n; k++)
+        boxes[k] = random_box(&r);
+    bpx_world *saved = make(BPX_BACKEND_AUTO, 1);
+    counting_filter odd = {0, true};
+    CHECK_STATUS(bpx_world_set_pair_filter(saved, count_and_decide, &odd), BPX_OK);
+    CHECK_STATUS(bpx_world_set_boxes(saved, boxes, n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(saved), BPX_OK);
+    size_t kept_count;
+    const bpx_pair *kept = bpx_world_pairs(saved, &kept_count);
+    CHECK(odd.calls > 20 && kept_count == (size_t)(odd.calls + 1) / 2);
+    size_t size;
+    void *snapshot = save(saved, &size);
+
+    for (int workers = 1; workers <= 3; workers += 2) {
+        bpx_world *restored = make(BPX_BACKEND_SAP, workers);
+        counting_filter all = {0, false};
+        CHECK_STATUS(bpx_world_set_pair_filter(restored, count_and_decide, &all), BPX_OK);
+        CHECK_STATUS(bpx_world_restore(restored, snapshot, size), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(restored), BPX_OK);
+        size_t count;
+        const bpx_pair *pairs = bpx_world_pairs(restored, &count);
+        CHECK(all.calls == 0); // every pair persists: decided before the snapshot
+        CHECK(count == kept_count && memcmp(pairs, kept, count * sizeof *pairs) == 0);
+        bpx_pair_events events;
+        CHECK_STATUS(bpx_world_pair_events(restored, &events), BPX_OK);
+        CHECK(events.began_count == 0 && events.ended_count == 0);
+        // A box moved onto box 0: the pairs it begins are asked about, and only they.
+        bpx_box moved[n];
+        memcpy(moved, boxes, sizeof moved);
+        moved[n - 1] = boxes[0];
+        CHECK_STATUS(bpx_world_set_boxes(restored, moved, n), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(restored), BPX_OK);
+        CHECK_STATUS(bpx_world_pair_events(restored, &events), BPX_OK);
+        CHECK(all.calls > 0 && (size_t)all.calls == events.began_count); // all accepted
+        bpx_world_destroy(restored);
+    }
+    free(snapshot);
+    bpx_world_destroy(saved);
+}
+
 int main(void)
 {
     int64_t start = bpx_allocated_bytes();
     replays();
     two_phase();
     bad_buffers();
+    filter_decisions();
     CHECK(bpx_allocated_bytes() == start);
     return check_finish("test_snapshot", 1);
 }

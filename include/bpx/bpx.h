@@ -252,7 +252,9 @@ BPX_API bpx_simd bpx_world_simd(const bpx_world *world);
 
 /// Writes the world's state into buffer: its boxes (and the two-phase extents), every id's state
 /// (live, removed, waiting for reuse), filters, groups, user data, excluded pairs, and the last
-/// collide's pairs, so that a world restored from it reports on its next collide the same pairs
+/// collide's pairs and the pair filter's decisions about them (a restored world asks its filter
+/// only about pairs that begin after; set the filter before restoring, as setting one forgets
+/// every decision), so that a world restored from it reports on its next collide the same pairs
 /// and events, byte for byte, as this one would, and the period (bpx_world_def.period: the
 /// pairs depend on it, so the restoring world takes it). Not in it: the rest of the world's
 /// definition (backend, workers, track_events: the restoring world keeps its own),
@@ -260,7 +262,8 @@ BPX_API bpx_simd bpx_world_simd(const bpx_world *world);
 /// The bytes are versioned and checksummed, for this library on a machine of the same byte
 /// order. *size receives the bytes needed; with capacity < *size returns CAPACITY and writes
 /// nothing (buffer may be NULL with capacity 0, to ask). Reads the world only.
-/// Errors: NULL_ARGUMENT, CAPACITY, BAD_STATE (the boxes live in a device buffer).
+/// Errors: NULL_ARGUMENT, CAPACITY, BAD_STATE (the boxes live in a device buffer, or are
+/// float64: bpx_world_set_boxes64).
 BPX_API bpx_status bpx_world_snapshot(const bpx_world *world, void *buffer, size_t capacity,
                                       size_t *size);
 
@@ -271,7 +274,7 @@ BPX_API bpx_status bpx_world_snapshot(const bpx_world *world, void *buffer, size
 /// (another format version or byte order, truncated, changed: the checksum, or a field that
 /// does not hold; a periodic snapshot into a world with contact margins), the message naming
 /// what and its byte offset; OUT_OF_MEMORY. On error the world is unchanged. Snapshots of
-/// format version 1 (before periods) are refused so.
+/// format versions 1 and 2 (before periods, before the pair filter's decisions) are refused so.
 BPX_API bpx_status bpx_world_restore(bpx_world *world, const void *buffer, size_t size);
 
 // ---------------------------------------------------------------------------------------------

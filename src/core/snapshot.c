@@ -28,7 +28,7 @@
 
 static const char magic[8] = "BPXSNAP";
 enum {
-    FORMAT_VERSION = 2, // 2: the period
+    FORMAT_VERSION = 3, // 2: the period; 3: the pair filter's decisions
     BYTE_ORDER_MARK = 0x01020304,
     HEADER_SIZE = 8 + 4 + 4 + 8 + 8,
     HAS_EXTENTS = 1,
@@ -129,6 +129,12 @@ static void write_state(bpx_world *w, writer *wr)
             put_u64(wr, w->excluded.keys[s]);
     put(wr, last->pairs, sizeof(bpx_pair) * last->count);
     put(wr, w->def.period, sizeof w->def.period);
+    // The pair filter's decisions on the pairs that persist: a restored world does not ask
+    // again about them (a filter's answer may depend on its own state, which is the caller's).
+    put_u64(wr, w->candidates.count);
+    put_u64(wr, w->rejected.count);
+    put(wr, w->candidates.pairs, sizeof(bpx_pair) * w->candidates.count);
+    put(wr, w->rejected.pairs, sizeof(bpx_pair) * w->rejected.count);
 }
 
 bpx_status bpx_world_snapshot(const bpx_world *world, void *buffer, size_t capacity,
@@ -204,6 +210,8 @@ typedef struct sections {
     const uint8_t *dead, *pending_ids, *free_ids;
     const uint8_t *columns[SAVED_COLUMNS];
     const uint8_t *keys, *pairs, *period;
+    uint64_t decided, refused; // the pair filter's candidates and the rejected among them
+    const uint8_t *decided_pairs, *refused_pairs;
 } sections;
 
 // The offset of p in the buffer, for messages.
@@ -232,7 +240,7 @@ static bpx_status locate(bpx_world *w, reader *r, sections *s)
         char what[128];
         snprintf(what, sizeof what,
                  "format version %u, and this library reads version %d only (version 1 had no "
-                 "period)",
+                 "period, version 2 no pair filter decisions)",
                  version, FORMAT_VERSION);
         return bad(w, 8, what);
     }
@@ -281,6 +289,15 @@ static bpx_status locate(bpx_world *w, reader *r, sections *s)
         return bad(w, r->at, "truncated in its pairs");
     if (!(s->period = take(r, 3 * sizeof(double))))
         return bad(w, r->at, "truncated in its period");
+    const uint8_t *decisions = take(r, 16);
+    if (!decisions)
+        return bad(w, r->at, "truncated in its pair filter decisions");
+    s->decided = read_u64(decisions);
+    s->refused = read_u64(decisions + 8);
+    if (s->refused > s->decided || s->decided > (SIZE_MAX - r->at) / sizeof(bpx_pair) ||
+        !(s->decided_pairs = take(r, sizeof(bpx_pair) * s->decided)) ||
+        !(s->refused_pairs = take(r, sizeof(bpx_pair) * s->refused)))
+        return bad(w, r->at, "truncated in its pair filter decisions");
     if (r->at != r->size)
         return bad(w, r->at, "bytes after its last section");
     return BPX_OK;
@@ -301,6 +318,26 @@ static bool all_live_and_valid(const sections *s)
     for (uint32_t i = 0; s->dead && i < s->n; i++)
         bad |= s->dead[i] != 0;
     return !bad;
+}
+
+static bpx_pair read_pair(const uint8_t *pairs, uint64_t k)
+{
+    bpx_pair p;
+    memcpy(&p, pairs + sizeof(bpx_pair) * k, sizeof p);
+    return p;
+}
+
+// NULL when the count pairs are sorted pairs (i < j) of ids, else the first that is not.
+static const uint8_t *sorted_pairs(const uint8_t *pairs, uint64_t count)
+{
+    bpx_pair before = {0, 0};
+    for (uint64_t k = 0; k < count; k++) {
+        bpx_pair p = read_pair(pairs, k);
+        if (p.i >= p.j || p.j >= BPX_MAX_BOXES || (k && !bpx__pair_less(before, p)))
+            return pairs + sizeof(bpx_pair) * k;
+        before = p;
+    }
+    return NULL;
 }
 
 static bpx_status check_values(bpx_world *w, const sections *s)
@@ -363,16 +400,23 @@ static bpx_status check_values(bpx_world *w, const sections *s)
                        "a periodic snapshot, and this world has contact margins, which a "
                        "periodic world does not support");
     }
-    bpx_pair before = {0, 0};
-    for (uint64_t k = 0; k < s->last; k++) {
-        const uint8_t *q = s->pairs + sizeof(bpx_pair) * k;
-        bpx_pair p;
-        memcpy(&p, q, sizeof p);
-        // Ids may be past n: set_boxes to fewer boxes keeps the last pairs, for the events
-        // that end them.
-        if (p.i >= p.j || p.j >= BPX_MAX_BOXES || (k && !bpx__pair_less(before, p)))
-            return bad(w, at(s, q), "the last pairs are not sorted pairs of two ids");
-        before = p;
+    // Ids may be past n: set_boxes to fewer boxes keeps the last pairs, for the events that
+    // end them, and the decisions about them.
+    const uint8_t *q = sorted_pairs(s->pairs, s->last);
+    if (q)
+        return bad(w, at(s, q), "the last pairs are not sorted pairs of two ids");
+    if ((q = sorted_pairs(s->decided_pairs, s->decided)) ||
+        (q = sorted_pairs(s->refused_pairs, s->refused)))
+        return bad(w, at(s, q), "the pair filter's decisions are not sorted pairs of two ids");
+    // Each refused pair is one of the decided (both sorted: one walk).
+    uint64_t d = 0;
+    for (uint64_t k = 0; k < s->refused; k++) {
+        bpx_pair p = read_pair(s->refused_pairs, k), c = {0, 0};
+        while (d < s->decided && bpx__pair_less(c = read_pair(s->decided_pairs, d), p))
+            d++;
+        if (d == s->decided || c.i != p.i || c.j != p.j)
+            return bad(w, at(s, s->refused_pairs + sizeof(bpx_pair) * k),
+                       "a pair the filter refused is not among the pairs it decided");
     }
     return BPX_OK;
 }
@@ -414,10 +458,15 @@ bpx_status bpx_world_restore(bpx_world *w, const void *buffer, size_t size)
             ok = bpx__objects_use_column(w, c[k].data);
     if (ok && s.excluded)
         ok = bpx__objects_use_column(w, c[4].data) && bpx__pair_set_reserve(&excluded, s.excluded);
-    size_t previous_count = w->previous.count; // room for s.last pairs, keeping these
-    w->previous.count = 0;
-    ok = ok && bpx__list_reserve(&w->previous, s.last);
-    w->previous.count = previous_count;
+    // Room for s.last pairs and the decisions, keeping what the lists hold.
+    bpx_pair_list *lists[3] = {&w->previous, &w->candidates, &w->rejected};
+    uint64_t needed[3] = {s.last, s.decided, s.refused};
+    for (int k = 0; k < 3 && ok; k++) {
+        size_t count = lists[k]->count;
+        lists[k]->count = 0;
+        ok = bpx__list_reserve(lists[k], needed[k]);
+        lists[k]->count = count;
+    }
     if (!ok) {
         for (int a = 0; a < 3; a++)
             bpx__free(minima[a], sizeof(float) * n);
@@ -483,12 +532,18 @@ bpx_status bpx_world_restore(bpx_world *w, const void *buffer, size_t size)
         memcpy(w->previous.pairs, s.pairs, sizeof(bpx_pair) * s.last);
     w->previous.count = s.last;
     memcpy(w->def.period, s.period, sizeof w->def.period);
+    bpx__objects_forget_decisions(w);
+    if (s.decided)
+        memcpy(w->candidates.pairs, s.decided_pairs, sizeof(bpx_pair) * s.decided);
+    if (s.refused)
+        memcpy(w->rejected.pairs, s.refused_pairs, sizeof(bpx_pair) * s.refused);
+    w->candidates.count = s.decided;
+    w->rejected.count = s.refused;
     w->boxes64_set = false; // the snapshot's boxes are float32
     // The last result is not the restored world's: pairs and events read as none until the
     // next collide, which reports its events against the restored pairs.
     w->result_valid = w->merged = w->events_valid = false;
     w->emitter.planned_n = UINT32_MAX;
-    bpx__objects_forget_decisions(w);
     bpx__world_boxes_replaced(w);
     return BPX_OK;
 }
