@@ -156,8 +156,12 @@ bpx_status bpx__grid_emit_sorted(const bpx_cycle *cycle, bpx_grid_state *st, uin
     emit_job job = {
         cycle,    st,    groups,      buckets,    buckets < EMIT_ITEMS ? buckets : EMIT_ITEMS,
         j_passes, shift, st->a.pairs, st->b.pairs};
+    bpx_profile *prof = cycle->profile;
+    uint64_t t = bpx__profile_clock(prof), bytes = 8 * (uint64_t)total;
     if (total) {
         bpx__parallel_for(cycle->executor, emit_count_task, groups, &job);
+        bpx__profile_add(prof, "grid", "order: count", &t, BPX_ACCESS_SEQUENTIAL, bytes,
+                         4 * (uint64_t)groups * buckets, 0);
         uint32_t at = 0;
         for (int b = 0; b < buckets; b++) {
             st->bucket_start[b] = at;
@@ -170,7 +174,12 @@ bpx_status bpx__grid_emit_sorted(const bpx_cycle *cycle, bpx_grid_state *st, uin
         }
         st->bucket_start[buckets] = at;
         bpx__parallel_for(cycle->executor, emit_scatter_task, groups, &job);
+        // Each pair to its bucket: a few hundred write streams, not single records at random.
+        bpx__profile_add(prof, "grid", "order: buckets", &t, BPX_ACCESS_SEQUENTIAL, bytes, bytes,
+                         0);
         bpx__parallel_for(cycle->executor, emit_sort_task, job.items, &job);
+        // Each bucket in cache: read, counted by i, written in (i, j) order.
+        bpx__profile_add(prof, "grid", "order: sort", &t, BPX_ACCESS_SEQUENTIAL, bytes, bytes, 0);
     }
     // Block 0 takes the ordered list (a swap, not a copy); its old list becomes scratch.
     bpx_pair_list *result = &st->b;
