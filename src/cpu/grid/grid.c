@@ -332,7 +332,7 @@ static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
     }
     uint64_t coarse_ns = 0;
     if (prof) {
-        uint64_t now = bpx__now_ns();
+        uint64_t now = bpx__profile_now();
         coarse_ns = now - t;
         t = now;
         for (int k = 0; k < workers && k < WORKERS_MAX; k++)
@@ -381,7 +381,7 @@ static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
         // as a run (six floats, id, x cell, flags: 33 bytes). Tests: every run read once (more
         // for the windows of coarser levels, not counted), a pair written per hit; with big
         // boxes, the boxes read once more in id order.
-        uint64_t now = bpx__now_ns(), pass = now - t, busy = 0, sorting = 0, hits = 0;
+        uint64_t now = bpx__profile_now(), pass = now - t, busy = 0, sorting = 0, hits = 0;
         t = now;
         for (int k = 0; k < workers && k < WORKERS_MAX; k++) {
             busy += st->worker_time[k].busy_ns;
