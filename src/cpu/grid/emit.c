@@ -91,7 +91,10 @@ static void sort_run(bpx_pair *run, bpx_pair *scratch, uint32_t count, int j_pas
 }
 
 // Sorts one bucket of src (2^shift ids) by (i, j) into dst: a counting pass on i's low bits,
-// then each i's pairs by j (src is the scratch).
+// then each i's pairs by j (src is the scratch). The runs of one i are found by a pass over the
+// pairs, not over the 2^shift ids: at a pair or so per box a bucket holds about half as many
+// pairs as ids, and the pass over the ids (with a copy of the counts for it) was a third of this
+// stage (`bpx bench --profile`, grid, 1M boxes).
 static void sort_bucket(bpx_pair *src, bpx_pair *dst, uint32_t count, int j_passes, int shift)
 {
     enum { IDS = 1 << EMIT_SHIFT };
@@ -102,13 +105,16 @@ static void sort_bucket(bpx_pair *src, bpx_pair *dst, uint32_t count, int j_pass
         counts[(src[k].i & mask) + 1]++;
     for (uint32_t d = 0; d <= mask; d++)
         counts[d + 1] += counts[d];
-    uint32_t start[IDS + 1];
-    memcpy(start, counts, sizeof(uint32_t) * (mask + 2));
     for (uint32_t k = 0; k < count; k++)
         dst[counts[src[k].i & mask]++] = src[k];
-    for (uint32_t d = 0; d <= mask; d++)
-        if (start[d + 1] - start[d] > 1)
-            sort_run(dst + start[d], src + start[d], start[d + 1] - start[d], j_passes);
+    for (uint32_t k = 0; k < count;) {
+        uint32_t end = k + 1;
+        while (end < count && dst[end].i == dst[k].i)
+            end++;
+        if (end - k > 1)
+            sort_run(dst + k, src + k, end - k, j_passes);
+        k = end;
+    }
 }
 
 static void emit_sort_task(int begin, int end, int worker, void *context)
