@@ -1,5 +1,5 @@
 // The per-stage profile (bpx_world_def.profile) is consistent and changes nothing: the same
-// pairs, byte for byte, with it on and off (grid, sap, auto, prune, brute; 1 and 2 workers;
+// pairs, byte for byte, with it on and off (grid, sap, auto, prune, brute (no stages of its own); 1 and 2 workers;
 // coherent and jumping motion, so sap mends and rebuilds, and at 100k boxes, where sap's rebuild
 // and auto run the grid); every stage named, its bytes > 0 and its records random only when
 // its access is; the stages' times summed no more than the cycle's wall time; no stages with it
@@ -119,6 +119,8 @@ static void run(bpx_backend backend, int workers, uint32_t n, float step, int cy
             saw->sap_mend |= has_stage(&s, "sap", "mend");
             if (backend == BPX_BACKEND_GRID)
                 CHECK(has_stage(&s, "grid", "keys") && has_stage(&s, "grid", "tests"));
+            if (backend == BPX_BACKEND_PRUNE)
+                CHECK(has_stage(&s, "prune", "sort") && has_stage(&s, "prune", "sweep"));
         }
         size_t count[2];
         const bpx_pair *pairs[2];

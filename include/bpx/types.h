@@ -248,8 +248,8 @@ typedef struct bpx_cycle_stats {
     uint64_t bytes_out; ///< OpenCL, CUDA: bytes read back last cycle (8 per pair + the register)
     float device_share; ///< hybrid: the share of the boxes the device got last cycle (0 .. 1)
     /// With bpx_world_def.profile: the last cycle's stages in the order they ran (the updater's
-    /// first, the world's merge of the pairs last; grid and sap report theirs, the other
-    /// backends none of their own). 0 stages without it.
+    /// first, the world's merge of the pairs last; grid, sap, prune and auto report theirs,
+    /// the other backends none of their own). 0 stages without it.
     uint32_t stage_count;
     bpx_stage_stats stages[BPX_MAX_STAGES];
 } bpx_cycle_stats;
