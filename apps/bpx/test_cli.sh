@@ -499,6 +499,20 @@ elif grep -q "| brute\|| sap" "$tmp/out" || ! grep -q "| grid 1t |" "$tmp/out"; 
     fail "expected only prune and grid rows"
 fi
 
+# --profile: a stage table per backend beside the floor (the figures are the machine's; only
+# their presence is checked, and every cycle's pairs, as in the other parts).
+begin "bench: --profile"
+run bench --profile --sizes 3000 --threads 2 --cycles 2 --backend grid,sap,prune
+if [[ $rc -ne 0 ]]; then
+    fail "expected exit 0"
+else
+    for want in "^| random scatter (prefetched) | " "^#### grid, uniform, n = 3000, 2 threads" \
+        "^| grid: scatter | " "^| grid: tests | " "^| sap: check | " "^| prune: sweep | " \
+        "^| world: merge | " "^| \*\*cycle\*\* | " "Peak memory: [0-9.]* bytes a box"; do
+        grep -q "$want" "$tmp/out" || fail "no line matching: $want"
+    done
+fi
+
 begin "bench: unknown --backend"
 run bench --backend prune,nope
 expect_error 2 "nope"

@@ -16,7 +16,7 @@ extern const float bench_scene_steps[SCENES];
 typedef struct bench_options {
     uint32_t sizes[BENCH_MAX_SIZES];
     int size_count;
-    bool sizes_given, table2, quick, all_simd;
+    bool sizes_given, table2, quick, all_simd, profile, scenes_given;
     bool scenes[SCENES];
     int threads;
     double seconds;     // time budget per variant and size
@@ -57,10 +57,25 @@ typedef struct scale_state {
     scale_summary summary[SCENES][BENCH_MAX_SIZES];
 } scale_state;
 
+// One scale scene: its boxes at cycle 0, each with its own constant velocity (up to `step` per
+// axis and cycle), bouncing off the walls of the scene's bounding box; and the exact pair count
+// of every cycle, computed as the variants get there (bench_truth).
+typedef struct scale_scene {
+    float *minima, *centres, *velocity;
+    bench_motion motion;
+    bench_truth truth;
+    bench_frames frames;
+} scale_scene;
+
 // bench_options.c
 int bench_cmd_parse_args(int argc, char **argv, bench_options *o);
 bool bench_cmd_wanted(const bench_variant *v, const void *context); // context: the bench_options
 int bench_cmd_list_variants(const bench_options *o, uint32_t n, bench_variant *out);
 // bench_scale.c
+int bench_cmd_make_scene(int scene, uint32_t n, uint64_t seed, double step, int cycles,
+                         scale_scene *s); // 0, or -1 out of memory
+void bench_cmd_free_scene(scale_scene *s);
 int bench_cmd_run_scale(scale_state *st);
+// bench_profile.c: --profile
+int bench_cmd_run_profile(const bench_options *o);
 int bench_cmd_write_plots(const scale_state *st);

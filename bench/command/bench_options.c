@@ -62,6 +62,8 @@ int bench_cmd_parse_args(int argc, char **argv, bench_options *o)
             o->table2 = true;
         } else if (cli_is_flag(argv[k], "--quick")) {
             o->quick = true;
+        } else if (cli_is_flag(argv[k], "--profile")) {
+            o->profile = true;
         } else if ((m = cli_flag_value(argc, argv, &k, "--sizes", &value)) != CLI_NO_MATCH) {
             if (m == CLI_MISSING_VALUE || parse_sizes(value, o) != 0)
                 return cli_usage_error("bench", "--sizes wants box counts like 500,10000");
@@ -102,6 +104,7 @@ int bench_cmd_parse_args(int argc, char **argv, bench_options *o)
             }
             if (count <= 0)
                 return cli_usage_error("bench", "--scene wants uniform, heavy, resting or a list");
+            o->scenes_given = true;
         } else if ((m = cli_flag_value(argc, argv, &k, "--threads", &value)) != CLI_NO_MATCH) {
             if (m == CLI_MISSING_VALUE || !cli_parse_int(value, 1, 256, &o->threads))
                 return cli_usage_error("bench", "--threads wants 1..256");

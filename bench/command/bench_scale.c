@@ -15,17 +15,7 @@ const char *const bench_scene_names[SCENES] = {"uniform", "heavy", "resting"};
 
 const float bench_scene_steps[SCENES] = {0.05f, 0.05f, 0.001f};
 
-// One scale scene: its boxes at cycle 0, each with its own constant velocity (up to `step` per
-// axis and cycle), bouncing off the walls of the scene's bounding box; and the exact pair count
-// of every cycle, computed as the variants get there (bench_truth).
-typedef struct scale_scene {
-    float *minima, *centres, *velocity;
-    bench_motion motion;
-    bench_truth truth;
-    bench_frames frames;
-} scale_scene;
-
-static int make_scene(int scene, uint32_t n, uint64_t seed, double step, int cycles,
+int bench_cmd_make_scene(int scene, uint32_t n, uint64_t seed, double step, int cycles,
                       scale_scene *s)
 {
     *s = (scale_scene){0};
@@ -72,7 +62,7 @@ static int make_scene(int scene, uint32_t n, uint64_t seed, double step, int cyc
     return bench_truth_init(&s->truth, &s->motion, cycles);
 }
 
-static void free_scene(scale_scene *s)
+void bench_cmd_free_scene(scale_scene *s)
 {
     bench_truth_free(&s->truth);
     free(s->minima);
@@ -152,8 +142,9 @@ static int run_size(scale_state *st, int scene, int size_index)
     scale_scene sc;
     bench_progress("bpx bench: %s n = %u: exact pairs", bench_scene_names[scene], n);
     bench_budget budget = warmup_budget(o, scene);
-    if (make_scene(scene, n, o->seed, o->step, 1 + budget.warmup + budget.max_cycles, &sc) != 0) {
-        free_scene(&sc);
+    if (bench_cmd_make_scene(scene, n, o->seed, o->step, 1 + budget.warmup + budget.max_cycles,
+                             &sc) != 0) {
+        bench_cmd_free_scene(&sc);
         cli_error("bench", "cannot make the %s scene of %u boxes", bench_scene_names[scene], n);
         return -1;
     }
@@ -186,7 +177,7 @@ static int run_size(scale_state *st, int scene, int size_index)
             bench_abandon(sessions[v]);
     }
     bench_progress(NULL);
-    free_scene(&sc);
+    bench_cmd_free_scene(&sc);
     if (code != 0)
         return -1;
 

@@ -54,7 +54,7 @@ static void print_help(void)
     printf("usage: bpx bench [--quick] [--out DIR] [--backend NAME,...] [--sizes N,...]\n"
            "                 [--scene uniform,heavy,resting] [--step D] [--table2] [--threads T]\n"
            "                 [--seconds S] [--cycles C] [--all-simd] [--seed S] [--csv FILE]\n"
-           "                 [--device P:D]\n"
+           "                 [--device P:D] [--profile]\n"
            "\n"
            "Times every bpx backend and every peer library built in (Bullet, Box2D, FCL:\n"
            "see `bpx backends`) side by side, in two parts:\n"
@@ -86,7 +86,13 @@ static void print_help(void)
            "  --all-simd  also time every narrower SIMD width this CPU has\n"
            "  --seed      scene seed (default 1)\n"
            "  --csv FILE  also write the scale rows as CSV\n"
-           "  --device P:D  OpenCL platform and device of the opencl rows (as `bpx devices`)\n");
+           "  --device P:D  OpenCL platform and device of the opencl rows (as `bpx devices`)\n"
+           "  --profile   instead of both parts: per backend (--backend; default grid,sap,auto),\n"
+           "              size (default 1000000) and scene (default uniform), each stage's\n"
+           "              time, bytes read and written and GB/s, beside the memory floor\n"
+           "              (bpx_memfloor's sequential copy, gather and scatter, measured in the\n"
+           "              same run on --threads threads) and each stage's ratio to its floor;\n"
+           "              peak memory per box; the cycle with the profile off, for its cost\n");
 }
 
 int cmd_bench(int argc, char **argv)
@@ -110,6 +116,8 @@ int cmd_bench(int argc, char **argv)
     if (code != CLI_EXIT_OK)
         return code;
     bool run_table2 = o.table2 || !o.sizes_given, scale = o.sizes_given || !o.table2;
+    if (o.profile) // the stage tables alone
+        run_table2 = scale = false;
     if (o.quick) {
         if (!o.sizes_given)
             o.size_count = 3;
@@ -147,7 +155,7 @@ int cmd_bench(int argc, char **argv)
                      "mean_us,median_us,p99_us,min_us,speedup_vs_sap,speedup_vs_fastest_peer,"
                      "wrong_cycles\n");
 
-    if (code == CLI_EXIT_OK) {
+    if (code == CLI_EXIT_OK && !o.profile) {
         bench_print_machine(o.threads);
         bench_printf("peers:");
         for (int p = 0; p < bench_peer_count(); p++)
@@ -155,6 +163,12 @@ int cmd_bench(int argc, char **argv)
                          bench_peer_get(p)->detail);
         bench_printf("%s%s\n\n", bench_peer_count() ? "" : " none: ",
                      bench_peer_count() ? "" : bench_peers_unavailable());
+    }
+    if (code == CLI_EXIT_OK && o.profile) { // --profile: the stage tables alone
+        if (!o.sizes_given)
+            o.size_count = 1, o.sizes[0] = 1000000;
+        if (bench_cmd_run_profile(&o) != 0)
+            code = CLI_EXIT_ERROR;
     }
     if (code == CLI_EXIT_OK && run_table2) {
         bench_table2_options t2 = {o.threads, table2_cycles, o.seed, bench_cmd_wanted,

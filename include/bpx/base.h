@@ -77,6 +77,13 @@ BPX_API void bpx_set_allocator(bpx_alloc_fn *alloc, bpx_free_fn *free_fn, void *
 /// Bytes currently allocated by the library, over all worlds (for leak checks and budgets).
 BPX_API int64_t bpx_allocated_bytes(void);
 
+/// The most bytes allocated by the library at once since the last bpx_reset_allocated_peak (or
+/// since the start), over all worlds: a world's peak memory is this minus what was allocated
+/// before it was made.
+BPX_API int64_t bpx_allocated_peak(void);
+/// Starts a new peak from what is allocated now.
+BPX_API void bpx_reset_allocated_peak(void);
+
 /// Log hook: the library reports rare events (backend fallbacks, device build logs) here.
 /// Default: silent. level 0 = error, 1 = warning, 2 = info.
 typedef void bpx_log_fn(int level, const char *message, void *user);

@@ -189,6 +189,11 @@ typedef struct bpx_world_def {
     /// with contact margins (INVALID_ARGUMENT); queries ignore the period. Double, as
     /// bpx_neighbor_def.period. docs/neighbors.md, "Periodic worlds".
     double period[3];
+    /// Profile each cycle's stages into bpx_cycle_stats.stages (time and bytes per stage; see
+    /// bpx_stage_stats). Off (default): no clock read or count beyond the usual three timings,
+    /// and the same pairs either way. On: two clock reads per stage, and in grid's tests one per
+    /// column to tell its sorts from its tests (about 1% of a cycle at a million boxes).
+    bool profile;
 } bpx_world_def;
 
 /// The change in the pair set made by the last collide, both lists sorted by (i, j).
@@ -198,6 +203,33 @@ typedef struct bpx_pair_events {
     const bpx_pair *ended; ///< in the previous cycle's set and not in this one's
     size_t ended_count;
 } bpx_pair_events;
+
+/// How a profiled stage reaches memory, for reading it against the machine's floor
+/// (bench/floor): in address order, or one record at a time at addresses spread over memory.
+typedef enum bpx_access {
+    BPX_ACCESS_SEQUENTIAL = 0, ///< streams its bytes in order (or works in cache)
+    BPX_ACCESS_GATHER,         ///< reads `random` records from spread addresses
+    BPX_ACCESS_SCATTER,        ///< writes `random` records to spread addresses
+} bpx_access;
+
+/// The most stages one profiled cycle reports (bpx_cycle_stats.stages).
+#define BPX_MAX_STAGES 20
+
+/// One stage of a profiled cycle (bpx_world_def.profile): its wall-clock time on the calling
+/// thread (a pass split over the workers counts once, from its start to its last worker's end),
+/// and the bytes it reads and writes, computed from the sizes of the arrays it touches (not
+/// counted by hardware: a byte read twice from cache counts twice, and bytes that stay in cache
+/// count as if they went to memory). A stage run several times in a cycle (a warm attempt, then
+/// a rebuild) is summed under its name.
+typedef struct bpx_stage_stats {
+    const char *name;       ///< static, e.g. "keys", "scatter", "tests", "order"
+    const char *backend;    ///< the backend that ran it ("grid", "sap"; "world" for its own)
+    uint64_t ns;            ///< wall-clock nanoseconds
+    uint64_t bytes_read;    ///< bytes the stage reads (see above)
+    uint64_t bytes_written; ///< bytes the stage writes
+    uint64_t random;        ///< GATHER / SCATTER: records reached at spread addresses (else 0)
+    bpx_access access;      ///< its memory pattern, for the floor it is read against
+} bpx_stage_stats;
 
 /// Per-cycle figures, like the paper's registers (n, collision count) plus stage timings.
 /// Times are wall-clock nanoseconds of the last cycle on a monotonic clock.
@@ -224,6 +256,11 @@ typedef struct bpx_cycle_stats {
                         ///< two-phase mode once the extents are there, 24 per box otherwise)
     uint64_t bytes_out; ///< OpenCL, CUDA: bytes read back last cycle (8 per pair + the register)
     float device_share; ///< hybrid: the share of the boxes the device got last cycle (0 .. 1)
+    /// With bpx_world_def.profile: the last cycle's stages in the order they ran (the updater's
+    /// first, the world's merge of the pairs last; grid, sap, prune and auto report theirs,
+    /// the other backends none of their own). 0 stages without it.
+    uint32_t stage_count;
+    bpx_stage_stats stages[BPX_MAX_STAGES];
 } bpx_cycle_stats;
 
 /// Detail of an error from a call that has no world (one-shot). index is the first offending

@@ -10,6 +10,7 @@ static bpx_alloc_fn *user_alloc;
 static bpx_free_fn *user_free;
 static void *user_data;
 static _Atomic int64_t allocated_bytes;
+static _Atomic int64_t allocated_peak;
 
 void bpx_set_allocator(bpx_alloc_fn *alloc, bpx_free_fn *free_fn, void *user)
 {
@@ -23,6 +24,16 @@ int64_t bpx_allocated_bytes(void)
     return atomic_load(&allocated_bytes);
 }
 
+int64_t bpx_allocated_peak(void)
+{
+    return atomic_load(&allocated_peak);
+}
+
+void bpx_reset_allocated_peak(void)
+{
+    atomic_store(&allocated_peak, atomic_load(&allocated_bytes));
+}
+
 void *bpx__alloc(size_t size)
 {
     if (size == 0)
@@ -33,8 +44,12 @@ void *bpx__alloc(size_t size)
         return NULL;
     void *memory = user_alloc ? user_alloc(rounded, BPX_ALIGN, user_data)
                               : aligned_alloc(BPX_ALIGN, rounded);
-    if (memory)
-        atomic_fetch_add(&allocated_bytes, (int64_t)size);
+    if (memory) {
+        int64_t now = atomic_fetch_add(&allocated_bytes, (int64_t)size) + (int64_t)size;
+        int64_t peak = atomic_load(&allocated_peak);
+        while (now > peak && !atomic_compare_exchange_weak(&allocated_peak, &peak, now))
+            ; // another thread raised it: peak now holds its value, compare again
+    }
     return memory;
 }
 

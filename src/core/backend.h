@@ -26,6 +26,7 @@
 #pragma once
 
 #include "bpx/bpx.h"
+#include "core/profile.h"  // bpx_profile, a cycle's stages when profiled
 #include "core/validate.h" // bpx__error, the error reporter
 #include "parallel/pool.h"
 
@@ -124,6 +125,7 @@ typedef struct bpx_cycle {
     bpx_emitter *sink;            // where the pairs go
     bpx_error *error;             // a backend that can name what failed writes it here
     bpx_backend_report report;    // out
+    bpx_profile *profile;         // bpx_world_def.profile: the stages go here; else NULL
 } bpx_cycle;
 
 /// How the boxes were replaced (told to boxes_set): by whole boxes (set_boxes, or objects added,

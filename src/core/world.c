@@ -432,6 +432,10 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
     w->boxes64_set = false;
     tell_backend(w, NULL);
     w->stats.update_ns = bpx__now_ns() - start;
+    if (w->def.profile) // read: the caller's boxes; written: six arrays (the check reads them)
+        w->update_stage = (bpx_stage_stats){"update", "world", w->stats.update_ns,
+                                            24 * (uint64_t)n, 24 * (uint64_t)n, 0,
+                                            BPX_ACCESS_SEQUENTIAL};
     return BPX_OK;
 }
 
@@ -599,6 +603,10 @@ bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
     bpx__objects_reinert(w); // removed objects stay out of the broad phase
     tell_backend(w, centres);
     w->stats.update_ns = bpx__now_ns() - start;
+    if (w->def.profile) // read: the centres and the minima; written: six arrays
+        w->update_stage = (bpx_stage_stats){"update", "world", w->stats.update_ns,
+                                            24 * (uint64_t)n, 24 * (uint64_t)n, 0,
+                                            BPX_ACCESS_SEQUENTIAL};
     return BPX_OK;
 }
 
@@ -634,6 +642,13 @@ static bpx_status compare(bpx_world *w, size_t *total, uint64_t *end)
     // successful one reports against the last successful one, whose pairs objects.c keeps).
     w->events_valid = false;
     w->stats.pair_count = 0;
+    w->stats.stage_count = 0;
+    if (w->def.profile) { // the updater's last call first (a collide without one shows none)
+        w->profile.count = 0;
+        if (w->update_stage.name)
+            w->profile.stage[w->profile.count++] = w->update_stage;
+        w->update_stage = (bpx_stage_stats){0};
+    }
     uint64_t start = bpx__now_ns();
     bpx_cycle cycle = bpx__world_cycle(w);
     bool periodic = bpx__world_periodic(w);
@@ -691,6 +706,15 @@ static bpx_status compare(bpx_world *w, size_t *total, uint64_t *end)
     return BPX_OK;
 }
 
+// A profiled cycle's stages, into the stats.
+static void profile_done(bpx_world *w)
+{
+    if (!w->def.profile)
+        return;
+    w->stats.stage_count = w->profile.count;
+    memcpy(w->stats.stages, w->profile.stage, sizeof(bpx_stage_stats) * w->profile.count);
+}
+
 bpx_status bpx_world_collide(bpx_world *w)
 {
     bpx_status entered = bpx__world_enter(w, "collide");
@@ -707,8 +731,12 @@ bpx_status bpx_world_collide(bpx_world *w)
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %zu pairs", total);
     }
+    if (w->def.profile) // the blocks' pairs copied into the world's list
+        bpx__profile_add_ns(&w->profile, "world", "merge", bpx__now_ns() - start,
+                            BPX_ACCESS_SEQUENTIAL, 8 * (uint64_t)total, 8 * (uint64_t)total, 0);
     status = bpx__objects_after_collide(w, w->pairs.pairs, total);
     w->stats.emit_ns = bpx__now_ns() - start;
+    profile_done(w);
     if (status != BPX_OK) {
         w->result_valid = false;
         return bpx__error(&w->error, status, UINT32_MAX, -1, "no memory for pair events");
@@ -747,6 +775,11 @@ bpx_status bpx_world_collide_into(bpx_world *w, bpx_pair *out, size_t capacity, 
     uint64_t start = bpx__now_ns();
     bpx__emitter_merge(&w->emitter, out);
     w->stats.emit_ns = bpx__now_ns() - start;
+    if (w->def.profile) { // the blocks' pairs copied into the caller's array
+        bpx__profile_add_ns(&w->profile, "world", "merge", w->stats.emit_ns,
+                            BPX_ACCESS_SEQUENTIAL, 8 * (uint64_t)total, 8 * (uint64_t)total, 0);
+        profile_done(w);
+    }
     return BPX_OK;
 }
 

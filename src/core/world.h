@@ -80,6 +80,11 @@ struct bpx_world {
 
     bpx_cycle_stats stats;
     bpx_error error;
+
+    // bpx_world_def.profile: the cycle's stages as they run, copied into stats at its end; and
+    // the updater's last call, which the next collide's profile starts with.
+    bpx_profile profile;
+    bpx_stage_stats update_stage;
 };
 
 static inline bpx_soa bpx__world_soa(const bpx_world *w)
@@ -116,6 +121,7 @@ static inline bpx_cycle bpx__world_cycle(bpx_world *w)
         .executor = &w->executor,
         .sink = &w->emitter,
         .error = &w->error,
+        .profile = w->def.profile ? &w->profile : NULL,
     };
 }
 

@@ -216,7 +216,13 @@ static bpx_status auto_compare(void **state, bpx_cycle *c)
             st->last_n = 0;
         }
     }
+    uint64_t t = bpx__profile_clock(c->profile);
     bpx_backend id = choose(c, st);
+    if (c->profile && c->n > AUTO_BRUTE_MAX) { // it reads min x and max x of a sample, and
+        uint64_t sampled = sample_count(c->n);  // keeps min x for the next
+        bpx__profile_add(c->profile, "auto", "choose", &t, BPX_ACCESS_SEQUENTIAL, 8 * sampled,
+                         4 * sampled, 0);
+    }
     bpx_status status = impl_of(id)->compare(&st->states[id], c);
     st->last = id;
     return status;

@@ -174,14 +174,34 @@ static bpx_status prune_compare(void **state, bpx_cycle *cycle)
         if (status != BPX_OK)
             return status;
     }
+    bpx_profile *prof = cycle->profile;
+    uint64_t t = bpx__profile_clock(prof), n64 = n;
     sort_by_min_x(cycle, st);
+    // The min x of every box read in last cycle's order (a gather), keys and ids read and
+    // written by the mend (or the radix sort's passes: counted as one).
+    bpx__profile_add(prof, "prune", "sort", &t, BPX_ACCESS_SEQUENTIAL, 4 * n64 + 8 * n64,
+                     8 * n64, 0);
     gather(cycle, st);
+    // Every box fetched by id in sorted order into the SoA arrays.
+    bpx__profile_add(prof, "prune", "gather", &t, BPX_ACCESS_GATHER, 4 * n64 + 24 * n64,
+                     24 * n64, n64);
 
     bpx_sorted sorted = {{st->lo[0], st->lo[1], st->lo[2]}, {st->hi[0], st->hi[1], st->hi[2]},
                          st->ids, n};
     bpx__prune_sweep_blocks(cycle, &sorted, cycle->sink->block_count);
+    uint64_t hits = 0;
+    for (int k = 0; prof && k < cycle->sink->block_count; k++)
+        hits += cycle->sink->blocks[k].hits.count;
+    // The sorted boxes read once (more where a box meets many), a pair written per hit.
+    bpx__profile_add(prof, "prune", "sweep", &t, BPX_ACCESS_SEQUENTIAL, 28 * n64, 8 * hits, 0);
 
-    return bpx__emitter_sort_blocks(cycle->sink, n, &st->sorted, &st->spare, st->counts);
+    bpx_status status =
+        bpx__emitter_sort_blocks(cycle->sink, n, &st->sorted, &st->spare, st->counts);
+    // As sap's order (rebuild.c): gathered, scattered by i (a record at random each), runs by j.
+    if (hits > 0)
+        bpx__profile_add(prof, "prune", "order", &t, BPX_ACCESS_SCATTER, 4 * 8 * hits + 8 * n64,
+                         3 * 8 * hits + 4 * n64, hits);
+    return status;
 }
 
 static bool prune_query(const bpx_world_def *def, const char **reason, char *detail,

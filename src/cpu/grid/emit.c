@@ -91,7 +91,10 @@ static void sort_run(bpx_pair *run, bpx_pair *scratch, uint32_t count, int j_pas
 }
 
 // Sorts one bucket of src (2^shift ids) by (i, j) into dst: a counting pass on i's low bits,
-// then each i's pairs by j (src is the scratch).
+// then each i's pairs by j (src is the scratch). The runs of one i are found by a pass over the
+// pairs, not over the 2^shift ids: at about one overlap per box a bucket holds half as many
+// pairs as ids, and that pass (with a copy of the counts for it) went (`bpx bench --profile
+// --backend grid`, 1M boxes, one thread: this stage 6-26% faster, before and after alternating).
 static void sort_bucket(bpx_pair *src, bpx_pair *dst, uint32_t count, int j_passes, int shift)
 {
     enum { IDS = 1 << EMIT_SHIFT };
@@ -102,13 +105,16 @@ static void sort_bucket(bpx_pair *src, bpx_pair *dst, uint32_t count, int j_pass
         counts[(src[k].i & mask) + 1]++;
     for (uint32_t d = 0; d <= mask; d++)
         counts[d + 1] += counts[d];
-    uint32_t start[IDS + 1];
-    memcpy(start, counts, sizeof(uint32_t) * (mask + 2));
     for (uint32_t k = 0; k < count; k++)
         dst[counts[src[k].i & mask]++] = src[k];
-    for (uint32_t d = 0; d <= mask; d++)
-        if (start[d + 1] - start[d] > 1)
-            sort_run(dst + start[d], src + start[d], start[d + 1] - start[d], j_passes);
+    for (uint32_t k = 0; k < count;) {
+        uint32_t end = k + 1;
+        while (end < count && dst[end].i == dst[k].i)
+            end++;
+        if (end - k > 1)
+            sort_run(dst + k, src + k, end - k, j_passes);
+        k = end;
+    }
 }
 
 static void emit_sort_task(int begin, int end, int worker, void *context)
@@ -156,8 +162,12 @@ bpx_status bpx__grid_emit_sorted(const bpx_cycle *cycle, bpx_grid_state *st, uin
     emit_job job = {
         cycle,    st,    groups,      buckets,    buckets < EMIT_ITEMS ? buckets : EMIT_ITEMS,
         j_passes, shift, st->a.pairs, st->b.pairs};
+    bpx_profile *prof = cycle->profile;
+    uint64_t t = bpx__profile_clock(prof), bytes = 8 * (uint64_t)total;
     if (total) {
         bpx__parallel_for(cycle->executor, emit_count_task, groups, &job);
+        bpx__profile_add(prof, "grid", "order: count", &t, BPX_ACCESS_SEQUENTIAL, bytes,
+                         4 * (uint64_t)groups * buckets, 0);
         uint32_t at = 0;
         for (int b = 0; b < buckets; b++) {
             st->bucket_start[b] = at;
@@ -170,7 +180,12 @@ bpx_status bpx__grid_emit_sorted(const bpx_cycle *cycle, bpx_grid_state *st, uin
         }
         st->bucket_start[buckets] = at;
         bpx__parallel_for(cycle->executor, emit_scatter_task, groups, &job);
+        // Each pair to its bucket: a few hundred write streams, not single records at random.
+        bpx__profile_add(prof, "grid", "order: buckets", &t, BPX_ACCESS_SEQUENTIAL, bytes, bytes,
+                         0);
         bpx__parallel_for(cycle->executor, emit_sort_task, job.items, &job);
+        // Each bucket in cache: read, counted by i, written in (i, j) order.
+        bpx__profile_add(prof, "grid", "order: sort", &t, BPX_ACCESS_SEQUENTIAL, bytes, bytes, 0);
     }
     // Block 0 takes the ordered list (a swap, not a copy); its old list becomes scratch.
     bpx_pair_list *result = &st->b;

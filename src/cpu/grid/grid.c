@@ -202,7 +202,9 @@ static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
     }
     uint32_t n = boxes.n;
     grid_kernels kernels = kernels_for(cycle->simd);
-    bpx_grid_job job = {cycle, st, boxes, kernels.column, kernels.big, kernels.keys};
+    bpx_profile *prof = cycle->profile;
+    bpx_grid_job job = {cycle, st, boxes, kernels.column, kernels.big, kernels.keys, prof != NULL};
+    uint64_t t = bpx__profile_clock(prof);
 
     // 1. Parameters, levels, chunks.
     bpx__grid_choose_params(&job.soa, st, &st->params);
@@ -224,8 +226,14 @@ static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
                        sizeof(uint32_t)))
         return BPX_ERR_OUT_OF_MEMORY;
 
+    uint64_t n64 = n, sampled = n < SAMPLE ? n : SAMPLE;
+    bpx__profile_add(prof, "grid", "params", &t, BPX_ACCESS_SEQUENTIAL, 24 * sampled, 0, 0);
+
     // 2. Keys.
     bpx__parallel_for(cycle->executor, bpx__grid_key_task, chunks, &job);
+    // Read: the six coordinate arrays; written: a key per box, the chunks' histograms.
+    bpx__profile_add(prof, "grid", "keys", &t, BPX_ACCESS_SEQUENTIAL, 24 * n64,
+                     4 * n64 + 4 * (uint64_t)chunks * columns, 0);
 
     // 3. Levels: big from the top while few boxes; the rest in columns.
     uint32_t level_count[LEVELS] = {0};
@@ -304,12 +312,31 @@ static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
     for (size_t k = n; k < padded; k++)
         st->key[k] = BPX_GRID_INERT;
 
+    // Read and written: the histograms (a prefix over them), the column starts; the keys once
+    // more when some boxes are big.
+    bpx__profile_add(prof, "grid", "levels", &t, BPX_ACCESS_SEQUENTIAL,
+                     4 * (uint64_t)chunks * columns + (big ? 4 * n64 : 0),
+                     4 * (uint64_t)chunks * wcolumns + 4 * (uint64_t)wcolumns + 4 * (uint64_t)big,
+                     0);
+
     // 4. Scatter; 5. sort the columns.
     bpx__parallel_for(cycle->executor, bpx__grid_scatter_task, chunks, &job);
+    // Read in id order: keys and coordinates; written: a 32-byte entry per position, each to
+    // its column's next place (the random access of the cycle).
+    bpx__profile_add(prof, "grid", "scatter", &t, BPX_ACCESS_SCATTER, 28 * n64,
+                     sizeof(bpx_grid_entry) * (uint64_t)positions, positions);
     plan_items(st, wcolumns, positions);
     if (coarse) {
         pad_soa(&st->positions, positions);
         bpx__parallel_for(cycle->executor, bpx__grid_sort_task, st->item_count, &job);
+    }
+    uint64_t coarse_ns = 0;
+    if (prof) {
+        uint64_t now = bpx__profile_now();
+        coarse_ns = now - t;
+        t = now;
+        for (int k = 0; k < workers && k < WORKERS_MAX; k++)
+            st->worker_time[k].busy_ns = st->worker_time[k].sort_ns = 0;
     }
 
     // 6. Tests (level 0's columns sorted on the way).
@@ -348,6 +375,27 @@ static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
     bpx__parallel_for(cycle->executor, bpx__grid_test_task, blocks, &job);
     for (int b = 0; b < blocks; b++)
         st->block_hits[b] = cycle->sink->blocks[b].hits.count;
+    if (prof) {
+        // Level 0's columns are sorted inside the tests: the pass's time is split by the share
+        // of the workers' time their sorts took. Sort: each entry read (32 bytes) and written
+        // as a run (six floats, id, x cell, flags: 33 bytes). Tests: every run read once (more
+        // for the windows of coarser levels, not counted), a pair written per hit; with big
+        // boxes, the boxes read once more in id order.
+        uint64_t now = bpx__profile_now(), pass = now - t, busy = 0, sorting = 0, hits = 0;
+        t = now;
+        for (int k = 0; k < workers && k < WORKERS_MAX; k++) {
+            busy += st->worker_time[k].busy_ns;
+            sorting += st->worker_time[k].sort_ns;
+        }
+        for (int b = 0; b < blocks; b++)
+            hits += cycle->sink->blocks[b].hits.count;
+        uint64_t sort_ns = busy ? (uint64_t)((double)pass * ((double)sorting / (double)busy)) : 0;
+        sort_ns = sort_ns < pass ? sort_ns : pass;
+        bpx__profile_add_ns(prof, "grid", "sort", coarse_ns + sort_ns, BPX_ACCESS_SEQUENTIAL,
+                            32 * (uint64_t)positions, 33 * (uint64_t)positions, 0);
+        bpx__profile_add_ns(prof, "grid", "tests", pass - sort_ns, BPX_ACCESS_SEQUENTIAL,
+                            33 * (uint64_t)positions + (big ? 24 * n64 : 0), 8 * hits, 0);
+    }
 
     // 7. Hits to (i, j) order.
     return bpx__grid_emit_sorted(cycle, st, n);

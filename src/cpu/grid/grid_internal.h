@@ -105,6 +105,13 @@ typedef struct bpx_grid_state {
     size_t bucket_capacity;
     size_t *block_hits; // last cycle's hits per block
     size_t block_hits_capacity;
+
+    // A profiled cycle (bpx_cycle.profile): per worker, the time its test tasks took and the
+    // part of it spent sorting level 0's columns (a line each: the workers write their own).
+    struct {
+        uint64_t busy_ns, sort_ns;
+        uint64_t unused[6];
+    } worker_time[WORKERS_MAX];
 } bpx_grid_state;
 
 typedef struct bpx_grid_job {
@@ -114,6 +121,7 @@ typedef struct bpx_grid_job {
     bpx_grid_column_fn *column;
     bpx_grid_big_fn *big;
     bpx_grid_keys_fn *keys;
+    bool profile; // time the test tasks' sorts apart (worker_time)
 } bpx_grid_job;
 
 // Makes *array hold at least `need` elements of `size` bytes (contents not kept; grows by half

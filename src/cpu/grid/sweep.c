@@ -3,6 +3,7 @@
 
 #include <string.h>
 
+#include "core/clock.h"
 #include "grid_internal.h"
 
 // ---------------------------------------------------------------------------------------------
@@ -83,9 +84,9 @@ void bpx__grid_sort_task(int begin, int end, int worker, void *context)
 
 void bpx__grid_test_task(int begin, int end, int worker, void *context)
 {
-    (void)worker;
     bpx_grid_job *job = context;
     bpx_grid_state *st = job->st;
+    uint64_t task_start = job->profile ? bpx__now_ns() : 0;
     for (int b = begin; b < end; b++) {
         bpx_block *block = &job->cycle->sink->blocks[b];
         block->hits.count = 0;
@@ -106,8 +107,11 @@ void bpx__grid_test_task(int begin, int end, int worker, void *context)
                 if (l == 0) { // sorted here, while the entries are in cache
                     at = 0;
                     r = own;
+                    uint64_t sort_start = job->profile ? bpx__now_ns() : 0;
                     sort_column(st->entries + s, e - s, own, 0, st->params.fine_bits);
                     pad_soa(own, e - s);
+                    if (job->profile)
+                        st->worker_time[worker].sort_ns += bpx__now_ns() - sort_start;
                 }
                 const bpx_grid_run run = {{r->lo[0] + at, r->lo[1] + at, r->lo[2] + at},
                                           {r->hi[0] + at, r->hi[1] + at, r->hi[2] + at},
@@ -132,4 +136,6 @@ void bpx__grid_test_task(int begin, int end, int worker, void *context)
                 job->big(&st->layout, box, js, je, block);
         }
     }
+    if (job->profile)
+        st->worker_time[worker].busy_ns += bpx__now_ns() - task_start;
 }

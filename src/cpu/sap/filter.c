@@ -71,7 +71,7 @@ uint32_t bpx__sap_chunks_for(const bpx_cycle *cycle, size_t count)
 
 // This cycle's boxes into cur, and the boxes that left their fat boxes into changed, in id
 // order (ranges on the workers, then packed); returns their count.
-uint32_t bpx__sap_check_boxes(const bpx_cycle *cycle, bpx_sap_state *st)
+static uint32_t check_boxes(const bpx_cycle *cycle, bpx_sap_state *st)
 {
     uint32_t chunks = bpx__sap_chunks_for(cycle, cycle->n);
     if (chunks == 1)
@@ -86,6 +86,16 @@ uint32_t bpx__sap_check_boxes(const bpx_cycle *cycle, bpx_sap_state *st)
                     st->chunk_count[c] * sizeof(uint32_t));
         count += st->chunk_count[c];
     }
+    return count;
+}
+
+uint32_t bpx__sap_check_boxes(const bpx_cycle *cycle, bpx_sap_state *st)
+{
+    uint64_t t = bpx__profile_clock(cycle->profile), n = cycle->n;
+    uint32_t count = check_boxes(cycle, st);
+    // Read: the SoA boxes and the fat boxes; written: the boxes (AoS) and the changed ids.
+    bpx__profile_add(cycle->profile, "sap", "check", &t, BPX_ACCESS_SEQUENTIAL, 48 * n,
+                     24 * n + 4 * (uint64_t)count, 0);
     return count;
 }
 
@@ -121,7 +131,21 @@ static void filter_task(int begin, int end, int worker, void *context)
 
 // The exact pairs, fat pairs whose boxes overlap, into out (which holds fat_pairs.count), in
 // the fat pairs' order (ranges on the workers, then packed).
+static size_t filter_pairs(const bpx_cycle *cycle, bpx_sap_state *st, bpx_pair *out);
+
 size_t bpx__sap_filter_pairs(const bpx_cycle *cycle, bpx_sap_state *st, bpx_pair *out)
+{
+    uint64_t t = bpx__profile_clock(cycle->profile), fat = st->fat_pairs.count;
+    size_t count = filter_pairs(cycle, st, out);
+    // Read: each fat pair, its first box in id order and its second anywhere (the gather);
+    // written: the pairs that overlap.
+    if (fat > 0)
+        bpx__profile_add(cycle->profile, "sap", "filter", &t, BPX_ACCESS_GATHER,
+                         8 * fat + 48 * fat, 8 * (uint64_t)count, fat);
+    return count;
+}
+
+static size_t filter_pairs(const bpx_cycle *cycle, bpx_sap_state *st, bpx_pair *out)
 {
     size_t total = st->fat_pairs.count;
     if (total == 0)

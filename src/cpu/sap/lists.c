@@ -132,10 +132,16 @@ bool bpx__sap_make_lists(const bpx_cycle *cycle, bpx_sap_state *st, uint32_t n, 
     if (!bpx__sap_reserve_radix(st, parallel ? 3 : 1, 2 * (size_t)n))
         return false;
     bpx_sap_job job = {.st = st, .n = n, .chunks = parallel ? 3 : 1}; // chunks: the sorts' memory
+    uint64_t t = bpx__profile_clock(cycle->profile), words = 2 * (uint64_t)n;
     if (parallel)
         bpx__parallel_for(cycle->executor, list_task, 3, &job);
     else
         list_task(0, 3, 0, &job);
+    // Per axis: the fat boxes' coordinates read into 2n words, three radix passes over them
+    // (read and written), and one count of the overlaps over the sorted list.
+    bpx__profile_add(cycle->profile, "sap", "lists", &t, BPX_ACCESS_SEQUENTIAL,
+                     3 * (8 * (uint64_t)n + 3 * 8 * words + 8 * words),
+                     3 * (8 * words + 3 * 8 * words), 0);
     const uint64_t *overlaps = job.overlaps;
     int axis = 0;
     for (int k = 1; k < 3; k++)

@@ -31,7 +31,7 @@
 // Sweeps the `live` boxes of sorted_ids (ids in min order of `axis`), each as `boxes` has it,
 // into block 0, in (i, j) order.
 static bpx_status sweep(const bpx_cycle *cycle, bpx_sap_state *st, const bpx_box *boxes, int axis,
-                        uint32_t live)
+                        uint32_t live, const uint64_t *since)
 {
     bpx_sap_arrays *a = &st->a;
     const int order[3] = {axis, axis == 0 ? 1 : 0, axis == 2 ? 1 : 2}; // slot 0: swept axis
@@ -62,10 +62,30 @@ static bpx_status sweep(const bpx_cycle *cycle, bpx_sap_state *st, const bpx_box
         cycle->sink->blocks[k].row_end =
             live - begin < ROWS_PER_BLOCK ? live : begin + ROWS_PER_BLOCK;
     }
+    bpx_profile *prof = cycle->profile;
+    uint64_t t = 0;
+    if (prof) { // the boxes in sweep order: a box fetched from anywhere per id
+        t = *since;
+        bpx__profile_add(prof, "sap", "gather", &t, BPX_ACCESS_GATHER, 4 * (uint64_t)live +
+                         24 * (uint64_t)live, 24 * (uint64_t)live, live);
+    }
     bpx_sorted sorted = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]},
                          a->sorted_ids, live};
     bpx__prune_sweep_blocks(cycle, &sorted, blocks);
-    return bpx__emitter_sort_blocks(cycle->sink, cycle->n, &st->merged, &st->spare, a->counts);
+    uint64_t hits = 0;
+    for (int k = 0; prof && k < blocks; k++)
+        hits += cycle->sink->blocks[k].hits.count;
+    // The sorted boxes read once (more where a box meets many), a pair written per hit.
+    bpx__profile_add(prof, "sap", "sweep", &t, BPX_ACCESS_SEQUENTIAL, 28 * (uint64_t)live,
+                     8 * hits, 0);
+    status = bpx__emitter_sort_blocks(cycle->sink, cycle->n, &st->merged, &st->spare, a->counts);
+    // The hits gathered into one list, counted by i and scattered to their i's place (a
+    // record each at random: the sweep finds them in sweep order), then each i's run put in j
+    // order; the counts are n words.
+    uint64_t n64 = cycle->n;
+    bpx__profile_add(prof, "sap", "order", &t, BPX_ACCESS_SCATTER, 4 * 8 * hits + 8 * n64,
+                     3 * 8 * hits + 4 * n64, hits);
+    return status;
 }
 
 static void soa_task(int begin, int end, int worker, void *context)
@@ -90,6 +110,7 @@ static bpx_status grid_pairs(const bpx_cycle *cycle, bpx_sap_state *st, const bp
     bpx_sap_arrays *a = &st->a;
     uint32_t n = cycle->n, padded = (n + PAD - 1) / PAD * PAD;
     bpx_sap_job job = {.st = st, .n = n, .chunks = bpx__sap_chunks_for(cycle, n), .boxes = boxes};
+    uint64_t t = bpx__profile_clock(cycle->profile);
     if (job.chunks == 1)
         soa_task(0, 1, 0, &job);
     else
@@ -99,6 +120,9 @@ static bpx_status grid_pairs(const bpx_cycle *cycle, bpx_sap_state *st, const bp
             a->lo[axis][i] = 1.0f / 0.0f;
             a->hi[axis][i] = -1.0f / 0.0f;
         }
+    // The boxes (AoS) copied into the grid's input (SoA).
+    bpx__profile_add(cycle->profile, "sap", "soa", &t, BPX_ACCESS_SEQUENTIAL, 24 * (uint64_t)n,
+                     24 * (uint64_t)padded, 0);
     bpx_soa soa = {{a->lo[0], a->lo[1], a->lo[2]}, {a->hi[0], a->hi[1], a->hi[2]}, n};
     bpx__grid_forget(st->grid); // its last call may be long ago, on other boxes
     return bpx__grid_find(cycle, &st->grid, soa);
@@ -273,14 +297,19 @@ bpx_status bpx__sap_full_rebuild(const bpx_cycle *cycle, bpx_sap_state *st)
     bpx_sap_arrays *a = &st->a;
     if (!st->checked) // for cur (a warm attempt this cycle has made it)
         bpx__sap_check_boxes(cycle, st);
+    uint64_t t = bpx__profile_clock(cycle->profile), n64 = n;
     set_margins(cycle, st);
     fatten_all(cycle, st);
+    // The boxes read twice (margins, fat boxes), the fat boxes written twice (and the last).
+    bpx__profile_add(cycle->profile, "sap", "fatten", &t, BPX_ACCESS_SEQUENTIAL, 48 * n64,
+                     48 * n64, 0);
     uint32_t live = 0;
     st->listed = st->indexed = false;
     bool counted = st->use_grid && n - n / 8 <= st->counted_n && st->counted_n <= n + n / 8;
     if (!counted && !bpx__sap_make_lists(cycle, st, n, &live))
         return BPX_ERR_OUT_OF_MEMORY;
     int axis = st->sweep_axis;
+    t = bpx__profile_clock(cycle->profile);
     if (!st->use_grid) {
         const uint64_t *ends = a->ends[axis];
         const uint32_t inf_key = coord_key(1.0f / 0.0f);
@@ -290,7 +319,7 @@ bpx_status bpx__sap_full_rebuild(const bpx_cycle *cycle, bpx_sap_state *st)
                 a->sorted_ids[k++] = (uint32_t)ends[e] & BOX_MASK;
     }
     bpx_status status =
-        st->use_grid ? grid_pairs(cycle, st, a->fat) : sweep(cycle, st, a->fat, axis, live);
+        st->use_grid ? grid_pairs(cycle, st, a->fat) : sweep(cycle, st, a->fat, axis, live, &t);
     if (status != BPX_OK)
         return status;
     // Few boxes of even extents on the swept axis: warm cycles scan (see bpx__sap_mend_scan).
@@ -321,9 +350,13 @@ bpx_status bpx__sap_full_rebuild(const bpx_cycle *cycle, bpx_sap_state *st)
         if (!bpx__list_reserve(&st->axis_changes[k], changes))
             return BPX_ERR_OUT_OF_MEMORY;
     }
+    t = bpx__profile_clock(cycle->profile);
     if (found->count)
         memcpy(st->fat_pairs.pairs, found->pairs, found->count * sizeof(bpx_pair));
     st->fat_pairs.count = found->count;
+    // The fat pairs kept for the warm cycles to come.
+    bpx__profile_add(cycle->profile, "sap", "copy", &t, BPX_ACCESS_SEQUENTIAL,
+                     8 * (uint64_t)found->count, 8 * (uint64_t)found->count, 0);
     found->count = bpx__sap_filter_pairs(cycle, st, found->pairs);
     return BPX_OK;
 }
@@ -342,13 +375,19 @@ bpx_status bpx__sap_rebuild_without_lists(const bpx_cycle *cycle, bpx_sap_state 
         return grid_pairs(cycle, st, a->cur);
     const uint32_t inf_key = coord_key(1.0f / 0.0f);
     uint64_t *words = a->words[0], *sorted = a->words[1];
+    uint64_t t = bpx__profile_clock(cycle->profile), n64 = n;
     for (uint32_t i = 0; i < n; i++)
         words[i] = end_word(coord_key(a->cur[i].min[st->sweep_axis]), i);
+    // Read: the boxes (AoS, a coordinate of each line); written: a word per box.
+    bpx__profile_add(cycle->profile, "sap", "keys", &t, BPX_ACCESS_SEQUENTIAL, 24 * n64, 8 * n64,
+                     0);
     bpx__radix_sort_words(words, sorted, n, st->radix[0]);
+    bpx__profile_add(cycle->profile, "sap", "sort", &t, BPX_ACCESS_SEQUENTIAL, 3 * 8 * n64,
+                     3 * 8 * n64, 0);
     uint32_t live = n;
     while (live > 0 && (uint32_t)(sorted[live - 1] >> 32) == inf_key) // inert: min +inf, last
         live--;
     for (uint32_t k = 0; k < live; k++)
         a->sorted_ids[k] = (uint32_t)sorted[k];
-    return sweep(cycle, st, a->cur, st->sweep_axis, live);
+    return sweep(cycle, st, a->cur, st->sweep_axis, live, &t);
 }
