@@ -119,8 +119,12 @@ bpx_status bpx__periodic_compare(bpx_world *w)
         bpx__find_neighbors_kept(&def, data, live, &p->inner, &inner, &p->images_in,
                                  &p->images_in_capacity, &p->images, &err);
     if (status != BPX_OK) {
-        uint32_t index = err.index < live && removed ? p->ids[err.index] : err.index;
-        return bpx__error(&w->error, status, index, err.axis, "periodic collide (%s): %s",
+        if (err.index < live && removed) // the search counts live boxes only: name the id
+            return bpx__error(&w->error, status, p->ids[err.index], err.axis,
+                              "periodic collide (%s), box id %u (the search's object %u): %s",
+                              bpx_backend_name(w->def.backend), p->ids[err.index], err.index,
+                              err.message);
+        return bpx__error(&w->error, status, err.index, err.axis, "periodic collide (%s): %s",
                           bpx_backend_name(w->def.backend), err.message);
     }
     bpx_image_pair *images = p->images.pairs;
