@@ -73,7 +73,10 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     bool removed = false;
     for (uint32_t i = 0; w->dead && i < n && !removed; i++)
         removed = w->dead[i] != 0;
-    if (w->boxes64_set) // float64 boxes: all live (they are set whole), searched as they are
+    // Float64 boxes (all live: they are set whole), and float32 boxes with no id removed, are
+    // searched where they lie; only a world with removed ids copies its live boxes out.
+    bool in_place = w->boxes64_set || !removed;
+    if (in_place)
         n = 0;
     if (!reserve(p, n, removed))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
@@ -96,10 +99,15 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     bpx_neighbor_def def = bpx_default_neighbor_def();
     def.format = w->boxes64_set ? BPX_BOXES_F64 : BPX_BOXES_F32;
     const void *data = p->boxes;
+    bpx__soa_boxes soa = {{b->lo[0], b->lo[1], b->lo[2]}, {b->hi[0], b->hi[1], b->hi[2]}};
     if (w->boxes64_set) {
         data = w->boxes64;
-        live = n = w->n;
+    } else if (in_place) {
+        def.format = BPX__BOXES_SOA;
+        data = &soa;
     }
+    if (in_place)
+        live = n = w->n;
     memcpy(def.period, w->def.period, sizeof def.period);
     def.backend = w->def.backend;
     def.worker_count = w->executor.worker_count;

@@ -113,9 +113,9 @@ static inline float round_up(double x)
     return f > FLT_MAX ? FLT_MAX : f;
 }
 
-static bpx_status check_def(const bpx_neighbor_def *def, bpx_error *err)
+static bpx_status check_def(const bpx_neighbor_def *def, bool world, bpx_error *err)
 {
-    if ((unsigned)def->format > BPX_POINTS_F64)
+    if ((unsigned)def->format > BPX_POINTS_F64 && !(world && def->format == BPX__BOXES_SOA))
         return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
                           "format %d is not a bpx_input_format", (int)def->format);
     if ((unsigned)def->metric > BPX_METRIC_EUCLIDEAN)
@@ -376,7 +376,8 @@ static bpx_status make_images(search *s, image_state *im)
     // float32 boxes and no cutoff: an object's own image is its box unless it wraps. The
     // comparator gets the boxes themselves, then the images of the few that wrap moved onto
     // them, then the ghosts: no copy of the many.
-    bool own = s->in.format == BPX_BOXES_F32 && s->def->cutoff == 0;
+    bool own = (s->in.format == BPX_BOXES_F32 || s->in.format == BPX__BOXES_SOA) &&
+               s->def->cutoff == 0;
     uint32_t moved = 0;
     for (uint32_t x = 0; own && im->mark && x < im->marked_count; x++)
         moved += wraps(s, im->marked[x]);
@@ -495,6 +496,13 @@ static inline __attribute__((always_inline)) void prefetch_object(const search *
                                                                   uint32_t image)
 {
     uint32_t k = image < s->n ? image : s->ghost_owner[image - s->n];
+    if (s->in.format == BPX__BOXES_SOA) { // six arrays: the wrap and the flag only
+        if (s->wrap)
+            __builtin_prefetch(&s->wrap[k]);
+        if (im->exact)
+            __builtin_prefetch(&im->exact[k]);
+        return;
+    }
     size_t item = s->in.format == BPX_BOXES_F32 ? sizeof(bpx_box)
                   : s->in.format == BPX_BOXES_F64 ? sizeof(bpx_box64)
                   : s->in.format == BPX_POINTS_F32 ? 3 * sizeof(float)
@@ -757,7 +765,12 @@ static bpx_status run(search *s, image_state *im, const keeper *keep, bpx_neighb
         *keep->world = w;
     bool mine = false; // an error of this function's own, not the world's
     size_t image_total = (size_t)s->n + s->ghost_count;
-    if (keep->world && im->boxes != s->images) {
+    if (keep->world && s->in.format == BPX__BOXES_SOA && im->boxes != s->images) {
+        // The world's own arrays copied as they are (no AoS round trip, no second check), the
+        // wrapped boxes' images moved onto them, the ghosts after them.
+        status = bpx__world_set_images(w, &s->in.soa, s->n, im->moved_ids, im->moved_boxes,
+                                       im->moved, im->ghost_boxes, s->ghost_count);
+    } else if (keep->world && im->boxes != s->images) {
         // A kept world gets every box in one set_boxes, so that its ids stay put and its
         // backend's state (sap's lists) carries over: no removed ids, no count that shrinks
         // between the calls.
@@ -861,10 +874,12 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
     if (n > BPX_MAX_BOXES)
         return bpx__error(err, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
                           "%u objects exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
-    bpx_status status = check_def(def, err);
+    bpx_status status = check_def(def, keep->world != NULL, err);
     if (status != BPX_OK || n == 0)
         return status;
-    search s = {.def = def, .in = {data, def->format}, .n = n, .err = err};
+    search s = {.def = def, .in = {data, def->format, {{0}, {0}}}, .n = n, .err = err};
+    if (def->format == BPX__BOXES_SOA)
+        s.in.soa = *(const bpx__soa_boxes *)data;
     for (int a = 0; a < 3; a++) {
         s.period[a] = def->period[a];
         s.periodic |= def->period[a] > 0;
@@ -883,7 +898,8 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
         if (may_cells) // the image search then runs only where the cell list cannot
             im.origin[0] = im.origin[1] = im.origin[2] = 0;
     }
-    im.mark = s.periodic && def->format == BPX_BOXES_F32 && def->cutoff == 0;
+    im.mark = s.periodic && (def->format == BPX_BOXES_F32 || def->format == BPX__BOXES_SOA) &&
+              def->cutoff == 0;
     status = check_objects(&s, &im, &ghosts);
     bool cells = false;
     if (status == BPX_OK && may_cells) {

@@ -6,6 +6,7 @@
 
 #include <math.h>
 
+#include "../core/periodic.h" // bpx__soa_boxes
 #include "exact.h"
 
 // ---------------------------------------------------------------------------------------------
@@ -14,10 +15,18 @@
 typedef struct source {
     const void *data;
     bpx_input_format format;
+    bpx__soa_boxes soa; // BPX__BOXES_SOA
 } source;
 
 static inline void object_box(const source *in, uint32_t k, double lo[3], double hi[3])
 {
+    if (in->format == BPX__BOXES_SOA) {
+        for (int a = 0; a < 3; a++) {
+            lo[a] = in->soa.lo[a][k];
+            hi[a] = in->soa.hi[a][k];
+        }
+        return;
+    }
     switch (in->format) {
     case BPX_BOXES_F32: {
         const bpx_box *b = (const bpx_box *)in->data + k;
