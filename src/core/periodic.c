@@ -125,7 +125,8 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     bpx_error err;
     bpx_status status =
         bpx__find_neighbors_kept(&def, data, live, &p->inner, &inner, &p->images_in,
-                                 &p->images_in_capacity, &p->images, &err);
+                                 &p->images_in_capacity, &p->wrap, &p->wrap_capacity,
+                                 &p->images, &err);
     if (status != BPX_OK) {
         if (err.index < live && removed) // the search counts live boxes only: name the id
             return bpx__error(&w->error, status, p->ids[err.index], err.axis,
@@ -206,6 +207,7 @@ void bpx__periodic_free(bpx_periodic *p)
     bpx__free(p->boxes, (size_t)p->capacity * sizeof *p->boxes);
     bpx__free(p->ids, (size_t)p->capacity * sizeof *p->ids);
     bpx__free(p->images_in, p->images_in_capacity * sizeof *p->images_in);
+    bpx__free(p->wrap, p->wrap_capacity * sizeof *p->wrap);
     bpx_neighbor_list_free(&p->images);
     *p = (bpx_periodic){0};
 }

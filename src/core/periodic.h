@@ -14,6 +14,8 @@ typedef struct bpx_periodic {
     uint32_t capacity; // of boxes and ids
     bpx_box *images_in; // the boxes with their images, as the world of images gets them
     size_t images_in_capacity;
+    int32_t (*wrap)[3]; // the search's wraps
+    size_t wrap_capacity;
     bpx_neighbor_list images; // sorted by (i, j, shift); filtered as the pairs are
 } bpx_periodic;
 
@@ -57,4 +59,5 @@ void bpx__round_boxes64_soa(const bpx_box64 *in, uint32_t n, float *const lo[3],
 bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const void *boxes, uint32_t n,
                                     bpx_world **inner, const bpx_world_def *inner_def,
                                     bpx_box **scratch, size_t *scratch_capacity,
+                                    int32_t (**wrap)[3], size_t *wrap_capacity,
                                     bpx_neighbor_list *list, bpx_error *err);

@@ -234,6 +234,9 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
     // A box in the cell on an axis (lower face in [o, o + L), upper face below o + L by more
     // than images_below's slack, at most 2^-40 (4 magnitude + L) for w = 0; twice that covers
     // its rounding) has w = 0 and no image there: decided without images_below's divisions.
+    // A world's own float32 boxes were checked as they came in (finite, min <= max, far below
+    // 2^1000): not again.
+    bool trusted = s->in.format == BPX__BOXES_SOA;
     double inside_slack[3], near_limit[3];
     for (int a = 0; a < 3; a++) {
         inside_slack[a] = 0x1p-39 * (4 * im->magnitude + s->period[a]);
@@ -242,7 +245,7 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
     for (uint32_t k = 0; k < s->n; k++) {
         double lo[3], hi[3];
         object_box(&s->in, k, lo, hi);
-        for (int a = 0; a < 3; a++) {
+        for (int a = 0; a < 3 && !trusted; a++) {
             if (!isfinite(lo[a]) || !isfinite(hi[a]))
                 return bpx__error(s->err, BPX_ERR_NOT_FINITE, k, a,
                                   "object %u: a coordinate on axis %c is not finite", k, "xyz"[a]);
@@ -251,7 +254,7 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
                                   "object %u: a coordinate on axis %c is beyond +-2^1000", k,
                                   "xyz"[a]);
         }
-        for (int a = 0; a < 3; a++)
+        for (int a = 0; a < 3 && !trusted; a++)
             if (lo[a] > hi[a])
                 return bpx__error(s->err, BPX_ERR_MIN_GREATER_THAN_MAX, k, a,
                                   "object %u: min %g > max %g on axis %c", k, lo[a], hi[a],
@@ -723,7 +726,8 @@ static bpx_status merge_imaged(const search *s, found_list *imaged, bpx_neighbor
 static void free_search(search *s, image_state *im)
 {
     bpx__free(im->exact, s->n);
-    bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
+    if (!s->wrap_kept)
+        bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
     bpx__free(s->ghost_owner, (size_t)s->ghost_count * sizeof *s->ghost_owner);
     bpx__free(s->ghost_shift, (size_t)s->ghost_count * sizeof *s->ghost_shift);
     bpx__free(s->images, im->image_count * sizeof *s->images);
@@ -737,6 +741,8 @@ typedef struct keeper {
     const bpx_world_def *def;    // how to make the kept one
     bpx_box **boxes;             // the kept world's boxes, images in place, and their room
     size_t *capacity;
+    int32_t (**wrap)[3];         // the wraps, kept too (fresh pages each cycle cost faults)
+    size_t *wrap_capacity;
 } keeper;
 
 static void done_with(const keeper *k, bpx_world *w)
@@ -884,7 +890,19 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
         s.period[a] = def->period[a];
         s.periodic |= def->period[a] > 0;
     }
-    if (s.periodic && !(s.wrap = bpx__alloc((size_t)n * sizeof *s.wrap)))
+    if (s.periodic && keep->wrap) {
+        if (n > *keep->wrap_capacity) {
+            bpx__free(*keep->wrap, *keep->wrap_capacity * sizeof **keep->wrap);
+            *keep->wrap_capacity = 0;
+            if ((*keep->wrap = bpx__alloc((size_t)n * sizeof **keep->wrap)))
+                *keep->wrap_capacity = n;
+        }
+        s.wrap = *keep->wrap;
+        s.wrap_kept = true;
+    } else if (s.periodic) {
+        s.wrap = bpx__alloc((size_t)n * sizeof *s.wrap);
+    }
+    if (s.periodic && !s.wrap)
         return bpx__error(err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
     advise_huge(s.wrap, s.periodic ? (size_t)n * sizeof *s.wrap : 0);
@@ -947,9 +965,10 @@ bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend ba
 bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const void *boxes, uint32_t n,
                                     bpx_world **inner, const bpx_world_def *inner_def,
                                     bpx_box **scratch, size_t *scratch_capacity,
+                                    int32_t (**wrap)[3], size_t *wrap_capacity,
                                     bpx_neighbor_list *list, bpx_error *err)
 {
     bpx__error_clear(err);
-    keeper keep = {inner, inner_def, scratch, scratch_capacity};
+    keeper keep = {inner, inner_def, scratch, scratch_capacity, wrap, wrap_capacity};
     return find(def, boxes, n, &keep, list, NULL, 0, NULL, err);
 }
