@@ -45,14 +45,15 @@ static void finish_nothing(void *user_task, void *user_context)
     (void)user_context;
 }
 
-static bool reserve(bpx_periodic *p, uint32_t n, bool ids)
+// Room for n live boxes and their ids.
+static bool reserve(bpx_periodic *p, uint32_t n)
 {
-    if (n <= p->capacity && (!ids || p->ids))
+    if (n <= p->capacity && p->boxes)
         return true;
-    uint32_t want = n > p->capacity ? n : p->capacity;
+    uint32_t want = n ? n : 1;
     bpx_box *boxes = bpx__alloc((size_t)want * sizeof *boxes);
-    uint32_t *id = ids ? bpx__alloc((size_t)want * sizeof *id) : NULL;
-    if (!boxes || (ids && !id)) {
+    uint32_t *id = bpx__alloc((size_t)want * sizeof *id);
+    if (!boxes || !id) {
         bpx__free(boxes, (size_t)want * sizeof *boxes);
         bpx__free(id, (size_t)want * sizeof *id);
         return false;
@@ -69,45 +70,38 @@ bpx_status bpx__periodic_compare(bpx_world *w)
 {
     bpx_periodic *p = &w->periodic;
     p->images.count = 0;
-    uint32_t n = w->n, live = 0;
+    uint32_t n = w->n;
     bool removed = false;
     for (uint32_t i = 0; w->dead && i < n && !removed; i++)
         removed = w->dead[i] != 0;
     // Float64 boxes (all live: they are set whole), and float32 boxes with no id removed, are
     // searched where they lie; only a world with removed ids copies its live boxes out.
-    bool in_place = w->boxes64_set || !removed;
-    if (in_place)
-        n = 0;
-    if (!reserve(p, n, removed))
-        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
-                          "no memory for %u boxes of a periodic world", n);
-    // The live boxes, in id order (removed ids hold inert boxes, which the search refuses):
-    // ids keep their order, so the search's (i, j, shift) order is the ids'.
     const bpx_box_arrays *b = &w->boxes;
-    for (uint32_t i = 0; i < n; i++) {
-        if (removed && w->dead[i])
-            continue;
-        bpx_box *out = &p->boxes[live];
-        for (int a = 0; a < 3; a++) {
-            out->min[a] = b->lo[a][i];
-            out->max[a] = b->hi[a][i];
-        }
-        if (removed)
-            p->ids[live] = i;
-        live++;
-    }
-    bpx_neighbor_def def = bpx_default_neighbor_def();
-    def.format = w->boxes64_set ? BPX_BOXES_F64 : BPX_BOXES_F32;
-    const void *data = p->boxes;
     bpx__soa_boxes soa = {{b->lo[0], b->lo[1], b->lo[2]}, {b->hi[0], b->hi[1], b->hi[2]}};
-    if (w->boxes64_set) {
-        data = w->boxes64;
-    } else if (in_place) {
-        def.format = BPX__BOXES_SOA;
-        data = &soa;
+    bpx_neighbor_def def = bpx_default_neighbor_def();
+    def.format = w->boxes64_set ? BPX_BOXES_F64 : BPX__BOXES_SOA;
+    const void *data = w->boxes64_set ? (const void *)w->boxes64 : (const void *)&soa;
+    uint32_t live = n;
+    if (removed && !w->boxes64_set) {
+        if (!reserve(p, n))
+            return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %u boxes of a periodic world", n);
+        // The live boxes, in id order (removed ids hold inert boxes, which the search
+        // refuses): ids keep their order, so the search's (i, j, shift) order is the ids'.
+        live = 0;
+        for (uint32_t i = 0; i < n; i++) {
+            if (w->dead[i])
+                continue;
+            for (int a = 0; a < 3; a++) {
+                p->boxes[live].min[a] = b->lo[a][i];
+                p->boxes[live].max[a] = b->hi[a][i];
+            }
+            p->ids[live++] = i;
+        }
+        def.format = BPX_BOXES_F32;
+        data = p->boxes;
     }
-    if (in_place)
-        live = n = w->n;
+    removed = removed && !w->boxes64_set;
     memcpy(def.period, w->def.period, sizeof def.period);
     def.backend = w->def.backend;
     def.worker_count = w->executor.worker_count;
