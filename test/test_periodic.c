@@ -570,6 +570,16 @@ static void test_bad(void)
     CHECK(bpx_world_image_pairs(w, &count) == NULL && count == 0);
     bpx_pair_events ev;
     CHECK_STATUS(bpx_world_pair_events(w, &ev), BPX_ERR_BAD_STATE);
+    // With removed ids the error names the id, not the search's count of live boxes.
+    bpx_box three[3] = {{{0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}},
+                        {{0.25f, 0.25f, 0.25f}, {0.25f, 0.25f, 0.25f}},
+                        {{0, 0, 0}, {1, 1, 1}}};
+    CHECK_STATUS(bpx_world_set_boxes(w, three, 3), BPX_OK);
+    uint32_t gone = 0;
+    CHECK_STATUS(bpx_world_remove_boxes(w, &gone, 1), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(w), BPX_ERR_TOO_MANY_BOXES);
+    CHECK_MSG(bpx_world_error(w)->index == 2 && strstr(bpx_world_error(w)->message, "box id 2"),
+              "%s (index %u)", bpx_world_error(w)->message, bpx_world_error(w)->index);
     // With a sensible cell it works again.
     bpx_world_destroy(w);
     const double fine[3] = {10, 0, 0};

@@ -45,14 +45,15 @@ static void finish_nothing(void *user_task, void *user_context)
     (void)user_context;
 }
 
-static bool reserve(bpx_periodic *p, uint32_t n, bool ids)
+// Room for n live boxes and their ids.
+static bool reserve(bpx_periodic *p, uint32_t n)
 {
-    if (n <= p->capacity && (!ids || p->ids))
+    if (n <= p->capacity && p->boxes)
         return true;
-    uint32_t want = n > p->capacity ? n : p->capacity;
+    uint32_t want = n ? n : 1;
     bpx_box *boxes = bpx__alloc((size_t)want * sizeof *boxes);
-    uint32_t *id = ids ? bpx__alloc((size_t)want * sizeof *id) : NULL;
-    if (!boxes || (ids && !id)) {
+    uint32_t *id = bpx__alloc((size_t)want * sizeof *id);
+    if (!boxes || !id) {
         bpx__free(boxes, (size_t)want * sizeof *boxes);
         bpx__free(id, (size_t)want * sizeof *id);
         return false;
@@ -69,37 +70,38 @@ bpx_status bpx__periodic_compare(bpx_world *w)
 {
     bpx_periodic *p = &w->periodic;
     p->images.count = 0;
-    uint32_t n = w->n, live = 0;
+    uint32_t n = w->n;
     bool removed = false;
     for (uint32_t i = 0; w->dead && i < n && !removed; i++)
         removed = w->dead[i] != 0;
-    if (w->boxes64_set) // float64 boxes: all live (they are set whole), searched as they are
-        n = 0;
-    if (!reserve(p, n, removed))
-        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
-                          "no memory for %u boxes of a periodic world", n);
-    // The live boxes, in id order (removed ids hold inert boxes, which the search refuses):
-    // ids keep their order, so the search's (i, j, shift) order is the ids'.
+    // Float64 boxes (all live: they are set whole), and float32 boxes with no id removed, are
+    // searched where they lie; only a world with removed ids copies its live boxes out.
     const bpx_box_arrays *b = &w->boxes;
-    for (uint32_t i = 0; i < n; i++) {
-        if (removed && w->dead[i])
-            continue;
-        bpx_box *out = &p->boxes[live];
-        for (int a = 0; a < 3; a++) {
-            out->min[a] = b->lo[a][i];
-            out->max[a] = b->hi[a][i];
-        }
-        if (removed)
-            p->ids[live] = i;
-        live++;
-    }
+    bpx__soa_boxes soa = {{b->lo[0], b->lo[1], b->lo[2]}, {b->hi[0], b->hi[1], b->hi[2]}};
     bpx_neighbor_def def = bpx_default_neighbor_def();
-    def.format = w->boxes64_set ? BPX_BOXES_F64 : BPX_BOXES_F32;
-    const void *data = p->boxes;
-    if (w->boxes64_set) {
-        data = w->boxes64;
-        live = n = w->n;
+    def.format = w->boxes64_set ? BPX_BOXES_F64 : BPX__BOXES_SOA;
+    const void *data = w->boxes64_set ? (const void *)w->boxes64 : (const void *)&soa;
+    uint32_t live = n;
+    if (removed && !w->boxes64_set) {
+        if (!reserve(p, n))
+            return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %u boxes of a periodic world", n);
+        // The live boxes, in id order (removed ids hold inert boxes, which the search
+        // refuses): ids keep their order, so the search's (i, j, shift) order is the ids'.
+        live = 0;
+        for (uint32_t i = 0; i < n; i++) {
+            if (w->dead[i])
+                continue;
+            for (int a = 0; a < 3; a++) {
+                p->boxes[live].min[a] = b->lo[a][i];
+                p->boxes[live].max[a] = b->hi[a][i];
+            }
+            p->ids[live++] = i;
+        }
+        def.format = BPX_BOXES_F32;
+        data = p->boxes;
     }
+    removed = removed && !w->boxes64_set;
     memcpy(def.period, w->def.period, sizeof def.period);
     def.backend = w->def.backend;
     def.worker_count = w->executor.worker_count;
@@ -117,10 +119,15 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     bpx_error err;
     bpx_status status =
         bpx__find_neighbors_kept(&def, data, live, &p->inner, &inner, &p->images_in,
-                                 &p->images_in_capacity, &p->images, &err);
+                                 &p->images_in_capacity, &p->wrap, &p->wrap_capacity,
+                                 &p->images, &err);
     if (status != BPX_OK) {
-        uint32_t index = err.index < live && removed ? p->ids[err.index] : err.index;
-        return bpx__error(&w->error, status, index, err.axis, "periodic collide (%s): %s",
+        if (err.index < live && removed) // the search counts live boxes only: name the id
+            return bpx__error(&w->error, status, p->ids[err.index], err.axis,
+                              "periodic collide (%s), box id %u (the search's object %u): %s",
+                              bpx_backend_name(w->def.backend), p->ids[err.index], err.index,
+                              err.message);
+        return bpx__error(&w->error, status, err.index, err.axis, "periodic collide (%s): %s",
                           bpx_backend_name(w->def.backend), err.message);
     }
     bpx_image_pair *images = p->images.pairs;
@@ -194,6 +201,7 @@ void bpx__periodic_free(bpx_periodic *p)
     bpx__free(p->boxes, (size_t)p->capacity * sizeof *p->boxes);
     bpx__free(p->ids, (size_t)p->capacity * sizeof *p->ids);
     bpx__free(p->images_in, p->images_in_capacity * sizeof *p->images_in);
+    bpx__free(p->wrap, p->wrap_capacity * sizeof *p->wrap);
     bpx_neighbor_list_free(&p->images);
     *p = (bpx_periodic){0};
 }

@@ -14,6 +14,8 @@ typedef struct bpx_periodic {
     uint32_t capacity; // of boxes and ids
     bpx_box *images_in; // the boxes with their images, as the world of images gets them
     size_t images_in_capacity;
+    int32_t (*wrap)[3]; // the search's wraps
+    size_t wrap_capacity;
     bpx_neighbor_list images; // sorted by (i, j, shift); filtered as the pairs are
 } bpx_periodic;
 
@@ -33,6 +35,21 @@ void bpx__periodic_filter_images(struct bpx_world *w);
 bpx_backend bpx__periodic_backend(const struct bpx_world *w);
 void bpx__periodic_free(bpx_periodic *p);
 
+/// The world of images' boxes: n boxes copied from soa (a bpx__soa_boxes, search.h), moved[m]
+/// put at moved_ids[m], then extra_count boxes after them; ids 0 .. n + extra_count - 1, all
+/// live. The boxes are finite with min <= max already: no check. world.c.
+/// A periodic world's own float32 boxes, read in place (structure of arrays): an input format
+/// of the world's search only (bpx__find_neighbors_kept), never bpx_find_neighbors'.
+#define BPX__BOXES_SOA ((bpx_input_format)100)
+
+typedef struct bpx__soa_boxes {
+    const float *lo[3];
+    const float *hi[3];
+} bpx__soa_boxes;
+bpx_status bpx__world_set_images(bpx_world *w, const bpx__soa_boxes *soa, uint32_t n,
+                                 const uint32_t *moved_ids, const bpx_box *moved,
+                                 uint32_t moved_count, const bpx_box *extra, uint32_t extra_count);
+
 /// Float64 boxes rounded outward to float32 (no pair is lost), into SoA arrays. neighbors.c.
 void bpx__round_boxes64_soa(const bpx_box64 *in, uint32_t n, float *const lo[3],
                             float *const hi[3]);
@@ -42,4 +59,5 @@ void bpx__round_boxes64_soa(const bpx_box64 *in, uint32_t n, float *const lo[3],
 bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const void *boxes, uint32_t n,
                                     bpx_world **inner, const bpx_world_def *inner_def,
                                     bpx_box **scratch, size_t *scratch_capacity,
+                                    int32_t (**wrap)[3], size_t *wrap_capacity,
                                     bpx_neighbor_list *list, bpx_error *err);

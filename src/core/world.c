@@ -494,6 +494,46 @@ bpx_status bpx_world_set_boxes64(bpx_world *w, const bpx_box64 *boxes, uint32_t 
     return BPX_OK;
 }
 
+bpx_status bpx__world_set_images(bpx_world *w, const bpx__soa_boxes *soa, uint32_t n,
+                                 const uint32_t *moved_ids, const bpx_box *moved,
+                                 uint32_t moved_count, const bpx_box *extra, uint32_t extra_count)
+{
+    bpx_status entered = bpx__world_enter(w, "set_images");
+    if (entered != BPX_OK)
+        return entered;
+    uint64_t start = bpx__now_ns();
+    uint64_t total = (uint64_t)n + extra_count;
+    if (total > BPX_MAX_BOXES)
+        return bpx__error(&w->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
+                          "%llu boxes with their images exceed BPX_MAX_BOXES (%u)",
+                          (unsigned long long)total, BPX_MAX_BOXES);
+    if (!bpx__box_arrays_reserve(&w->spare, (uint32_t)total) ||
+        !bpx__objects_reset(w, (uint32_t)total))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %llu boxes", (unsigned long long)total);
+    bpx_box_arrays *out = &w->spare;
+    for (int a = 0; a < 3 && n; a++) {
+        memcpy(out->lo[a], soa->lo[a], sizeof(float) * n);
+        memcpy(out->hi[a], soa->hi[a], sizeof(float) * n);
+    }
+    for (uint32_t m = 0; m < moved_count; m++)
+        for (int a = 0; a < 3; a++) {
+            out->lo[a][moved_ids[m]] = moved[m].min[a];
+            out->hi[a][moved_ids[m]] = moved[m].max[a];
+        }
+    for (uint32_t g = 0; g < extra_count; g++)
+        for (int a = 0; a < 3; a++) {
+            out->lo[a][n + g] = extra[g].min[a];
+            out->hi[a][n + g] = extra[g].max[a];
+        }
+    bpx__boxes_swap_in_spare(w, (uint32_t)total);
+    w->extents_loaded = false;
+    w->boxes64_set = false;
+    tell_backend(w, NULL);
+    w->stats.update_ns = bpx__now_ns() - start;
+    return BPX_OK;
+}
+
 // Float64 boxes: the comparator's candidates (float32 boxes rounded outward) kept where the
 // doubles overlap. Closed intervals of doubles compare exactly: no sums, nothing rounded.
 static void filter_boxes64(bpx_world *w)

@@ -113,9 +113,9 @@ static inline float round_up(double x)
     return f > FLT_MAX ? FLT_MAX : f;
 }
 
-static bpx_status check_def(const bpx_neighbor_def *def, bpx_error *err)
+static bpx_status check_def(const bpx_neighbor_def *def, bool world, bpx_error *err)
 {
-    if ((unsigned)def->format > BPX_POINTS_F64)
+    if ((unsigned)def->format > BPX_POINTS_F64 && !(world && def->format == BPX__BOXES_SOA))
         return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
                           "format %d is not a bpx_input_format", (int)def->format);
     if ((unsigned)def->metric > BPX_METRIC_EUCLIDEAN)
@@ -235,6 +235,9 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
     // A box in the cell on an axis (lower face in [o, o + L), upper face below o + L by more
     // than images_below's slack, at most 2^-40 (4 magnitude + L) for w = 0; twice that covers
     // its rounding) has w = 0 and no image there: decided without images_below's divisions.
+    // A world's own float32 boxes were checked as they came in (finite, min <= max, far below
+    // 2^1000): not again.
+    bool trusted = s->in.format == BPX__BOXES_SOA;
     double inside_slack[3], near_limit[3];
     for (int a = 0; a < 3; a++) {
         inside_slack[a] = 0x1p-39 * (4 * im->magnitude + s->period[a]);
@@ -243,7 +246,7 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
     for (uint32_t k = 0; k < s->n; k++) {
         double lo[3], hi[3];
         object_box(&s->in, k, lo, hi);
-        for (int a = 0; a < 3; a++) {
+        for (int a = 0; a < 3 && !trusted; a++) {
             if (!isfinite(lo[a]) || !isfinite(hi[a]))
                 return bpx__error(s->err, BPX_ERR_NOT_FINITE, k, a,
                                   "object %u: a coordinate on axis %c is not finite", k, "xyz"[a]);
@@ -252,7 +255,7 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
                                   "object %u: a coordinate on axis %c is beyond +-2^1000", k,
                                   "xyz"[a]);
         }
-        for (int a = 0; a < 3; a++)
+        for (int a = 0; a < 3 && !trusted; a++)
             if (lo[a] > hi[a])
                 return bpx__error(s->err, BPX_ERR_MIN_GREATER_THAN_MAX, k, a,
                                   "object %u: min %g > max %g on axis %c", k, lo[a], hi[a],
@@ -384,7 +387,8 @@ static bpx_status make_images(search *s, image_state *im)
     // float32 boxes and no cutoff: an object's own image is its box unless it wraps. The
     // comparator gets the boxes themselves, then the images of the few that wrap moved onto
     // them, then the ghosts: no copy of the many.
-    bool own = s->in.format == BPX_BOXES_F32 && s->def->cutoff == 0;
+    bool own = (s->in.format == BPX_BOXES_F32 || s->in.format == BPX__BOXES_SOA) &&
+               s->def->cutoff == 0;
     uint32_t moved = 0;
     for (uint32_t x = 0; own && im->mark && x < im->marked_count; x++)
         moved += wraps(s, im->marked[x]);
@@ -503,6 +507,13 @@ static inline __attribute__((always_inline)) void prefetch_object(const search *
                                                                   uint32_t image)
 {
     uint32_t k = image < s->n ? image : s->ghost_owner[image - s->n];
+    if (s->in.format == BPX__BOXES_SOA) { // six arrays: the wrap and the flag only
+        if (s->wrap)
+            __builtin_prefetch(&s->wrap[k]);
+        if (im->exact)
+            __builtin_prefetch(&im->exact[k]);
+        return;
+    }
     size_t item = s->in.format == BPX_BOXES_F32 ? sizeof(bpx_box)
                   : s->in.format == BPX_BOXES_F64 ? sizeof(bpx_box64)
                   : s->in.format == BPX_POINTS_F32 ? 3 * sizeof(float)
@@ -723,7 +734,8 @@ static bpx_status merge_imaged(const search *s, found_list *imaged, bpx_neighbor
 static void free_search(search *s, image_state *im)
 {
     bpx__free(im->exact, s->n);
-    bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
+    if (!s->wrap_kept)
+        bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
     bpx__free(s->ghost_owner, (size_t)s->ghost_count * sizeof *s->ghost_owner);
     bpx__free(s->ghost_shift, (size_t)s->ghost_count * sizeof *s->ghost_shift);
     bpx__free(s->images, im->image_count * sizeof *s->images);
@@ -737,6 +749,8 @@ typedef struct keeper {
     const bpx_world_def *def;    // how to make the kept one
     bpx_box **boxes;             // the kept world's boxes, images in place, and their room
     size_t *capacity;
+    int32_t (**wrap)[3];         // the wraps, kept too (fresh pages each cycle cost faults)
+    size_t *wrap_capacity;
 } keeper;
 
 static void done_with(const keeper *k, bpx_world *w)
@@ -765,7 +779,12 @@ static bpx_status run(search *s, image_state *im, const keeper *keep, bpx_neighb
         *keep->world = w;
     bool mine = false; // an error of this function's own, not the world's
     size_t image_total = (size_t)s->n + s->ghost_count;
-    if (keep->world && im->boxes != s->images) {
+    if (keep->world && s->in.format == BPX__BOXES_SOA && im->boxes != s->images) {
+        // The world's own arrays copied as they are (no AoS round trip, no second check), the
+        // wrapped boxes' images moved onto them, the ghosts after them.
+        status = bpx__world_set_images(w, &s->in.soa, s->n, im->moved_ids, im->moved_boxes,
+                                       im->moved, im->ghost_boxes, s->ghost_count);
+    } else if (keep->world && im->boxes != s->images) {
         // A kept world gets every box in one set_boxes, so that its ids stay put and its
         // backend's state (sap's lists) carries over: no removed ids, no count that shrinks
         // between the calls.
@@ -869,15 +888,29 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
     if (n > BPX_MAX_BOXES)
         return bpx__error(err, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
                           "%u objects exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
-    bpx_status status = check_def(def, err);
+    bpx_status status = check_def(def, keep->world != NULL, err);
     if (status != BPX_OK || n == 0)
         return status;
-    search s = {.def = def, .in = {data, def->format}, .n = n, .err = err};
+    search s = {.def = def, .in = {data, def->format, {{0}, {0}}}, .n = n, .err = err};
+    if (def->format == BPX__BOXES_SOA)
+        s.in.soa = *(const bpx__soa_boxes *)data;
     for (int a = 0; a < 3; a++) {
         s.period[a] = def->period[a];
         s.periodic |= def->period[a] > 0;
     }
-    if (s.periodic && !(s.wrap = bpx__alloc((size_t)n * sizeof *s.wrap)))
+    if (s.periodic && keep->wrap) {
+        if (n > *keep->wrap_capacity) {
+            bpx__free(*keep->wrap, *keep->wrap_capacity * sizeof **keep->wrap);
+            *keep->wrap_capacity = 0;
+            if ((*keep->wrap = bpx__alloc((size_t)n * sizeof **keep->wrap)))
+                *keep->wrap_capacity = n;
+        }
+        s.wrap = *keep->wrap;
+        s.wrap_kept = true;
+    } else if (s.periodic) {
+        s.wrap = bpx__alloc((size_t)n * sizeof *s.wrap);
+    }
+    if (s.periodic && !s.wrap)
         return bpx__error(err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
     advise_huge(s.wrap, s.periodic ? (size_t)n * sizeof *s.wrap : 0);
@@ -891,7 +924,8 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
         if (may_cells) // the image search then runs only where the cell list cannot
             im.origin[0] = im.origin[1] = im.origin[2] = 0;
     }
-    im.mark = s.periodic && def->format == BPX_BOXES_F32 && def->cutoff == 0;
+    im.mark = s.periodic && (def->format == BPX_BOXES_F32 || def->format == BPX__BOXES_SOA) &&
+              def->cutoff == 0;
     status = check_objects(&s, &im, &ghosts);
     bool cells = false;
     if (status == BPX_OK && may_cells) {
@@ -941,9 +975,10 @@ bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend ba
 bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const void *boxes, uint32_t n,
                                     bpx_world **inner, const bpx_world_def *inner_def,
                                     bpx_box **scratch, size_t *scratch_capacity,
+                                    int32_t (**wrap)[3], size_t *wrap_capacity,
                                     bpx_neighbor_list *list, bpx_error *err)
 {
     bpx__error_clear(err);
-    keeper keep = {inner, inner_def, scratch, scratch_capacity};
+    keeper keep = {inner, inner_def, scratch, scratch_capacity, wrap, wrap_capacity};
     return find(def, boxes, n, &keep, list, NULL, 0, NULL, err);
 }

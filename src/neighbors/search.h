@@ -6,6 +6,7 @@
 
 #include <math.h>
 
+#include "../core/periodic.h" // bpx__soa_boxes
 #include "exact.h"
 
 // ---------------------------------------------------------------------------------------------
@@ -14,10 +15,18 @@
 typedef struct source {
     const void *data;
     bpx_input_format format;
+    bpx__soa_boxes soa; // BPX__BOXES_SOA
 } source;
 
 static inline void object_box(const source *in, uint32_t k, double lo[3], double hi[3])
 {
+    if (in->format == BPX__BOXES_SOA) {
+        for (int a = 0; a < 3; a++) {
+            lo[a] = in->soa.lo[a][k];
+            hi[a] = in->soa.hi[a][k];
+        }
+        return;
+    }
     switch (in->format) {
     case BPX_BOXES_F32: {
         const bpx_box *b = (const bpx_box *)in->data + k;
@@ -60,6 +69,7 @@ typedef struct search {
     double period[3];  // 0 on open axes
     bool periodic;     // any axis
     int32_t (*wrap)[3]; // per object: w (0 on open axes); NULL when nothing is periodic
+    bool wrap_kept;     // wrap belongs to the caller (a periodic world's, kept between cycles)
     uint32_t ghost_count;
     uint32_t *ghost_owner;    // per image past n: its object
     int32_t (*ghost_shift)[3]; // per image past n: u (<= 0)
