@@ -77,12 +77,18 @@ module bpx_chip #(
     wire [6*32-1:0] upd_wdata;
     // Comparator.
     wire cmp_busy, cmp_busy_d, cmp_start;
-    wire h_valid;
+    wire h_valid, h_valid_n;
     wire [IW-1:0] h_i;
     wire [AW-1:0] h_j0;
-    wire [2*M-2:0] h_mask;
+    wire [2*M-2:0] h_mask, h_mask_n, full_n;
     // Emitter.
-    wire stall, out_valid, emi_busy, emi_busy_d;
+    wire out_valid, emi_busy, emi_busy_d;
+    // The stall (the comparator's results meet a full FIFO: hold every comparator register and
+    // RAM) is a register: this clock's registered hits against this clock's full FIFOs, computed
+    // a clock ahead from both units' next state, so the same clocks as the model's stall; it
+    // drives the clock enable of the whole comparator, which a combinational stall delayed.
+    reg stall;
+    initial stall = 1'b0;
     wire [IW-1:0] out_i, out_j;
     wire [31:0] count;
 
@@ -109,17 +115,20 @@ module bpx_chip #(
         .we(upd_we), .waddr(upd_waddr), .wdata(upd_wdata),
         .busy(cmp_busy), .busy_d(cmp_busy_d),
         .a_active(t_addressing), .a_max(t_max), .ports(t_ports),
-        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask));
+        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask),
+        .h_valid_n(h_valid_n), .h_mask_n(h_mask_n));
 
     bpx_emitter #(.M(M), .FDEPTH(FDEPTH), .AW(AW), .IW(IW), .TRACE(TRACE)) emi (
         .clk(clk), .clear(clear), .stall(stall),
         .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask),
-        .blocks(stall), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
+        .blocks(), .full_n(full_n), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .busy(emi_busy), .busy_d(emi_busy_d), .fill_max(t_fill_max));
 
     // The controller: the next clock's phase from the units' state after this edge.
     wire update_ends = phase == PH_UPDATE && !upd_active_d;
     assign cmp_start = update_ends && n_a >= 2;
+    always @(posedge clk)
+        stall <= !(clear || cmp_start) && h_valid_n && |(h_mask_n & full_n);
     always @(posedge clk) begin
         if (run) begin
             error <= too_many;
