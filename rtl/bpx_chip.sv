@@ -36,7 +36,9 @@ module bpx_chip #(
     output wire            ssram_re,
     output wire [AW-1:0]   ssram_addr,
     input  wire [6*32-1:0] ssram_rdata,
-    // Collision write port (the board's collision SSRAM).
+    // Collision output: a valid/ready stream (col_we valid; a pair is taken, written at col_addr
+    // = COUNT, on a clock with col_ready) into the board's collision SSRAM.
+    input  wire            col_ready,
     output wire            col_we,
     output wire [31:0]     col_addr,
     output wire [IW-1:0]   col_i,
@@ -92,14 +94,14 @@ module bpx_chip #(
     wire [IW-1:0] out_i, out_j;
     wire [31:0] count;
 
-    bpx_interface #(.AW(AW), .IW(IW), .LAT(LAT)) ifc (
+    bpx_interface #(.DEPTH(DEPTH), .AW(AW), .IW(IW), .LAT(LAT)) ifc (
         .clk(clk), .clear(clear),
         .reg_we(reg_we), .reg_addr(reg_addr), .reg_wdata(reg_wdata), .reg_rdata(reg_rdata),
         .n(n), .start(start_reg), .mode(mode), .done(phase == PH_IDLE), .error(error),
         .overflow(overflow), .rd_addr_next(rd_addr_next),
         .req(upd_req), .req_addr(upd_req_addr), .ssram_re(ssram_re), .ssram_addr(ssram_addr),
         .rd_valid(rd_valid), .rd_addr(rd_addr),
-        .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
+        .out_valid(out_valid), .out_i(out_i), .out_j(out_j), .col_ready(col_ready),
         .col_we(col_we), .col_addr(col_addr), .col_i(col_i), .col_j(col_j), .count(count));
 
     bpx_updater #(.DEPTH(DEPTH), .AW(AW), .LAT(LAT)) upd (
@@ -120,7 +122,7 @@ module bpx_chip #(
 
     bpx_emitter #(.M(M), .FDEPTH(FDEPTH), .AW(AW), .IW(IW), .TRACE(TRACE)) emi (
         .clk(clk), .clear(clear), .stall(stall),
-        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask),
+        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask), .ready(col_ready),
         .blocks(), .full_n(full_n), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .busy(emi_busy), .busy_d(emi_busy_d), .fill_max(t_fill_max));
 

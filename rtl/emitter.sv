@@ -14,6 +14,10 @@
 // The model's emitter has the same two registers (src/hw/emitter.h). `nonempty` and `full` are
 // registers (the model's committed bits), so the round robin and the stall start at flip-flops;
 // full_n is `full` after this edge, for the chip's registered stall.
+//
+// The output register is a valid/ready stream's source: `ready` low while it holds a collision
+// holds it and the read register and reads no FIFO (the FIFOs still take hits, and when a hit
+// meets a full one the comparator stalls, as always): back-pressure never drops a pair.
 module bpx_emitter #(
     parameter integer M = 4,
     parameter integer FDEPTH = 1024,  // entries per FIFO
@@ -28,6 +32,7 @@ module bpx_emitter #(
     input  wire [IW-1:0]  h_i,
     input  wire [AW-1:0]  h_j0,
     input  wire [2*M-2:0] h_mask,
+    input  wire           ready,      // the collision port takes the output register this clock
     output wire           blocks,     // a hit of the registered result meets a full FIFO
     output wire [2*M-2:0] full_n,     // FIFOs full after this edge
     output reg            out_valid,
@@ -51,6 +56,8 @@ module bpx_emitter #(
     wire [L-1:0]  nonempty, full;
     wire [L-1:0]  push = (!stall && h_valid) ? h_mask : {L{1'b0}};
 
+    // The output pipeline moves unless a collision waits in the output register for `ready`.
+    wire         advance = !out_valid || ready;
     // Round robin: the first non-empty lane at or after next_lane, else the first non-empty.
     reg          pop_valid;
     reg [LW-1:0] pop, pick_hi, pick_lo;
@@ -70,7 +77,7 @@ module bpx_emitter #(
                 end
             end
         end
-        pop_valid = |nonempty;
+        pop_valid = advance && |nonempty;
         pop = any_hi ? pick_hi : pick_lo;
     end
 
@@ -131,7 +138,7 @@ module bpx_emitter #(
             f_valid <= 1'b0;
             out_valid <= 1'b0;
             next_lane <= {LW{1'b0}};
-        end else begin
+        end else if (advance) begin
             f_valid <= pop_valid;
             if (pop_valid) begin
                 f_sel <= pop;
@@ -145,7 +152,8 @@ module bpx_emitter #(
         end
     end
     assign busy = |nonempty || f_valid || out_valid;
-    assign busy_d = !clear && (|nonempty_n || pop_valid || f_valid);
+    // Held (not advancing), the output register still holds its collision.
+    assign busy_d = !clear && (|nonempty_n || pop_valid || f_valid || !advance);
 
     // The fullest FIFO now (trace only).
     generate

@@ -55,7 +55,7 @@ module emitter_fv #(
 
     bpx_emitter #(.M(M), .FDEPTH(FDEPTH), .AW(AW), .IW(IW), .TRACE(0)) dut (
         .clk(clk), .clear(init), .stall(blocks),
-        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask),
+        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask), .ready(1'b1),
         .blocks(blocks), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .busy(busy), .busy_d(busy_d), .fill_max(fill_max));
 

@@ -23,6 +23,7 @@ void bpx__hw_emitter_reset(bpx_hw_emitter *e)
     e->out_valid = false;
     e->push = 0;
     e->pop = -1;
+    e->advance = true;
     e->peak_fill = 0;
     e->emitted = 0;
 }

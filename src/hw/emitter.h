@@ -33,6 +33,7 @@ typedef struct bpx_hw_emitter {
     uint32_t push_i;
     uint32_t push_j0;
     int pop; // lane read this clock, or -1
+    bool advance; // the output register is empty or taken: the output pipeline moves
     // Statistics since the last reset.
     uint32_t peak_fill;
     uint64_t emitted;
@@ -56,16 +57,18 @@ static inline bool bpx__hw_emitter_busy(const bpx_hw_emitter *e)
 
 /// Evaluate: latch the comparator's results (unless stalled) as this clock's FIFO writes and
 /// pick the FIFO to read: the round robin serves the first non-empty FIFO pair at or after
-/// next_lane.
+/// next_lane. ready: the collision port takes the output register this clock; when it holds a
+/// collision and ready is false, the read and output registers hold and no FIFO is read.
 static inline void bpx__hw_emitter_evaluate(bpx_hw_emitter *e, const bpx_hw_comparator *c,
-                                            bool stall)
+                                            bool stall, bool ready)
 {
     const bpx_hw_cmp_regs *r = c->cur;
     e->push = !stall && r->h_valid ? r->h_mask : 0;
     e->push_i = r->h_i;
     e->push_j0 = r->h_j0;
     e->pop = -1;
-    if (e->nonempty) {
+    e->advance = !e->out_valid || ready;
+    if (e->nonempty && e->advance) {
         uint64_t after = e->nonempty >> e->next_lane << e->next_lane;
         e->pop = after ? __builtin_ctzll(after) : __builtin_ctzll(e->nonempty);
     }
@@ -77,9 +80,11 @@ static inline void bpx__hw_emitter_evaluate(bpx_hw_emitter *e, const bpx_hw_comp
 /// stalled); the round-robin pointer moves past the FIFO read.
 static inline void bpx__hw_emitter_commit(bpx_hw_emitter *e)
 {
-    e->out_valid = e->read_valid;
-    e->out = e->read;
-    e->read_valid = e->pop >= 0;
+    if (e->advance) {
+        e->out_valid = e->read_valid;
+        e->out = e->read;
+        e->read_valid = e->pop >= 0;
+    }
     if (e->pop >= 0) {
         int k = e->pop;
         e->read = e->slots[(size_t)k * e->depth + e->head[k]];
