@@ -4,23 +4,25 @@
 // raises `overflow`. Non-finite inputs (which the host never sends): infinities add as IEEE
 // says, a NaN or inf - inf gives the quiet NaN 0x7fc00000.
 //
-// Seven combinational steps, so that the updater can put a register after each (one add is far
+// Eight combinational steps, so that the updater can put a register after each (one add is far
 // too long for one clock at the paper's 108 MHz on an ECP5: docs/rtl.md, "What limits fmax"):
 //   1 swap:   the operand of larger magnitude is x; the exponent difference d = ex - ey
 //   2 coarse: y's significand (with guard, round and sticky room) shifted right by d & ~7
 //   3 fine:   ... and by d & 7; the bits shifted out ORed into the sticky bit
 //   4 add:    the significands added or subtracted (the raw sum, 28 bits)
 //   5 zeros:  the sum's leading zeros, found from 4-bit groups (no shifting)
-//   6 shift:  normalised: right by one after a carry, else left by the leading zeros, but not
-//             below the smallest exponent (which makes subnormals)
-//   7 round:  round to nearest even, overflow to infinity, the special cases
-// bpx_fadd is the seven in one combinational stage (the adder test's top).
+//   6 clamp:  the left shift, the leading zeros but not below the smallest exponent (which
+//             makes subnormals), and the exponent after it
+//   7 shift:  normalised: right by one after a carry, else left by that shift
+//   8 round:  round to nearest even, overflow to infinity, the special cases
+// bpx_fadd is the eight in one combinational stage (the adder test's top).
 `define BPX_FADD_P1 71  // {nan, inf, sx, sy, sub, e[8:0], d[8:0], mx[23:0], my[23:0]}
 `define BPX_FADD_P2 97  // {nan, inf, sx, sy, sub, e[8:0], d[2:0], far, sticky, mx, w[53:0]}
 `define BPX_FADD_P3 68  // {nan, inf, sx, sy, sub, e[8:0], xa[26:0], ya[26:0]}
 `define BPX_FADD_P4 41  // {nan, inf, sx, sy, e[8:0], sum[27:0]}
-`define BPX_FADD_P5 46  // {p4, lz[4:0]}
-`define BPX_FADD_P6 42  // {nan, inf, sx, sy, zero, e[8:0], sum[27:0]}
+`define BPX_FADD_P5 55  // {p4, em1[8:0], lz[4:0]}
+`define BPX_FADD_P6 47  // {nan, inf, sx, sy, zero, e[8:0], shift[4:0], sum[27:0]}
+`define BPX_FADD_P7 42  // {nan, inf, sx, sy, zero, e[8:0], sum[27:0]}
 
 module bpx_fadd_swap (
     input  wire [31:0]             a,
@@ -80,7 +82,7 @@ module bpx_fadd_zeros (
     output wire [`BPX_FADD_P5-1:0] q
 );
     // Leading zeros of sum[26:0] (27 when zero): eight 4-bit groups of {sum[26:0], 5'b11111},
-    // the first non-zero group and the zeros inside it.
+    // the first non-zero group and the zeros inside it. Alongside, e - 1 for the next step.
     wire [31:0] x = {p[26:0], 5'b11111};
     reg  [4:0]  lz;
     reg         found;
@@ -97,40 +99,53 @@ module bpx_fadd_zeros (
             end
         end
     end
-    assign q = {p, lz};
+    assign q = {p, p[36:28] - 9'd1, lz};
 endmodule
 
-module bpx_fadd_shift (
+module bpx_fadd_clamp (
     input  wire [`BPX_FADD_P5-1:0] q,
     output wire [`BPX_FADD_P6-1:0] r
 );
-    wire [8:0]  e = q[41:33];
-    wire [27:0] sum = q[32:5];
+    // The left shift: the leading zeros, but not below the smallest exponent (subnormals); the
+    // exponent after it (after a carry: one right, e + 1).
+    wire [8:0]  e = q[50:42];
+    wire [27:0] sum = q[41:14];
+    wire [8:0]  em1 = q[13:5];
     wire [4:0]  lz = q[4:0];
-    wire [8:0]  em1 = e - 9'd1;
-    wire [8:0]  shift = ({4'd0, lz} < em1) ? {4'd0, lz} : em1;
-    wire [27:0] left = sum << shift;
-    wire        carry = sum[27];
-    wire [27:0] s = carry ? {1'b0, sum[27:2], sum[1] | sum[0]} : left;
-    wire [8:0]  e2 = carry ? e + 9'd1 : e - shift;
-    assign r = {q[45:42], sum == 28'd0, e2, s};
+    wire        below = {4'd0, lz} < em1;
+    wire [4:0]  shift = below ? lz : em1[4:0];  // em1 <= lz <= 27 when not below
+    wire [8:0]  e2 = sum[27] ? e + 9'd1 : below ? e - {4'd0, lz} : 9'd1;
+    assign r = {q[54:51], sum == 28'd0, e2, shift, sum};
+endmodule
+
+module bpx_fadd_shift (
+    input  wire [`BPX_FADD_P6-1:0] r,
+    output wire [`BPX_FADD_P7-1:0] t
+);
+    wire [27:0] sum = r[27:0];
+    wire [4:0]  shift = r[32:28];
+    wire [27:0] s = sum[27] ? {1'b0, sum[27:2], sum[1] | sum[0]} : sum << shift;
+    assign t = {r[46:33], s};
 endmodule
 
 module bpx_fadd_round (
-    input  wire [`BPX_FADD_P6-1:0] r,
+    input  wire [`BPX_FADD_P7-1:0] t,
     output reg  [31:0]             s,
     output reg                     overflow
 );
-    wire        nan = r[41], inf = r[40], sx = r[39], sy = r[38], zero = r[37];
-    wire [8:0]  e = r[36:28];
-    wire [27:0] sum = r[27:0];
+    wire        nan = t[41], inf = t[40], sx = t[39], sy = t[38], zero = t[37];
+    wire [8:0]  e = t[36:28];
+    wire [27:0] sum = t[27:0];
     // Round to nearest even: {exponent, fraction} + 1 carries into the exponent as needed
     // (subnormal -> normal, FLT_MAX -> infinity).
     wire        up = sum[2] & (sum[1] | sum[0] | sum[3]);
     wire [30:0] mag = {(sum[26] ? e[7:0] : 8'd0), sum[25:3]} + {30'd0, up};
+    // Overflow from the operands of that increment, not from its result (a shorter path): the
+    // exponent is already 255 or more, or the rounding carries 0xfe.ffffff into 0xff.
+    wire        ovf = e >= 9'd255 || (sum[26] && e[7:0] == 8'hfe && &sum[25:3] && up);
     always @* begin
-        overflow = e >= 9'd255 || mag[30:23] == 8'hff;
-        s = {zero ? (sx & sy) : sx, zero ? 31'd0 : overflow ? {8'hff, 23'd0} : mag};
+        overflow = ovf;
+        s = {zero ? (sx & sy) : sx, zero ? 31'd0 : ovf ? {8'hff, 23'd0} : mag};
         if (nan || inf) begin
             overflow = 1'b0;
             s = nan ? 32'h7fc0_0000 : {sx, 8'hff, 23'd0};
@@ -150,11 +165,13 @@ module bpx_fadd (
     wire [`BPX_FADD_P4-1:0] p4;
     wire [`BPX_FADD_P5-1:0] p5;
     wire [`BPX_FADD_P6-1:0] p6;
+    wire [`BPX_FADD_P7-1:0] p7;
     bpx_fadd_swap   s1 (.a(a), .b(b), .p(p1));
     bpx_fadd_coarse s2 (.p(p1), .q(p2));
     bpx_fadd_fine   s3 (.q(p2), .r(p3));
     bpx_fadd_add    s4 (.r(p3), .p(p4));
     bpx_fadd_zeros  s5 (.p(p4), .q(p5));
-    bpx_fadd_shift  s6 (.q(p5), .r(p6));
-    bpx_fadd_round  s7 (.r(p6), .s(s), .overflow(overflow));
+    bpx_fadd_clamp  s6 (.q(p5), .r(p6));
+    bpx_fadd_shift  s7 (.r(p6), .t(p7));
+    bpx_fadd_round  s8 (.t(p7), .s(s), .overflow(overflow));
 endmodule

@@ -2,9 +2,9 @@
 //
 // One object per clock: an address counter requests the SSRAM word at `next`; the data comes
 // back LAT clocks later through the interface's read pipeline into the operand register (with
-// the minimum from the minima RAM); six registers between the adder's seven steps (rtl/fadd.sv)
-// follow, then the add register; the clock after, it is written at that address: STAGES = 8
-// registers, a pass over n objects takes n + LAT + 8 clocks, in every mode (the modes without
+// the minimum from the minima RAM); seven registers between the adder's eight steps (rtl/fadd.sv)
+// follow, then the add register; the clock after, it is written at that address: S = 9
+// registers, a pass over n objects takes n + LAT + 9 clocks, in every mode (the modes without
 // adds go through as many registers). The model's updater has the same registers
 // (BPX_HW_UPDATE_STAGES in src/hw/updater.h).
 // Modes (the model's bpx_hw_update_mode):
@@ -42,13 +42,15 @@ module bpx_updater #(
     output wire            active_d    // active after this clock edge
 );
     localparam integer CW = $clog2(LAT + 2) + 1;  // reads in flight
-    localparam integer S = 8;   // registers from the arriving data to the write
+    localparam integer S = 9;   // registers from the arriving data to the write
     localparam integer RW = (DEPTH > 1) ? $clog2(DEPTH) : 1;
-    // The adder's widths between its steps (rtl/fadd.sv's BPX_FADD_P1 .. P6; fadd.sv may be
+    // The adder's widths between its steps (rtl/fadd.sv's BPX_FADD_P1 .. P7; fadd.sv may be
     // read after this file).
-    localparam integer P1 = 71, P2 = 97, P3 = 68, P4 = 41, P5 = 46, P6 = 42;
+    localparam integer P1 = 71, P2 = 97, P3 = 68, P4 = 41, P5 = 55, P6 = 47, P7 = 42;
 
-    reg [AW-1:0]   next, last;
+    reg [AW-1:0]   next;
+    reg [AW-1:0]   left;       // reads still to issue
+    reg            pending;    // left != 0, a register: issue and active_d start at flip-flops
     reg [CW-1:0]   in_flight;
     reg [1:0]      mode;
     // Register k of the pipeline: valid and RAM address (0: operands, S - 1: the add register).
@@ -70,7 +72,7 @@ module bpx_updater #(
         mq <= minima[rd_addr_next[RW-1:0]];
     end
 
-    wire issue = active && next < last;
+    wire issue = active && pending;
     wire take = active && rd_valid;
     assign req = issue;
     assign req_addr = next;
@@ -103,13 +105,16 @@ module bpx_updater #(
             reg  [P4-1:0] r4;
             reg  [P5-1:0] r5;
             reg  [P6-1:0] r6;
+            reg  [P7-1:0] r7;
+            wire [P7-1:0] p7;
             bpx_fadd_swap   s1 (.a(c), .b(m), .p(p1));
             bpx_fadd_coarse s2 (.p(r1), .q(p2));
             bpx_fadd_fine   s3 (.q(r2), .r(p3));
             bpx_fadd_add    s4 (.r(r3), .p(p4));
             bpx_fadd_zeros  s5 (.p(r4), .q(p5));
-            bpx_fadd_shift  s6 (.q(r5), .r(p6));
-            bpx_fadd_round  s7 (.r(r6), .s(sums[ga*32 +: 32]), .overflow(ovf[ga]));
+            bpx_fadd_clamp  s6 (.q(r5), .r(p6));
+            bpx_fadd_shift  s7 (.r(r6), .t(p7));
+            bpx_fadd_round  s8 (.t(r7), .s(sums[ga*32 +: 32]), .overflow(ovf[ga]));
             always @(posedge clk) begin
                 r1 <= p1;
                 r2 <= p2;
@@ -117,12 +122,15 @@ module bpx_updater #(
                 r4 <= p4;
                 r5 <= p5;
                 r6 <= p6;
+                r7 <= p7;
             end
         end
     endgenerate
     assign overflow = active && v[S-2] && mode == 2'd2 && |ovf;
 
     wire [AW-1:0] next_n = next + issue;
+    wire [AW-1:0] left_n = left - issue;
+    wire          pending_n = |left[AW-1:1] || (left == 1 && !issue);  // left_n != 0
     wire [CW-1:0] in_flight_n = in_flight + issue - take;
     reg           more;   // a register of the pipeline other than the add register is valid
     integer k, t, w;
@@ -133,12 +141,13 @@ module bpx_updater #(
             more = more | v[k];
     end
     assign active_d = start ? (n != 0)
-                      : (active && (next_n < last || in_flight_n != 0 || take || more));
+                      : (active && (pending_n || in_flight_n != 0 || take || more));
 
     always @(posedge clk) begin
         if (start) begin
             next <= {AW{1'b0}};
-            last <= n;
+            left <= n;
+            pending <= n != 0;
             in_flight <= {CW{1'b0}};
             for (t = 0; t < S; t = t + 1)
                 v[t] <= 1'b0;
@@ -146,6 +155,8 @@ module bpx_updater #(
             mode <= mode_in;
         end else if (active) begin
             next <= next_n;
+            left <= left_n;
+            pending <= pending_n;
             in_flight <= in_flight_n;
             v[0] <= take;
             a[0] <= rd_addr;
