@@ -91,8 +91,6 @@ module bpx_chip #(
     // drives the clock enable of the whole comparator, which a combinational stall delayed.
     reg stall;
     initial stall = 1'b0;
-    wire [6*M-1:0] stall_ram;  // copies of stall, one per comparator RAM (rtl/comparator.sv)
-    wire stall_d;
     wire [IW-1:0] out_i, out_j;
     wire [31:0] count;
 
@@ -115,7 +113,7 @@ module bpx_chip #(
         .active(upd_active), .active_d(upd_active_d));
 
     bpx_comparator #(.M(M), .DEPTH(DEPTH), .AW(AW), .IW(IW)) cmp (
-        .clk(clk), .clear(clear), .stall(stall), .stall_ram(stall_ram), .start(cmp_start), .start_max(n_a - 1'b1),
+        .clk(clk), .clear(clear), .stall(stall), .start(cmp_start), .start_max(n_a - 1'b1),
         .we(upd_we), .waddr(upd_waddr), .wdata(upd_wdata),
         .busy(cmp_busy), .busy_d(cmp_busy_d),
         .a_active(t_addressing), .a_max(t_max), .ports(t_ports),
@@ -131,19 +129,8 @@ module bpx_chip #(
     // The controller: the next clock's phase from the units' state after this edge.
     wire update_ends = phase == PH_UPDATE && !upd_active_d;
     assign cmp_start = update_ends && n_a >= 2;
-    assign stall_d = !(clear || cmp_start) && h_valid_n && |(h_mask_n & full_n);
     always @(posedge clk)
-        stall <= stall_d;
-    genvar gs;
-    generate
-        for (gs = 0; gs < 6 * M; gs = gs + 1) begin : hold
-            reg copy = 1'b0;
-            // keep: Yosys would merge the copies back into one flip-flop (and one slow net).
-            (* keep *) always @(posedge clk)
-                copy <= stall_d;
-            assign stall_ram[gs] = copy;
-        end
-    endgenerate
+        stall <= !(clear || cmp_start) && h_valid_n && |(h_mask_n & full_n);
     always @(posedge clk) begin
         if (run) begin
             error <= too_many;

@@ -23,10 +23,6 @@ module bpx_comparator #(
     input  wire              clk,
     input  wire              clear,     // empty the pipeline (start of a run)
     input  wire              stall,     // hold every register (a FIFO the results need is full)
-    // The same stall, one copy per RAM (RAM r of memory x: bit x * M + r), for the clock enable
-    // of its read and output registers: one net to every RAM and their 1 500 registers was the
-    // longest path at 108 MHz on an ECP5 (its routing alone 13 ns).
-    input  wire [6*M-1:0]    stall_ram,
     input  wire              start,     // start Table 1 on boxes 0 .. max (needs max >= 1)
     input  wire [AW-1:0]     start_max,
     // Write port, from the updater: one address in all M RAMs of the six memories.
@@ -163,19 +159,18 @@ module bpx_comparator #(
                 wire [AW-1:0] rb = ports[(2*gr+1)*AW +: AW];
                 wire [RW-1:0] adr_a = we ? waddr[RW-1:0] : ra[RW-1:0];
                 wire [RW-1:0] adr_b = rb[RW-1:0];
-                wire en_ram = !stall_ram[gx*M + gr];
                 always @(posedge clk) begin
                     if (we)
                         word[adr_a] <= wkey[gx];
-                    if (en_ram)
+                    if (en)
                         qa <= word[adr_a];
                 end
                 always @(posedge clk) begin
-                    if (en_ram)
+                    if (en)
                         qb <= word[adr_b];
                 end
                 always @(posedge clk) begin
-                    if (en_ram) begin
+                    if (en) begin
                         oa <= qa;
                         ob <= qb;
                     end
