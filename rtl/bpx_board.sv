@@ -19,6 +19,7 @@ module bpx_board #(
     input  wire [1:0]      reg_addr,
     input  wire [31:0]     reg_wdata,
     output wire [31:0]     reg_rdata,
+    input  wire            col_ready,     // the harness's collision SSRAM takes a write
     output wire            col_we,
     output wire [31:0]     col_addr,
     output wire [IW-1:0]   col_i,
@@ -54,7 +55,7 @@ module bpx_board #(
     bpx_chip #(.M(M), .DEPTH(DEPTH), .FDEPTH(FDEPTH), .LAT(LAT), .TRACE(1)) chip (
         .clk(clk), .reg_we(reg_we), .reg_addr(reg_addr), .reg_wdata(reg_wdata),
         .reg_rdata(reg_rdata), .ssram_re(ssram_re), .ssram_addr(ssram_addr),
-        .ssram_rdata(pipe[LAT-1]), .col_we(col_we), .col_addr(col_addr), .col_i(col_i),
+        .ssram_rdata(pipe[LAT-1]), .col_ready(col_ready), .col_we(col_we), .col_addr(col_addr), .col_i(col_i),
         .col_j(col_j), .phase(phase), .t_addressing(t_addressing), .t_ports(t_ports),
         .t_max(t_max), .t_hits_valid(t_hits_valid), .t_hits(t_hits), .t_hit_row(t_hit_row),
         .t_stalled(t_stalled), .t_emitted(t_emitted), .t_pair_i(t_pair_i), .t_pair_j(t_pair_j),

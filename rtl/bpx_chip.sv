@@ -36,7 +36,9 @@ module bpx_chip #(
     output wire            ssram_re,
     output wire [AW-1:0]   ssram_addr,
     input  wire [6*32-1:0] ssram_rdata,
-    // Collision write port (the board's collision SSRAM).
+    // Collision output: a valid/ready stream (col_we valid; a pair is taken, written at col_addr
+    // = COUNT, on a clock with col_ready) into the board's collision SSRAM.
+    input  wire            col_ready,
     output wire            col_we,
     output wire [31:0]     col_addr,
     output wire [IW-1:0]   col_i,
@@ -77,23 +79,29 @@ module bpx_chip #(
     wire [6*32-1:0] upd_wdata;
     // Comparator.
     wire cmp_busy, cmp_busy_d, cmp_start;
-    wire h_valid;
+    wire h_valid, h_valid_n;
     wire [IW-1:0] h_i;
     wire [AW-1:0] h_j0;
-    wire [2*M-2:0] h_mask;
+    wire [2*M-2:0] h_mask, h_mask_n, full_n;
     // Emitter.
-    wire stall, out_valid, emi_busy, emi_busy_d;
+    wire out_valid, emi_busy, emi_busy_d;
+    // The stall (the comparator's results meet a full FIFO: hold every comparator register and
+    // RAM) is a register: this clock's registered hits against this clock's full FIFOs, computed
+    // a clock ahead from both units' next state, so the same clocks as the model's stall; it
+    // drives the clock enable of the whole comparator, which a combinational stall delayed.
+    reg stall;
+    initial stall = 1'b0;
     wire [IW-1:0] out_i, out_j;
     wire [31:0] count;
 
-    bpx_interface #(.AW(AW), .IW(IW), .LAT(LAT)) ifc (
+    bpx_interface #(.DEPTH(DEPTH), .AW(AW), .IW(IW), .LAT(LAT)) ifc (
         .clk(clk), .clear(clear),
         .reg_we(reg_we), .reg_addr(reg_addr), .reg_wdata(reg_wdata), .reg_rdata(reg_rdata),
         .n(n), .start(start_reg), .mode(mode), .done(phase == PH_IDLE), .error(error),
         .overflow(overflow), .rd_addr_next(rd_addr_next),
         .req(upd_req), .req_addr(upd_req_addr), .ssram_re(ssram_re), .ssram_addr(ssram_addr),
         .rd_valid(rd_valid), .rd_addr(rd_addr),
-        .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
+        .out_valid(out_valid), .out_i(out_i), .out_j(out_j), .col_ready(col_ready),
         .col_we(col_we), .col_addr(col_addr), .col_i(col_i), .col_j(col_j), .count(count));
 
     bpx_updater #(.DEPTH(DEPTH), .AW(AW), .LAT(LAT)) upd (
@@ -109,17 +117,20 @@ module bpx_chip #(
         .we(upd_we), .waddr(upd_waddr), .wdata(upd_wdata),
         .busy(cmp_busy), .busy_d(cmp_busy_d),
         .a_active(t_addressing), .a_max(t_max), .ports(t_ports),
-        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask));
+        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask),
+        .h_valid_n(h_valid_n), .h_mask_n(h_mask_n));
 
     bpx_emitter #(.M(M), .FDEPTH(FDEPTH), .AW(AW), .IW(IW), .TRACE(TRACE)) emi (
         .clk(clk), .clear(clear), .stall(stall),
-        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask),
-        .blocks(stall), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
+        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask), .ready(col_ready),
+        .blocks(), .full_n(full_n), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .busy(emi_busy), .busy_d(emi_busy_d), .fill_max(t_fill_max));
 
     // The controller: the next clock's phase from the units' state after this edge.
     wire update_ends = phase == PH_UPDATE && !upd_active_d;
     assign cmp_start = update_ends && n_a >= 2;
+    always @(posedge clk)
+        stall <= !(clear || cmp_start) && h_valid_n && |(h_mask_n & full_n);
     always @(posedge clk) begin
         if (run) begin
             error <= too_many;

@@ -6,10 +6,13 @@
 // RAM r. The RAMs hold each float as an ordered integer key (-0 and +0 the same key), so the
 // 2M - 1 comparison units compare unsigned integers; closed intervals (touching boxes collide).
 //
-// Three register stages, all held while `stall` is high (the clock enable is low):
+// Four register stages, all held while `stall` is high (the clock enable is low):
 //   stage 0: the address generator (a_*), presented to the RAMs this clock;
 //   stage 1: the RAMs' read registers and the registered addresses (r_*);
-//   stage 2: the comparison results (h_*), read by the emitter.
+//   stage 2: the RAMs' output registers (o_*): a block RAM's clock-to-output (5.8 ns on an
+//            ECP5) leaves too little of a 108 MHz clock for six 32-bit compares after it;
+//   stage 3: the comparison results (h_*), read by the emitter.
+// h_valid_n and h_mask_n are stage 3 after this edge, for the chip's registered stall.
 // The updater writes one box (six words) into all M RAMs of each memory through port A.
 module bpx_comparator #(
     parameter integer M = 4,
@@ -36,7 +39,9 @@ module bpx_comparator #(
     output reg               h_valid,
     output reg  [IW-1:0]     h_i,
     output reg  [AW-1:0]     h_j0,
-    output reg  [2*M-2:0]    h_mask
+    output reg  [2*M-2:0]    h_mask,
+    output wire              h_valid_n,
+    output wire [2*M-2:0]    h_mask_n
 );
     localparam integer L = 2 * M - 1;  // comparison units
     localparam integer RW = (DEPTH > 1) ? $clog2(DEPTH) : 1;
@@ -74,15 +79,17 @@ module bpx_comparator #(
         end
     endgenerate
 
-    // ---- stage 1: registered addresses (the RAMs' read registers are below) ---------------
-    reg          r_valid;
+    // ---- stages 1 and 2: registered addresses (the RAMs' registers are below) -------------
+    reg          r_valid, o_valid;
     reg [AW-1:0] r_first, r_base, r_kept;
+    reg [AW-1:0] o_first, o_base, o_kept;
 
     wire en = !stall;
     always @(posedge clk) begin
         if (clear) begin
             g_active <= 1'b0;
             r_valid <= 1'b0;
+            o_valid <= 1'b0;
             h_valid <= 1'b0;
         end else if (start) begin
             g_active <= 1'b1;
@@ -90,6 +97,7 @@ module bpx_comparator #(
             g_base <= {{(AW-1){1'b0}}, 1'b1};
             g_max <= start_max;
             r_valid <= 1'b0;
+            o_valid <= 1'b0;
             h_valid <= 1'b0;
         end else if (en) begin
             // stage 0 -> next addresses
@@ -112,10 +120,17 @@ module bpx_comparator #(
                 r_kept <= g_kept;
             end
             // stage 1 -> stage 2
-            h_valid <= r_valid;
+            o_valid <= r_valid;
             if (r_valid) begin
-                h_i <= r_first[IW-1:0];
-                h_j0 <= r_base;
+                o_first <= r_first;
+                o_base <= r_base;
+                o_kept <= r_kept;
+            end
+            // stage 2 -> stage 3
+            h_valid <= o_valid;
+            if (o_valid) begin
+                h_i <= o_first[IW-1:0];
+                h_j0 <= o_base;
                 h_mask <= units;
             end
         end
@@ -123,9 +138,11 @@ module bpx_comparator #(
 
     wire g_active_n = stall ? g_active : (g_active && !(g_wrap && g_first1 >= g_max));
     wire r_valid_n = stall ? r_valid : g_active;
-    wire h_valid_n = stall ? h_valid : r_valid;
-    assign busy = g_active | r_valid | h_valid;
-    assign busy_d = start | (!clear & (g_active_n | r_valid_n | h_valid_n));
+    wire o_valid_n = stall ? o_valid : r_valid;
+    assign h_valid_n = stall ? h_valid : o_valid;
+    assign h_mask_n = stall ? h_mask : units;
+    assign busy = g_active | r_valid | o_valid | h_valid;
+    assign busy_d = start | (!clear & (g_active_n | r_valid_n | o_valid_n | h_valid_n));
 
     // ---- the six memories: M dual-port RAMs each, same data -------------------------------
     // q[(x*M + r)*2 + side]: RAM r of memory x, port A (side 0) or B (side 1).
@@ -137,7 +154,7 @@ module bpx_comparator #(
             assign wkey[gx] = fkey(wdata[gx*32 +: 32]);
             for (gr = 0; gr < M; gr = gr + 1) begin : ram
                 reg [31:0] word [0:DEPTH-1];
-                reg [31:0] qa, qb;
+                reg [31:0] qa, qb, oa, ob;  // read registers, output registers
                 wire [AW-1:0] ra = ports[(2*gr)*AW +: AW];
                 wire [AW-1:0] rb = ports[(2*gr+1)*AW +: AW];
                 wire [RW-1:0] adr_a = we ? waddr[RW-1:0] : ra[RW-1:0];
@@ -152,15 +169,21 @@ module bpx_comparator #(
                     if (en)
                         qb <= word[adr_b];
                 end
-                assign q[(gx*M + gr)*2 + 0] = qa;
-                assign q[(gx*M + gr)*2 + 1] = qb;
+                always @(posedge clk) begin
+                    if (en) begin
+                        oa <= qa;
+                        ob <= qb;
+                    end
+                end
+                assign q[(gx*M + gr)*2 + 0] = oa;
+                assign q[(gx*M + gr)*2 + 1] = ob;
             end
         end
     endgenerate
 
-    // ---- stage 1 -> 2: the comparison units ------------------------------------------------
+    // ---- stage 2 -> 3: the comparison units ------------------------------------------------
     // Unit k uses port k + 1: RAM (k + 1) / 2, side (k + 1) % 2; port 0 (RAM 0, A) is the
-    // first box. Six comparisons, ANDed; units k >= r_kept are discarded (index check).
+    // first box. Six comparisons, ANDed; units k >= o_kept are discarded (index check).
     wire [L-1:0] units;
     genvar gk;
     generate
@@ -176,7 +199,7 @@ module bpx_comparator #(
             assign units[gk] = (fmax_x >= omin_x) & (fmin_x <= omax_x) &
                                (fmax_y >= omin_y) & (fmin_y <= omax_y) &
                                (fmax_z >= omin_z) & (fmin_z <= omax_z) &
-                               (r_kept > gk);
+                               (o_kept > gk);
         end
     endgenerate
 endmodule

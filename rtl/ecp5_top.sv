@@ -22,12 +22,13 @@ module bpx_ecp5_top #(
     output reg           ssram_re,
     output reg  [AW-1:0] ssram_addr,
     input  wire [31:0]   ssram_word,   // one bank's word per clock into the shift register
+    input  wire          col_ready,
     output reg           col_we,
     output reg  [31:0]   col_addr,
     output reg  [IW-1:0] col_i,
     output reg  [IW-1:0] col_j
 );
-    reg          we_q;
+    reg          we_q, ready_q;
     reg [1:0]    addr_q;
     reg [31:0]   wdata_q;
     reg [6*32-1:0] rdata_q;
@@ -39,6 +40,7 @@ module bpx_ecp5_top #(
 
     always @(posedge clk) begin
         we_q <= reg_we;
+        ready_q <= col_ready;
         addr_q <= reg_addr;
         wdata_q <= reg_wdata;
         rdata_q <= {rdata_q[5*32-1:0], ssram_word};
@@ -54,7 +56,7 @@ module bpx_ecp5_top #(
     bpx_chip #(.M(M), .DEPTH(DEPTH), .FDEPTH(FDEPTH), .LAT(LAT), .TRACE(0)) chip (
         .clk(clk), .reg_we(we_q), .reg_addr(addr_q), .reg_wdata(wdata_q), .reg_rdata(rdata),
         .ssram_re(re), .ssram_addr(saddr), .ssram_rdata(rdata_q),
-        .col_we(cwe), .col_addr(caddr), .col_i(ci), .col_j(cj),
+        .col_ready(ready_q), .col_we(cwe), .col_addr(caddr), .col_i(ci), .col_j(cj),
         .phase(), .t_addressing(), .t_ports(), .t_max(), .t_hits_valid(), .t_hits(),
         .t_hit_row(), .t_stalled(), .t_emitted(), .t_pair_i(), .t_pair_j(), .t_fill_max(),
         .t_count());

@@ -8,8 +8,16 @@
 // full FIFO, `blocks` is high: the comparator holds (nothing of that result is written) until
 // that FIFO has room. A pair is never dropped.
 //
-// The output register is the read register of the served FIFO's block RAMs plus the registered
-// lane number that selects it: the same value the model's output register holds.
+// The served FIFO's block RAMs register its head (their read registers, plus the registered lane
+// number that selects them); the output register takes the selected one a clock later: a block
+// RAM's clock-to-output and a (2M - 1)-way select did not fit one 108 MHz clock on an ECP5.
+// The model's emitter has the same two registers (src/hw/emitter.h). `nonempty` and `full` are
+// registers (the model's committed bits), so the round robin and the stall start at flip-flops;
+// full_n is `full` after this edge, for the chip's registered stall.
+//
+// The output register is a valid/ready stream's source: `ready` low while it holds a collision
+// holds it and the read register and reads no FIFO (the FIFOs still take hits, and when a hit
+// meets a full one the comparator stalls, as always): back-pressure never drops a pair.
 module bpx_emitter #(
     parameter integer M = 4,
     parameter integer FDEPTH = 1024,  // entries per FIFO
@@ -24,10 +32,12 @@ module bpx_emitter #(
     input  wire [IW-1:0]  h_i,
     input  wire [AW-1:0]  h_j0,
     input  wire [2*M-2:0] h_mask,
+    input  wire           ready,      // the collision port takes the output register this clock
     output wire           blocks,     // a hit of the registered result meets a full FIFO
+    output wire [2*M-2:0] full_n,     // FIFOs full after this edge
     output reg            out_valid,
-    output wire [IW-1:0]  out_i,
-    output wire [IW-1:0]  out_j,
+    output reg  [IW-1:0]  out_i,
+    output reg  [IW-1:0]  out_j,
     output wire           busy,       // FIFOs or output register hold collisions
     output wire           busy_d,     // busy after this clock edge
     output reg  [31:0]    fill_max
@@ -40,11 +50,14 @@ module bpx_emitter #(
     reg  [FW-1:0] fill [0:L-1];
     reg  [PW-1:0] head [0:L-1];
     (* fsm_encoding = "none" *) reg [LW-1:0] next_lane; // a counter, not an FSM for Yosys
-    (* fsm_encoding = "none" *) reg [LW-1:0] out_sel;   // likewise: as an FSM it took 2/3 of
+    (* fsm_encoding = "none" *) reg [LW-1:0] f_sel;     // likewise: as an FSM it took 2/3 of
                                                          // the LUTs at M = 8 (docs/rtl.md)
+    reg           f_valid;                               // the FIFO read registers hold a pair
     wire [L-1:0]  nonempty, full;
     wire [L-1:0]  push = (!stall && h_valid) ? h_mask : {L{1'b0}};
 
+    // The output pipeline moves unless a collision waits in the output register for `ready`.
+    wire         advance = !out_valid || ready;
     // Round robin: the first non-empty lane at or after next_lane, else the first non-empty.
     reg          pop_valid;
     reg [LW-1:0] pop, pick_hi, pick_lo;
@@ -64,7 +77,7 @@ module bpx_emitter #(
                 end
             end
         end
-        pop_valid = |nonempty;
+        pop_valid = advance && |nonempty;
         pop = any_hi ? pick_hi : pick_lo;
     end
 
@@ -79,14 +92,17 @@ module bpx_emitter #(
             reg [IW-1:0] fifo_i [0:FDEPTH-1];
             reg [IW-1:0] fifo_j [0:FDEPTH-1];
             reg [IW-1:0] qi, qj;
+            reg ne_r, full_r;
+            assign nonempty[g] = ne_r;
+            assign full[g] = full_r;
             wire popped = pop_valid && pop == g;
-            wire [FW:0] sum = {1'b0, fill[g]} + head[g];
-            wire [PW-1:0] tail = (sum >= FDEPTH) ? (sum - FDEPTH) : sum[PW-1:0];
+            reg [PW-1:0] tail;  // head + fill, wrapped: a register, not an adder on the path
             wire [IW-1:0] j = h_j0[IW-1:0] + g;
             wire [FW-1:0] fill_n = fill[g] + push[g] - popped;
-            assign nonempty[g] = fill[g] != 0;
-            assign full[g] = fill[g] == FDEPTH;
-            assign nonempty_n[g] = clear ? 1'b0 : (fill_n != 0);
+            // The next non-empty and full bits from this clock's bits, not from fill_n's adder.
+            wire one = fill[g] == 1, almost = fill[g] == FDEPTH - 1;
+            assign nonempty_n[g] = !clear && (push[g] || (nonempty[g] && !(popped && one)));
+            assign full_n[g] = !clear && !popped && (full[g] || (push[g] && almost));
             always @(posedge clk) begin
                 if (push[g]) begin
                     fifo_i[tail] <= h_i;
@@ -98,11 +114,16 @@ module bpx_emitter #(
                 end
             end
             always @(posedge clk) begin
+                ne_r <= nonempty_n[g];
+                full_r <= full_n[g];
                 if (clear) begin
                     fill[g] <= {FW{1'b0}};
                     head[g] <= {PW{1'b0}};
+                    tail <= {PW{1'b0}};
                 end else begin
                     fill[g] <= fill_n;
+                    if (push[g])
+                        tail <= (tail == FDEPTH - 1) ? {PW{1'b0}} : tail + 1'b1;
                     if (popped)
                         head[g] <= (head[g] == FDEPTH - 1) ? {PW{1'b0}} : head[g] + 1'b1;
                 end
@@ -114,20 +135,25 @@ module bpx_emitter #(
 
     always @(posedge clk) begin
         if (clear) begin
+            f_valid <= 1'b0;
             out_valid <= 1'b0;
             next_lane <= {LW{1'b0}};
-        end else begin
-            out_valid <= pop_valid;
+        end else if (advance) begin
+            f_valid <= pop_valid;
             if (pop_valid) begin
-                out_sel <= pop;
+                f_sel <= pop;
                 next_lane <= (pop == L - 1) ? {LW{1'b0}} : pop + 1'b1;
+            end
+            out_valid <= f_valid;
+            if (f_valid) begin
+                out_i <= q_i[f_sel];
+                out_j <= q_j[f_sel];
             end
         end
     end
-    assign out_i = q_i[out_sel];
-    assign out_j = q_j[out_sel];
-    assign busy = |nonempty || out_valid;
-    assign busy_d = !clear && (|nonempty_n || pop_valid);
+    assign busy = |nonempty || f_valid || out_valid;
+    // Held (not advancing), the output register still holds its collision.
+    assign busy_d = !clear && (|nonempty_n || pop_valid || f_valid || !advance);
 
     // The fullest FIFO now (trace only).
     generate

@@ -3,14 +3,17 @@
 // - Registers, written and read by the host: N (boxes), CONTROL (bit 0: start; bits 2:1 the
 //   mode: 0 general boxes, 1 initialisation (minima), 2 updating (centres)), STATUS (bit 0
 //   done, bit 1 error: n beyond DEPTH, bit 2 overflow: a box coordinate rounded beyond
-//   FLT_MAX), COUNT (collisions written).
+//   FLT_MAX), COUNT (collisions written), DEPTH (read-only: the boxes the chip holds, its limit
+//   on N; a larger N sets STATUS.error).
 // - The SSRAM read port the updater uses: the board's SSRAM returns data LAT clocks after the
 //   address; the interface keeps each read's valid bit and address in a LAT-stage pipeline so
 //   that they arrive with the data.
-// - The collision write port: the emitter's output register is written at address COUNT at the
-//   next clock edge (one collision per address), and COUNT advances. No back-pressure: the
-//   board's collision SSRAM always takes a write, as in the model.
+// - The collision output, a valid/ready stream: the emitter's output register is the valid
+//   pair; on a clock with col_ready it is taken (written at address COUNT: one collision per
+//   address) and COUNT advances; without col_ready the emitter holds it (back-pressure, as the
+//   model's collision_ready hook).
 module bpx_interface #(
+    parameter integer DEPTH = 512,
     parameter integer AW = 11,
     parameter integer IW = 9,
     parameter integer LAT = 2
@@ -19,7 +22,7 @@ module bpx_interface #(
     input  wire          clear,       // start of a run: empty the read pipeline, COUNT = 0
     // Host register port.
     input  wire          reg_we,
-    input  wire [1:0]    reg_addr,    // 0 N, 1 CONTROL/STATUS, 2 COUNT
+    input  wire [1:0]    reg_addr,    // 0 N, 1 CONTROL/STATUS, 2 COUNT, 3 DEPTH
     input  wire [31:0]   reg_wdata,
     output reg  [31:0]   reg_rdata,
     output reg  [31:0]   n,
@@ -40,6 +43,7 @@ module bpx_interface #(
     input  wire          out_valid,
     input  wire [IW-1:0] out_i,
     input  wire [IW-1:0] out_j,
+    input  wire          col_ready,
     output wire          col_we,
     output wire [31:0]   col_addr,
     output wire [IW-1:0] col_i,
@@ -55,7 +59,8 @@ module bpx_interface #(
         case (reg_addr)
             2'd0: reg_rdata = n;
             2'd1: reg_rdata = {29'd0, overflow, error, done};
-            default: reg_rdata = count;
+            2'd2: reg_rdata = count;
+            default: reg_rdata = DEPTH;
         endcase
     end
 
@@ -89,6 +94,6 @@ module bpx_interface #(
     always @(posedge clk)
         if (clear)
             count <= 32'd0;
-        else if (out_valid)
+        else if (out_valid && col_ready)
             count <= count + 1'b1;
 endmodule

@@ -1,10 +1,12 @@
 // bpx RTL: the updater (paper §4.2, Figure 2), mirroring src/hw/updater.h.
 //
 // One object per clock: an address counter requests the SSRAM word at `next`; the data comes
-// back LAT clocks later through the interface's read pipeline; the adders' first half
-// (bpx_fadd_align) goes into the align register and their second half (bpx_fadd_round) into the
-// add register; the clock after, it is written at that address. A pass over n objects takes
-// n + LAT + 2 clocks, in every mode (the modes without adds go through both registers too).
+// back LAT clocks later through the interface's read pipeline into the operand register (with
+// the minimum from the minima RAM); seven registers between the adder's eight steps (rtl/fadd.sv)
+// follow, then the add register; the clock after, it is written at that address: S = 9
+// registers, a pass over n objects takes n + LAT + 9 clocks, in every mode (the modes without
+// adds go through as many registers). The model's updater has the same registers
+// (BPX_HW_UPDATE_STAGES in src/hw/updater.h).
 // Modes (the model's bpx_hw_update_mode):
 //   0 boxes   (BPX_HW_PASS_BOXES, not in the paper): min x, y, z from banks 0-2, max x, y, z
 //             from banks 3-5, written into the comparator's six memories;
@@ -40,96 +42,138 @@ module bpx_updater #(
     output wire            active_d    // active after this clock edge
 );
     localparam integer CW = $clog2(LAT + 2) + 1;  // reads in flight
-
-    localparam integer PW = 41;  // bpx_fadd_align's output (rtl/fadd.sv)
-
-    reg [AW-1:0]   next, last;
-    reg [CW-1:0]   in_flight;
-    // The align register: the arriving word (modes 0, 1) and the six adders' first halves.
-    reg            pipe_valid;
-    reg [AW-1:0]   pipe_addr;
-    reg [6*32-1:0] pipe;
-    reg [6*PW-1:0] pipe_part;
-    // The add register: what is written next clock.
-    reg            stage_valid;
-    reg [AW-1:0]   stage_addr;
-    reg [6*32-1:0] stage;
-    reg [1:0]      mode;
+    localparam integer S = 9;   // registers from the arriving data to the write
     localparam integer RW = (DEPTH > 1) ? $clog2(DEPTH) : 1;
+    // The adder's widths between its steps (rtl/fadd.sv's BPX_FADD_P1 .. P7; fadd.sv may be
+    // read after this file).
+    localparam integer P1 = 71, P2 = 97, P3 = 68, P4 = 41, P5 = 55, P6 = 47, P7 = 42;
+
+    reg [AW-1:0]   next;
+    reg [AW-1:0]   left;       // reads still to issue
+    reg            pending;    // left != 0, a register: issue and active_d start at flip-flops
+    reg [CW-1:0]   in_flight;
+    reg [1:0]      mode;
+    // Register k of the pipeline: valid and RAM address (0: operands, S - 1: the add register).
+    reg            v [0:S-1];
+    reg [AW-1:0]   a [0:S-1];
+    // The operand register: the arriving word and the minimum read with it.
+    reg [6*32-1:0] op;
+    reg [3*32-1:0] op_m;
+    // The word of modes 0 and 1 alongside the adders (registers 1 .. S - 2), and the add register.
+    reg [6*32-1:0] word [1:S-2];
+    reg [6*32-1:0] stage;
 
     // The minima RAM (x, y, z of one object per word) and its read register.
     reg [3*32-1:0] minima [0:DEPTH-1];
     reg [3*32-1:0] mq;
     always @(posedge clk) begin
-        if (active && stage_valid && mode == 2'd1)
-            minima[stage_addr[RW-1:0]] <= stage[3*32-1:0];
+        if (active && v[S-1] && mode == 2'd1)
+            minima[a[S-1][RW-1:0]] <= stage[3*32-1:0];
         mq <= minima[rd_addr_next[RW-1:0]];
     end
 
-    wire issue = active && next < last;
+    wire issue = active && pending;
     wire take = active && rd_valid;
     assign req = issue;
     assign req_addr = next;
-    assign we = active && stage_valid && mode != 2'd1;
-    assign waddr = stage_addr;
+    assign we = active && v[S-1] && mode != 2'd1;
+    assign waddr = a[S-1];
     assign wdata = stage;
 
     // Banks 0-2 are the minima x, y, z and banks 3-5 the maxima; the memories interleave them.
-    wire [6*32-1:0] box = {rd_data[5*32 +: 32], rd_data[2*32 +: 32],
-                           rd_data[4*32 +: 32], rd_data[1*32 +: 32],
-                           rd_data[3*32 +: 32], rd_data[0*32 +: 32]};
+    wire [6*32-1:0] box = {op[5*32 +: 32], op[2*32 +: 32], op[4*32 +: 32], op[1*32 +: 32],
+                           op[3*32 +: 32], op[0*32 +: 32]};
 
-    // centre + minimum and centre - minimum, per axis: first halves from the arriving data,
-    // second halves from the align register.
-    wire [6*PW-1:0] parts;
+    // centre + minimum and centre - minimum, per axis (memory order), one register per step.
     wire [6*32-1:0] sums;
     wire [5:0]      ovf;
     genvar ga;
     generate
-        for (ga = 0; ga < 3; ga = ga + 1) begin : axis
-            wire [31:0] c = rd_data[ga*32 +: 32];
-            wire [31:0] m = mq[ga*32 +: 32];
-            bpx_fadd_align lo (.a(c), .b(m), .p(parts[(2*ga)*PW +: PW]));
-            bpx_fadd_align hi (.a(c), .b({~m[31], m[30:0]}), .p(parts[(2*ga+1)*PW +: PW]));
-        end
-        for (ga = 0; ga < 6; ga = ga + 1) begin : round
-            bpx_fadd_round r (.p(pipe_part[ga*PW +: PW]), .s(sums[ga*32 +: 32]),
-                              .overflow(ovf[ga]));
+        for (ga = 0; ga < 6; ga = ga + 1) begin : adder
+            wire [31:0] c = op[(ga/2)*32 +: 32];
+            wire [31:0] m0 = op_m[(ga/2)*32 +: 32];
+            wire [31:0] m = (ga % 2) ? {~m0[31], m0[30:0]} : m0;  // max = centre - minimum
+            wire [P1-1:0] p1;
+            wire [P2-1:0] p2;
+            wire [P3-1:0] p3;
+            wire [P4-1:0] p4;
+            wire [P5-1:0] p5;
+            wire [P6-1:0] p6;
+            reg  [P1-1:0] r1;
+            reg  [P2-1:0] r2;
+            reg  [P3-1:0] r3;
+            reg  [P4-1:0] r4;
+            reg  [P5-1:0] r5;
+            reg  [P6-1:0] r6;
+            reg  [P7-1:0] r7;
+            wire [P7-1:0] p7;
+            bpx_fadd_swap   s1 (.a(c), .b(m), .p(p1));
+            bpx_fadd_coarse s2 (.p(r1), .q(p2));
+            bpx_fadd_fine   s3 (.q(r2), .r(p3));
+            bpx_fadd_add    s4 (.r(r3), .p(p4));
+            bpx_fadd_zeros  s5 (.p(r4), .q(p5));
+            bpx_fadd_clamp  s6 (.q(r5), .r(p6));
+            bpx_fadd_shift  s7 (.r(r6), .t(p7));
+            bpx_fadd_round  s8 (.t(r7), .s(sums[ga*32 +: 32]), .overflow(ovf[ga]));
+            always @(posedge clk) begin
+                r1 <= p1;
+                r2 <= p2;
+                r3 <= p3;
+                r4 <= p4;
+                r5 <= p5;
+                r6 <= p6;
+                r7 <= p7;
+            end
         end
     endgenerate
-    assign overflow = pipe_valid && mode == 2'd2 && |ovf;
-    wire [6*32-1:0] next_pipe = mode == 2'd0 ? box : rd_data;
-    wire [6*32-1:0] next_stage = mode == 2'd2 ? sums : pipe;
+    assign overflow = active && v[S-2] && mode == 2'd2 && |ovf;
 
     wire [AW-1:0] next_n = next + issue;
+    wire [AW-1:0] left_n = left - issue;
+    wire          pending_n = |left[AW-1:1] || (left == 1 && !issue);  // left_n != 0
     wire [CW-1:0] in_flight_n = in_flight + issue - take;
+    reg           more;   // a register of the pipeline other than the add register is valid
+    integer k, t, w;
+    always @* begin
+        more = 1'b0;
+        k = 0;
+        for (k = 0; k < S - 1; k = k + 1)
+            more = more | v[k];
+    end
     assign active_d = start ? (n != 0)
-                      : (active && (next_n < last || in_flight_n != 0 || take || pipe_valid));
+                      : (active && (pending_n || in_flight_n != 0 || take || more));
 
     always @(posedge clk) begin
         if (start) begin
             next <= {AW{1'b0}};
-            last <= n;
+            left <= n;
+            pending <= n != 0;
             in_flight <= {CW{1'b0}};
-            pipe_valid <= 1'b0;
-            stage_valid <= 1'b0;
+            for (t = 0; t < S; t = t + 1)
+                v[t] <= 1'b0;
             active <= n != 0;
             mode <= mode_in;
         end else if (active) begin
             next <= next_n;
+            left <= left_n;
+            pending <= pending_n;
             in_flight <= in_flight_n;
-            pipe_valid <= take;
-            if (take) begin
-                pipe_addr <= rd_addr;
-                pipe <= next_pipe;
-                pipe_part <= parts;
-            end
-            stage_valid <= pipe_valid;
-            if (pipe_valid) begin
-                stage_addr <= pipe_addr;
-                stage <= next_stage;
+            v[0] <= take;
+            a[0] <= rd_addr;
+            for (t = 1; t < S; t = t + 1) begin
+                v[t] <= v[t-1];
+                a[t] <= a[t-1];
             end
             active <= active_d;
         end
+    end
+    // Data registers: no enable (a register's value matters only while its valid bit is set).
+    always @(posedge clk) begin
+        op <= rd_data;
+        op_m <= mq;
+        word[1] <= mode == 2'd0 ? box : op;
+        for (w = 2; w < S - 1; w = w + 1)
+            word[w] <= word[w-1];
+        stage <= mode == 2'd2 ? sums : word[S-2];
     end
 endmodule

@@ -70,7 +70,9 @@ typedef struct bpx_model_clock {
     uint64_t hits;          ///< bit k: comparison unit k's registered result is a collision
     uint32_t hit_row;       ///< box index (global) of those results' first address
     bool stalled;           ///< the comparator is held: a FIFO it must write is full
-    bool emitted;           ///< the round-robin scheduler moved one collision out this clock
+    /// The emitter's output register holds a collision after this clock (the collision port's
+    /// valid; it is written, and the next one moves up, at a clock whose ready is true).
+    bool emitted;
     bpx_pair pair;          ///< that collision (natural, unsorted order)
     uint32_t fifo_fill_max; ///< the fullest FIFO pair after this clock
 } bpx_model_clock;
@@ -117,6 +119,13 @@ typedef struct bpx_model_config {
     /// Optional per-clock hook (NULL: none) and its argument.
     bpx_model_trace_fn *trace;
     void *trace_user;
+    /// Optional back-pressure on the collision output (NULL: always ready), the RTL's
+    /// col_ready: called before each stepped clock with its number (bpx_model_clock.clock); on
+    /// a clock it returns false the output register holds its collision and the emitter reads
+    /// no FIFO, so the FIFOs fill and, when full, stall the comparator; no pair is dropped. It
+    /// must depend on the clock number alone: clocks the model skips do not call it.
+    bool (*collision_ready)(uint64_t clock, void *user);
+    void *collision_ready_user;
 } bpx_model_config;
 
 /// What one run (initialisation or one updating phase) cost, clock by clock. Stage clocks

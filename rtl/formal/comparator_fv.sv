@@ -9,8 +9,9 @@
 //   - every pair taken has i < j < n (the index check discards the rest);
 //   - (a, b) is taken at most once, and, once the pass is over, exactly once if the boxes
 //     overlap (closed intervals, on the ordered keys) and never if not;
-//   - the pass takes exactly P + 2 clocks without a stall, P = sum over rows r = 1 .. n - 1 of
-//     ceil(r / L) (Table 1), then the comparator is idle.
+//   - the pass takes exactly P + 3 clocks without a stall, P = sum over rows r = 1 .. n - 1 of
+//     ceil(r / L) (Table 1; the three: RAM read, RAM output and result registers), then the
+//     comparator is idle.
 module comparator_fv #(
     parameter integer M = 1,
     parameter integer DEPTH = 4
@@ -114,15 +115,15 @@ module comparator_fv #(
         if (running) begin
             assert(!bad);
             assert(seen + ab <= 1);
-            assert(busy == (ran < pass + 2));   // the pass's length, then idle
-            if (ran >= pass + 2)
+            assert(busy == (ran < pass + 3));   // the pass's length, then idle
+            if (ran >= pass + 3)
                 assert(seen == overlap);
         end
     end
 
     always @(posedge clk) begin
         if (running) begin
-            cover(ran == pass + 2 && seen == 1 && n == DEPTH && b == n - 1);
+            cover(ran == pass + 3 && seen == 1 && n == DEPTH && b == n - 1);
             cover(stall && h_valid);
         end
     end

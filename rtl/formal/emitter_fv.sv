@@ -7,7 +7,8 @@
 // payload, any lane and any clock, the checks below hold for every hit:
 //   - it comes out at most once, and never if it never came in;
 //   - it comes out within BOUND clocks of its write (FDEPTH entries of its lane, the round
-//     robin serving that lane at least once every L clocks, one clock for the output register);
+//     robin serving that lane at least once every L clocks, one clock each for the FIFO's read
+//     register and the output register);
 //   - nothing comes out before something went in;
 //   - a block lasts at most L clocks (the full lane is served within L clocks: no deadlock).
 // A FIFO that overwrote or lost an entry would drop the watched hit when it is that entry.
@@ -22,8 +23,9 @@ module emitter_fv #(
     localparam integer IW = 2;
     // A hit waits for the FDEPTH - 1 ahead of it in its lane and for itself, each pop of its lane
     // at most L clocks after the previous one; if its lane was empty, the round robin may have
-    // just passed it (L + 1). One more clock for the output register is included in both.
-    localparam integer BOUND = (FDEPTH * L > L + 1) ? FDEPTH * L : L + 1;
+    // just passed it (L + 1). One more clock for the FIFO's read register is included in both;
+    // the output register after it adds one.
+    localparam integer BOUND = ((FDEPTH * L > L + 1) ? FDEPTH * L : L + 1) + 1;
 
     reg init = 1'b1;  // the first clock clears the emitter, as a run's start does
     always @(posedge clk) init <= 1'b0;
@@ -53,7 +55,7 @@ module emitter_fv #(
 
     bpx_emitter #(.M(M), .FDEPTH(FDEPTH), .AW(AW), .IW(IW), .TRACE(0)) dut (
         .clk(clk), .clear(init), .stall(blocks),
-        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask),
+        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask), .ready(1'b1),
         .blocks(blocks), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .busy(busy), .busy_d(busy_d), .fill_max(fill_max));
 

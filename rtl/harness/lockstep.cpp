@@ -5,6 +5,8 @@
 // row, the stall, the emitted pair, the fullest FIFO and the collision count. At the end: the
 // clock count, the collision-count register, the collision RAM in emitter order against
 // bpx_model_emitted, and the sorted pairs against bpx_find_pairs(BPX_BACKEND_REFERENCE).
+// Some scenes hold the collision output back (col_ready low on random clocks), the model's
+// collision_ready hook giving the same pattern.
 //
 // Built once per configuration (BPX_RTL_M, BPX_RTL_DEPTH, BPX_RTL_FDEPTH, BPX_RTL_LAT and the
 // Verilated class VTOP). Exit status 0 when every scene matches, 1 otherwise.
@@ -130,6 +132,25 @@ struct Harness {
 
     std::vector<Clock> trace; // the model's clocks of its last call
 
+    // The collision port's ready, a function of the clock alone (the model's hook is called
+    // only for the clocks it steps): ready on ready_percent of the clocks, drawn by a hash.
+    uint32_t ready_percent = 100;
+    uint64_t ready_seed = 0;
+    bool ready(uint64_t clock) const
+    {
+        if (ready_percent >= 100)
+            return true;
+        uint64_t x = (clock + 1) * 0x9e3779b97f4a7c15ull ^ ready_seed;
+        x ^= x >> 31;
+        x *= 0xbf58476d1ce4e5b9ull;
+        x ^= x >> 29;
+        return x % 100 < ready_percent;
+    }
+    static bool model_ready(uint64_t clock, void *user)
+    {
+        return static_cast<const Harness *>(user)->ready(clock);
+    }
+
     bpx_model *new_model()
     {
         bpx_model_config config = bpx_model_default_config();
@@ -139,6 +160,8 @@ struct Harness {
         config.ssram_latency = LAT;
         config.trace = on_clock;
         config.trace_user = &trace;
+        config.collision_ready = model_ready;
+        config.collision_ready_user = this;
         bpx_model *model = nullptr;
         if (bpx_model_create(&config, &model) != BPX_OK) {
             std::fprintf(stderr, "bpx_model_create failed\n");
@@ -209,7 +232,8 @@ struct Harness {
                     fail("stall", clock, top->t_stalled, m->stalled);
                 total_stalls += top->t_stalled;
             }
-            if (top->col_we)
+            top->col_ready = ready(clock);
+            if (top->col_we && top->col_ready) // the collision SSRAM takes the pair
                 written.push_back({(uint32_t)top->col_i, (uint32_t)top->col_j});
             tick();
             // After the edge: the emitter's output register, the FIFOs, the count register.
@@ -226,15 +250,18 @@ struct Harness {
                     fail("fifo fill max", clock, top->t_fill_max, m->fifo_fill_max);
                 if (top->t_count != emitted_before)
                     fail("count register", clock, top->t_count, emitted_before);
-                emitted_before += m->emitted;
+                emitted_before += m->emitted && ready(clock + 1); // taken at the next edge
             }
             clock++;
         }
+        top->col_ready = 1;
         if (top->phase != 7)
             fail("rtl never finished", clock, clock, 0);
         if (lockstep && clock != trace.size())
             fail("clocks", clock, clock, trace.size());
 
+        if (reg_read(3) != DEPTH)
+            fail("DEPTH register", clock, reg_read(3), DEPTH);
         const uint32_t st = reg_read(1);
         const bool rtl_error = st & 2u, rtl_overflow = st & 4u;
         if (rtl_error != (status == BPX_ERR_TOO_MANY_BOXES))
@@ -403,7 +430,9 @@ int main(int argc, char **argv)
     unsigned seed = argc > 1 ? (unsigned)std::strtoul(argv[1], nullptr, 10) : 1;
     int randoms = argc > 2 ? std::atoi(argv[2]) : 40;
     std::mt19937 rng(seed);
+    std::mt19937 ready_rng(seed + 1); // back-pressure patterns: the scenes stay those of rng
     Harness h;
+    h.top->col_ready = 1;
     h.top->clk = 0;
     h.top->host_we = 0;
     h.top->reg_we = 0;
@@ -421,6 +450,11 @@ int main(int argc, char **argv)
         std::vector<bpx_box> all(DEPTH, box(-1, -1, -1, 1, 1, 1));
         scene("all overlapping", all);
         scene("all overlapping n=5", std::vector<bpx_box>(all.begin(), all.begin() + 5));
+        // Back-pressure: the collision port ready on a quarter of the clocks, the FIFOs filling.
+        h.ready_percent = 25;
+        h.ready_seed = ready_rng();
+        scene("all overlapping, ready 25%", all);
+        h.ready_percent = 100;
     }
     {
         std::vector<bpx_box> none;
@@ -525,10 +559,14 @@ int main(int argc, char **argv)
     for (int r = 0; r < randoms; r++) {
         std::uniform_int_distribution<uint32_t> nd(0, DEPTH);
         uint32_t n = nd(rng);
+        // Every third random scene with back-pressure: ready on 5 to 95 % of the clocks.
+        h.ready_percent = r % 3 == 2 ? 5 + ready_rng() % 91 : 100;
+        h.ready_seed = ready_rng();
         if (r % 2)
             scene("random grid " + std::to_string(r), random_grid(rng, n, 1 + (int)(rng() % 12), (int)(rng() % 4)));
         else
             scene("random bits " + std::to_string(r), random_bits(rng, n));
+        h.ready_percent = 100;
     }
     std::printf("lockstep: M=%d DEPTH=%u FDEPTH=%u: %d scenes, %" PRIu64 " clocks, %" PRIu64
                 " stall clocks, %" PRIu64 " pairs, %d mismatches\n",

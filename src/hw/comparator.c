@@ -37,6 +37,7 @@ void bpx__hw_comparator_reset(bpx_hw_comparator *c)
     for (int k = 0; k < 2; k++) {
         c->regs[k].a.active = false;
         c->regs[k].r_valid = false;
+        c->regs[k].o_valid = false;
         c->regs[k].h_valid = false;
     }
     c->stall = false;

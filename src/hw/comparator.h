@@ -1,7 +1,9 @@
 // The model's comparator (paper §4.3, Figures 3-4, Table 1): six 2m-width memories (each m
 // dual-port RAMs holding the same data), the Table 1 address generator, and 2m - 1 comparison
-// units doing the six comparisons of one pair each and ANDing them. Three register stages:
-// addresses -> RAM output registers -> comparison results (read by the emitter).
+// units doing the six comparisons of one pair each and ANDing them. Four register stages:
+// addresses -> RAM read registers -> RAM output registers -> comparison results (read by the
+// emitter). The output registers are the RTL's: on an ECP5 a block RAM's clock-to-output and
+// six 32-bit compares after it did not fit one 108 MHz clock (docs/rtl.md).
 #pragma once
 
 #include <stdbool.h>
@@ -66,7 +68,14 @@ typedef struct bpx_hw_cmp_regs {
     uint32_t r_first;
     uint32_t r_base;
     int r_kept; // units 0 .. r_kept - 1 have addresses <= max; the rest are discarded
-    // Stage 2: comparison results, read by the emitter.
+    // Stage 2: the RAMs' output registers: stage 1 a clock later (the same words).
+    bool o_valid;
+    uint32_t o_i;
+    uint32_t o_j0;
+    uint32_t o_first;
+    uint32_t o_base;
+    int o_kept;
+    // Stage 3: comparison results, read by the emitter.
     bool h_valid;
     uint32_t h_i;
     uint32_t h_j0; // unit k's pair is (h_i, h_j0 + k)
@@ -112,7 +121,7 @@ void bpx__hw_comparator_start(bpx_hw_comparator *c, uint32_t first_begin, uint32
 /// Anything in the pipeline (addresses still to present or results not yet taken).
 static inline bool bpx__hw_comparator_busy(const bpx_hw_comparator *c)
 {
-    return c->cur->a.active || c->cur->r_valid || c->cur->h_valid;
+    return c->cur->a.active || c->cur->r_valid || c->cur->o_valid || c->cur->h_valid;
 }
 
 /// The 2m - 1 comparison units on the words at the registered addresses (port 0: first; unit k:
@@ -170,12 +179,22 @@ static inline void bpx__hw_comparator_evaluate(bpx_hw_comparator *c, bool stall)
     bpx_hw_cmp_regs *nxt = c->nxt;
     const int lanes = c->lanes;
 
-    // Stage 2: the comparison units on the RAMs' words.
-    nxt->h_valid = cur->r_valid;
+    // Stage 3: the comparison units on the RAMs' words.
+    nxt->h_valid = cur->o_valid;
+    if (cur->o_valid) {
+        nxt->h_mask = bpx__hw_comparator_units(c, cur->o_first, cur->o_base, cur->o_kept);
+        nxt->h_i = cur->o_i;
+        nxt->h_j0 = cur->o_j0;
+    }
+
+    // Stage 2: the RAMs' output registers take their read registers.
+    nxt->o_valid = cur->r_valid;
     if (cur->r_valid) {
-        nxt->h_mask = bpx__hw_comparator_units(c, cur->r_first, cur->r_base, cur->r_kept);
-        nxt->h_i = cur->r_i;
-        nxt->h_j0 = cur->r_j0;
+        nxt->o_first = cur->r_first;
+        nxt->o_base = cur->r_base;
+        nxt->o_kept = cur->r_kept;
+        nxt->o_i = cur->r_i;
+        nxt->o_j0 = cur->r_j0;
     }
 
     // Stage 1: the RAMs register the presented addresses. Port 0 and port 1 share RAM 0 (its
@@ -233,14 +252,15 @@ static inline uint64_t bpx__hw_comparator_run_quiet(bpx_hw_comparator *c)
         return 0;
     bpx_hw_addrgen a = reg->a;
     const uint32_t i_offset = reg->a_i_offset, j_offset = reg->a_j_offset;
-    bool r_valid = reg->r_valid, h_valid = reg->h_valid;
+    bool r_valid = reg->r_valid, o_valid = reg->o_valid, h_valid = reg->h_valid;
     uint32_t r_i = reg->r_i, r_j0 = reg->r_j0, r_first = reg->r_first, r_base = reg->r_base;
+    uint32_t o_i = reg->o_i, o_j0 = reg->o_j0, o_first = reg->o_first, o_base = reg->o_base;
     uint32_t h_i = reg->h_i, h_j0 = reg->h_j0;
-    int r_kept = reg->r_kept;
+    int r_kept = reg->r_kept, o_kept = reg->o_kept;
     uint64_t h_mask = reg->h_mask, clocks = 0, address_clocks = 0, discarded = 0;
     for (;;) {
         // Evaluate.
-        uint64_t next_mask = r_valid ? bpx__hw_comparator_units(c, r_first, r_base, r_kept) : 0;
+        uint64_t next_mask = o_valid ? bpx__hw_comparator_units(c, o_first, o_base, o_kept) : 0;
         bool next_r = a.active;
         int kept = 0;
         if (a.active) {
@@ -249,10 +269,16 @@ static inline uint64_t bpx__hw_comparator_run_quiet(bpx_hw_comparator *c)
             discarded += (uint64_t)(a.lanes - kept);
         }
         // Commit: every stage takes its next value.
-        h_valid = r_valid;
+        h_valid = o_valid;
         h_mask = next_mask;
-        h_i = r_i;
-        h_j0 = r_j0;
+        h_i = o_i;
+        h_j0 = o_j0;
+        o_valid = r_valid;
+        o_i = r_i;
+        o_j0 = r_j0;
+        o_first = r_first;
+        o_base = r_base;
+        o_kept = r_kept;
         r_valid = next_r;
         if (next_r) {
             r_first = a.first;
@@ -263,10 +289,16 @@ static inline uint64_t bpx__hw_comparator_run_quiet(bpx_hw_comparator *c)
             bpx__hw_addrgen_next(&a);
         }
         clocks++;
-        if ((h_valid && h_mask) || !(a.active || r_valid || h_valid))
+        if ((h_valid && h_mask) || !(a.active || r_valid || o_valid || h_valid))
             break;
     }
     reg->a = a;
+    reg->o_valid = o_valid;
+    reg->o_i = o_i;
+    reg->o_j0 = o_j0;
+    reg->o_first = o_first;
+    reg->o_base = o_base;
+    reg->o_kept = o_kept;
     reg->r_valid = r_valid;
     reg->r_i = r_i;
     reg->r_j0 = r_j0;

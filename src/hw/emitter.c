@@ -19,9 +19,11 @@ void bpx__hw_emitter_reset(bpx_hw_emitter *e)
     e->nonempty = 0;
     e->full = 0;
     e->next_lane = 0;
+    e->read_valid = false;
     e->out_valid = false;
     e->push = 0;
     e->pop = -1;
+    e->advance = true;
     e->peak_fill = 0;
     e->emitted = 0;
 }

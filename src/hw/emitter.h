@@ -1,8 +1,11 @@
 // The model's collision emitter (paper §4.4, Figure 5): the 2m - 1 comparison units each write
 // a hit's two indices into their own pair of FIFOs (4m - 2 FIFOs in all, written and read in
 // lockstep, so one pair of FIFOs is kept here as one FIFO of index pairs); a round-robin
-// scheduler moves one collision per clock from the FIFOs into its output register, which the
-// interface writes to the collision RAM. A full FIFO stalls the comparator.
+// scheduler reads one collision per clock from the FIFOs (the FIFO block RAMs' read registers)
+// and moves it into its output register the clock after, which the interface writes to the
+// collision RAM. A full FIFO stalls the comparator. (The RTL selects the served FIFO's read
+// register into the output register: one clock for a block RAM's clock-to-output and that
+// select did not fit 108 MHz on an ECP5, so the model has both registers too.)
 #pragma once
 
 #include <stdbool.h>
@@ -20,7 +23,9 @@ typedef struct bpx_hw_emitter {
     uint64_t nonempty; // bit k: FIFO pair k holds an entry (committed)
     uint64_t full;     // bit k: FIFO pair k is full (committed)
     int next_lane;     // where the round robin looks first
-    // Output register (committed).
+    // The FIFO read registers (the served lane's) and the output register (committed).
+    bool read_valid;
+    bpx_pair read;
     bool out_valid;
     bpx_pair out;
     // Evaluate -> commit.
@@ -28,6 +33,7 @@ typedef struct bpx_hw_emitter {
     uint32_t push_i;
     uint32_t push_j0;
     int pop; // lane read this clock, or -1
+    bool advance; // the output register is empty or taken: the output pipeline moves
     // Statistics since the last reset.
     uint32_t peak_fill;
     uint64_t emitted;
@@ -46,35 +52,42 @@ static inline bool bpx__hw_emitter_blocks(const bpx_hw_emitter *e, const bpx_hw_
 /// FIFOs or output register still hold collisions.
 static inline bool bpx__hw_emitter_busy(const bpx_hw_emitter *e)
 {
-    return e->nonempty != 0 || e->out_valid;
+    return e->nonempty != 0 || e->read_valid || e->out_valid;
 }
 
 /// Evaluate: latch the comparator's results (unless stalled) as this clock's FIFO writes and
 /// pick the FIFO to read: the round robin serves the first non-empty FIFO pair at or after
-/// next_lane.
+/// next_lane. ready: the collision port takes the output register this clock; when it holds a
+/// collision and ready is false, the read and output registers hold and no FIFO is read.
 static inline void bpx__hw_emitter_evaluate(bpx_hw_emitter *e, const bpx_hw_comparator *c,
-                                            bool stall)
+                                            bool stall, bool ready)
 {
     const bpx_hw_cmp_regs *r = c->cur;
     e->push = !stall && r->h_valid ? r->h_mask : 0;
     e->push_i = r->h_i;
     e->push_j0 = r->h_j0;
     e->pop = -1;
-    if (e->nonempty) {
+    e->advance = !e->out_valid || ready;
+    if (e->nonempty && e->advance) {
         uint64_t after = e->nonempty >> e->next_lane << e->next_lane;
         e->pop = after ? __builtin_ctzll(after) : __builtin_ctzll(e->nonempty);
     }
 }
 
-/// Commit: the read FIFO gives its head to the output register; each unit with a hit writes
+/// Commit: the read register moves to the output register and the read FIFO gives its head to
+/// the read register; each unit with a hit writes
 /// (i, j) at its FIFO pair's tail (a written FIFO is never full: the comparator would have been
 /// stalled); the round-robin pointer moves past the FIFO read.
 static inline void bpx__hw_emitter_commit(bpx_hw_emitter *e)
 {
-    e->out_valid = e->pop >= 0;
+    if (e->advance) {
+        e->out_valid = e->read_valid;
+        e->out = e->read;
+        e->read_valid = e->pop >= 0;
+    }
     if (e->pop >= 0) {
         int k = e->pop;
-        e->out = e->slots[(size_t)k * e->depth + e->head[k]];
+        e->read = e->slots[(size_t)k * e->depth + e->head[k]];
         if (++e->head[k] == e->depth)
             e->head[k] = 0;
         e->fill[k]--;

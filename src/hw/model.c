@@ -183,13 +183,13 @@ static void trace_clock(bpx_hw_machine *mc, const trace_before *b)
 
 // The clock edge: every unit evaluates from the committed state, then every unit commits, so
 // all registers change together.
-static inline bool clock_edge(bpx_hw_machine *mc, bool stall)
+static inline bool clock_edge(bpx_hw_machine *mc, bool stall, bool ready)
 {
     bpx_hw_comparator *c = &mc->cmp;
     bpx__hw_updater_evaluate(&mc->upd, &mc->ifc, c);
     bpx__hw_comparator_evaluate(c, stall);
-    bpx__hw_emitter_evaluate(&mc->emi, c, stall);
-    bpx__hw_interface_evaluate(&mc->ifc, mc->emi.out_valid, mc->emi.out);
+    bpx__hw_emitter_evaluate(&mc->emi, c, stall, ready);
+    bpx__hw_interface_evaluate(&mc->ifc, mc->emi.out_valid && ready, mc->emi.out);
 
     bpx__hw_updater_commit(&mc->upd);
     bpx__hw_comparator_commit(c);
@@ -202,15 +202,18 @@ static inline bool clock_edge(bpx_hw_machine *mc, bool stall)
     return ok;
 }
 
-// One clock. The comparator is held when a result it must hand over meets a full FIFO.
+// One clock. The comparator is held when a result it must hand over meets a full FIFO; the
+// collision port takes the output register when it is ready (the back-pressure hook).
 static bool step(bpx_hw_machine *mc)
 {
     const bool stall = bpx__hw_emitter_blocks(&mc->emi, &mc->cmp);
-    if (!mc->config.trace)
-        return clock_edge(mc, stall);
+    const bpx_model_config *c = &mc->config;
+    const bool ready = !c->collision_ready || c->collision_ready(mc->clock, c->collision_ready_user);
+    if (!c->trace)
+        return clock_edge(mc, stall, ready);
     const bpx_hw_cmp_regs *r = mc->cmp.cur;
     trace_before before = {mc->clock, r->a, r->h_valid, r->h_mask, r->h_i, stall};
-    bool ok = clock_edge(mc, stall);
+    bool ok = clock_edge(mc, stall, ready);
     trace_clock(mc, &before);
     return ok;
 }

@@ -21,7 +21,8 @@ void bpx__hw_updater_start(bpx_hw_updater *u, bpx_hw_update_mode mode, uint32_t 
     u->end = end;
     u->destination = to - begin;
     u->in_flight = 0;
-    u->pipe_valid = false;
-    u->stage_valid = false;
+    for (int k = 0; k < BPX_HW_UPDATE_STAGES; k++)
+        u->pipe[k].valid = false;
+    u->valid = 0;
     u->active = begin < end;
 }

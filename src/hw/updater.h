@@ -2,11 +2,12 @@
 // minima the host wrote to the SSRAM in its own on-chip RAM. Updating: for each object it reads
 // the centre from the SSRAM, adds the stored minimum to get the box's minimum and subtracts it
 // to get the maximum (the maximum is the minimum with its sign changed), and writes the box
-// into the comparator's six memories. Pipeline: SSRAM read (latency L) -> align register ->
-// add register -> RAM write, one object per clock: a pass over n objects takes n + L + 2
-// clocks. The chip's binary32 adder is two stages (rtl/fadd.sv: align and add, then normalise
-// and round; one stage was too slow for 108 MHz), so the model computes the sum when the data
-// arrives and delays it by one register: the same bits at the same clock.
+// into the comparator's six memories. Pipeline: SSRAM read (latency L) -> operand register ->
+// seven adder registers -> add register -> RAM write, one object per clock: a pass over n objects
+// takes n + L + BPX_HW_UPDATE_STAGES clocks. The chip's binary32 adder is eight steps with a
+// register after each but the last (rtl/fadd.sv; in one or two stages it was the chip's longest
+// path, far from 108 MHz on an ECP5), so the model computes the sum when the data arrives and
+// moves it through as many registers: the same bits at the same clock.
 #pragma once
 
 #include <stdbool.h>
@@ -27,6 +28,20 @@ typedef enum bpx_hw_update_mode {
     BPX_HW_PASS_BOXES,
 } bpx_hw_update_mode;
 
+enum {
+    /// Registers from the arriving SSRAM word to the RAM write: the operand register, the seven
+    /// between the adder's steps and the add register (rtl/updater.sv's S).
+    BPX_HW_UPDATE_STAGES = 9,
+};
+
+/// One register of the updater's pipeline: a box (memory order: min x, max x, min y, max y,
+/// min z, max z) or three minima, and the RAM address it goes to.
+typedef struct bpx_hw_update_reg {
+    bool valid;
+    uint32_t address;
+    float word[BPX_HW_AXES];
+} bpx_hw_update_reg;
+
 typedef struct bpx_hw_updater {
     uint32_t depth;   // words of the minima RAM
     float *minima[3]; // the on-chip minima RAM, x, y, z
@@ -36,21 +51,17 @@ typedef struct bpx_hw_updater {
     uint32_t end;         // one past the last
     uint32_t destination; // RAM address = SSRAM address + destination (mod 2^32)
     uint32_t in_flight;   // reads not yet returned
-    // The align register: the adders' first stage (here the whole sum), and its RAM address.
-    bool pipe_valid;
-    uint32_t pipe_address;
-    float pipe[BPX_HW_AXES];
-    // The add register: a box (memory order: min x, max x, min y, max y, min z, max z) or three
-    // minima, and the RAM address it goes to.
-    bool stage_valid;
-    uint32_t stage_address;
-    float stage[BPX_HW_AXES];
+    // The pipeline, pipe[0] the operand register (here already the whole sum) and
+    // pipe[BPX_HW_UPDATE_STAGES - 1] the add register, written to the RAMs; `valid` counts the
+    // registers holding an object.
+    bpx_hw_update_reg pipe[BPX_HW_UPDATE_STAGES];
+    int valid;
     // Evaluate -> commit.
     bool issue;
     bool next_valid;
     uint32_t next_address;
     float next_stage[BPX_HW_AXES];
-    bool store_minima; // write the stage into the minima RAM at commit
+    bool store_minima; // write the add register into the minima RAM at commit
 } bpx_hw_updater;
 
 /// minima: three arrays of depth floats (the updater's RAM).
@@ -67,8 +78,8 @@ static inline bool bpx__hw_updater_done(const bpx_hw_updater *u)
     return !u->active;
 }
 
-/// Evaluate: request the next address, compute the add stage from the arriving data, and drive
-/// the comparator's write port (or the minima RAM) from the current stage.
+/// Evaluate: request the next address, compute the sum from the arriving data, and drive the
+/// comparator's write port (or the minima RAM) from the add register.
 static inline void bpx__hw_updater_evaluate(bpx_hw_updater *u, bpx_hw_interface *ifc,
                                             bpx_hw_comparator *c)
 {
@@ -86,8 +97,8 @@ static inline void bpx__hw_updater_evaluate(bpx_hw_updater *u, bpx_hw_interface 
         u->issue = true;
     }
 
-    // Align stage: the data of the read issued `latency` clocks ago (the add stage is the align
-    // register moved on at commit).
+    // Operand register: the data of the read issued `latency` clocks ago, and the whole sum
+    // (the chip's adder steps are the registers after it, moved on at commit).
     const bpx_hw_read *in = bpx__hw_interface_data(ifc);
     if (in->valid) {
         u->next_valid = true;
@@ -117,41 +128,45 @@ static inline void bpx__hw_updater_evaluate(bpx_hw_updater *u, bpx_hw_interface 
         }
     }
 
-    // Write stage: last clock's sum goes into every RAM of the six memories (one address).
-    if (u->stage_valid) {
+    // Write stage: the add register goes into every RAM of the six memories (one address).
+    const bpx_hw_update_reg *last = &u->pipe[BPX_HW_UPDATE_STAGES - 1];
+    if (last->valid) {
         if (u->mode == BPX_HW_STORE_MINIMA) {
             u->store_minima = true;
         } else {
             c->write = true;
-            c->write_address = u->stage_address;
-            memcpy(c->write_data, u->stage, sizeof c->write_data);
+            c->write_address = last->address;
+            memcpy(c->write_data, last->word, sizeof c->write_data);
         }
     }
 }
 
-/// Commit: address counter, align and add registers, minima RAM write.
+/// Commit: address counter, the pipeline's registers, minima RAM write.
 static inline void bpx__hw_updater_commit(bpx_hw_updater *u)
 {
     if (!u->active)
         return;
+    bpx_hw_update_reg *pipe = u->pipe;
+    enum { LAST = BPX_HW_UPDATE_STAGES - 1 };
     if (u->store_minima)
         for (int a = 0; a < 3; a++)
-            u->minima[a][u->stage_address] = u->stage[a];
+            u->minima[a][pipe[LAST].address] = pipe[LAST].word[a];
     if (u->issue) {
         u->next++;
         u->in_flight++;
     }
     if (u->next_valid)
         u->in_flight--;
-    u->stage_valid = u->pipe_valid;
-    if (u->pipe_valid) {
-        u->stage_address = u->pipe_address;
-        memcpy(u->stage, u->pipe, sizeof u->stage);
-    }
-    u->pipe_valid = u->next_valid;
+    // Every register takes the one before it (only the valid ones carry anything).
+    u->valid -= pipe[LAST].valid;
+    for (int k = LAST; k > 0; k--)
+        if (pipe[k].valid || pipe[k - 1].valid)
+            pipe[k] = pipe[k - 1];
+    pipe[0].valid = u->next_valid;
     if (u->next_valid) {
-        u->pipe_address = u->next_address;
-        memcpy(u->pipe, u->next_stage, sizeof u->pipe);
+        pipe[0].address = u->next_address;
+        memcpy(pipe[0].word, u->next_stage, sizeof pipe[0].word);
+        u->valid++;
     }
-    u->active = u->next < u->end || u->in_flight > 0 || u->pipe_valid || u->stage_valid;
+    u->active = u->next < u->end || u->in_flight > 0 || u->valid > 0;
 }

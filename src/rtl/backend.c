@@ -135,6 +135,11 @@ static bpx_status rtl_compare(void **state, bpx_cycle *c)
     rtl_state *st = get_state(state);
     if (!st)
         return BPX_ERR_OUT_OF_MEMORY;
+    // The chip states its limit in its DEPTH register; the arrays here are sized for this one.
+    const uint32_t depth = bpx__rtl_board_depth(st->board);
+    if (depth != BPX_RTL_DEPTH)
+        return bpx__error(c->error, BPX_ERR_DEVICE, UINT32_MAX, -1,
+                          "rtl: the chip's DEPTH register reads %u, not %u", depth, BPX_RTL_DEPTH);
     bpx_status status = bpx__emitter_own_blocks(c->sink, 1);
     if (status != BPX_OK)
         return status;

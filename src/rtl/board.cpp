@@ -19,7 +19,7 @@ extern "C" {
 #include "rtl/board.h"
 
 // Register addresses (rtl/interface.sv).
-enum { REG_N = 0, REG_CONTROL = 1, REG_COUNT = 2 };
+enum { REG_N = 0, REG_CONTROL = 1, REG_COUNT = 2, REG_DEPTH = 3 };
 enum { STATUS_DONE = 1, STATUS_ERROR = 2, STATUS_OVERFLOW = 4 };
 
 struct bpx_rtl_board {
@@ -30,6 +30,7 @@ struct bpx_rtl_board {
         top.clk = 0;
         top.host_we = 0;
         top.reg_we = 0;
+        top.col_ready = 1; // the host's collision SSRAM takes every write: no back-pressure
         top.eval();
     }
     void tick()
@@ -93,6 +94,11 @@ void bpx__rtl_board_write(bpx_rtl_board *board, int bank, const float *words, ui
     }
     top.host_we = 0;
     top.eval();
+}
+
+uint32_t bpx__rtl_board_depth(bpx_rtl_board *board)
+{
+    return board->reg_read(REG_DEPTH);
 }
 
 bpx_rtl_run bpx__rtl_board_run(bpx_rtl_board *board, uint32_t n, int mode, bpx_rtl_emit *emit,

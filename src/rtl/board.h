@@ -49,6 +49,8 @@ void bpx__rtl_board_destroy(bpx_rtl_board *board);
 /// 0 .. n - 1, one word a clock.
 void bpx__rtl_board_write(bpx_rtl_board *board, int bank, const float *words, uint32_t n,
                           uint32_t stride);
+/// The DEPTH register: the boxes the chip holds (a larger N sets STATUS.error).
+uint32_t bpx__rtl_board_depth(bpx_rtl_board *board);
 /// Writes N and CONTROL (start, mode), clocks until STATUS.done and hands each collision write
 /// to emit. Returns what the run did.
 bpx_rtl_run bpx__rtl_board_run(bpx_rtl_board *board, uint32_t n, int mode, bpx_rtl_emit *emit,
