@@ -158,6 +158,61 @@ static void sort_own(bpx_mpi_world *w, const uint64_t *ids, size_t count)
         swap_own(w);
 }
 
+// The last successful collide's order carried over (its ids at their positions), moved where
+// the migrate since then put each (home), the arrivals (the input's end) sorted and merged in,
+// then checked against the input in one gather: two passes where a sort takes three. Positions
+// are distinct by construction (old ones mapped one to one, arrivals past the stayers), so ids
+// that match make this the input's sorted order. false: the input is not that; nothing used.
+static bool sort_own_from_last(bpx_mpi_world *w, const uint64_t *ids, size_t count)
+{
+    const int *moved = w->order_hint ? w->home : NULL;
+    size_t last = w->last_ids_count, stay = moved ? w->hint_stay : last;
+    if ((moved ? w->hint_count : last) != count || stay > count)
+        return false;
+    size_t arrived = count - stay;
+    void **arrays[] = {(void **)&w->arrive_ids, (void **)&w->arrive_ids_tmp,
+                       (void **)&w->arrive_pos, (void **)&w->arrive_pos_tmp};
+    const size_t sizes[] = {sizeof *w->arrive_ids, sizeof *w->arrive_ids_tmp,
+                            sizeof *w->arrive_pos, sizeof *w->arrive_pos_tmp};
+    if (bpx_mpi__reserve(arrays, sizes, 4, &w->arrive_cap, arrived) != 0)
+        return false; // the full sort needs no more memory
+    uint64_t *ak = w->arrive_ids, *ak_tmp = w->arrive_ids_tmp;
+    uint32_t *ap = w->arrive_pos, *ap_tmp = w->arrive_pos_tmp;
+    if (arrived > 0)
+        memcpy(ak, ids + stay, arrived * sizeof *ids);
+    for (size_t k = 0; k < arrived; k++)
+        ap[k] = (uint32_t)(stay + k);
+    bpx_mpi__sort_ids(&ak, &ap, &ak_tmp, &ap_tmp, arrived);
+
+    const uint64_t *was = w->last_ids;
+    const uint32_t *was_pos = w->own_pos;
+    uint64_t *out = w->own_ids_tmp;
+    uint32_t *pos = w->own_pos_tmp;
+    size_t k = 0, j = 0;
+    for (size_t i = 0; i < last; i++) {
+        uint32_t p = was_pos[i];
+        if (moved) {
+            if (moved[p] < 0)
+                continue;
+            p = (uint32_t)moved[p];
+        }
+        for (; j < arrived && ak[j] < was[i] && k < count; j++)
+            out[k] = ak[j], pos[k++] = ap[j];
+        if (k == count)
+            return false;
+        out[k] = was[i], pos[k++] = p;
+    }
+    for (; j < arrived && k < count; j++)
+        out[k] = ak[j], pos[k++] = ap[j];
+    if (k != count || j != arrived)
+        return false;
+    for (size_t i = 0; i < count; i++)
+        if (ids[pos[i]] != out[i])
+            return false;
+    swap_own(w);
+    return true;
+}
+
 // One pass over this call's sorted ids, and with more than one rank the last successful
 // collide's: an id twice here (its index in own_ids, or 0 for none), and the change: the ids
 // added (to own_ids_tmp, free after the sort) and dropped (to dropped_out). Runs the two share
@@ -195,6 +250,8 @@ static size_t diff_own(bpx_mpi_world *w)
 bpx_status bpx_mpi__ids_check_own(bpx_mpi_world *w, const uint64_t *ids, size_t count)
 {
     w->own_ids_count = w->added_out_count = w->dropped_out_count = 0;
+    // own_pos keeps the last order only if it need not grow (growing does not keep contents).
+    bool from_last = w->last_pos_valid && count <= w->own_pos_cap;
     if (bpx_mpi__grow((void **)&w->own_ids, &w->own_ids_cap, count, sizeof *w->own_ids) ||
         bpx_mpi__grow((void **)&w->own_ids_tmp, &w->own_ids_tmp_cap, count,
                       sizeof *w->own_ids_tmp) ||
@@ -205,9 +262,12 @@ bpx_status bpx_mpi__ids_check_own(bpx_mpi_world *w, const uint64_t *ids, size_t 
                                       w->last_ids_count, sizeof *w->dropped_out))) {
         bpx_mpi__fail(w, BPX_ERR_OUT_OF_MEMORY, 0, SIZE_MAX, -1, "no memory to sort %zu ids",
                       count);
+        w->last_pos_valid = w->order_hint = false;
         return w->error.status;
     }
-    sort_own(w, ids, count);
+    if (!from_last || !sort_own_from_last(w, ids, count))
+        sort_own(w, ids, count);
+    w->last_pos_valid = w->order_hint = false; // own_pos holds this call's order now
     w->own_ids_count = count;
     size_t k = diff_own(w);
     if (k == 0)
@@ -329,6 +389,7 @@ void bpx_mpi__ids_commit(bpx_mpi_world *w)
     w->last_ids = w->own_ids;
     w->last_ids_cap = w->own_ids_cap;
     w->last_ids_count = w->own_ids_count;
+    w->last_pos_valid = true;
     w->own_ids = ids;
     w->own_ids_cap = cap;
     w->own_ids_count = 0;
@@ -357,5 +418,9 @@ void bpx_mpi__ids_free(bpx_mpi_world *w)
     FREE_ARRAY(added_rank, w->added_cap);
     FREE_ARRAY(dropped, w->dropped_cap);
     FREE_ARRAY(dropped_tmp, w->dropped_cap);
+    FREE_ARRAY(arrive_ids, w->arrive_cap);
+    FREE_ARRAY(arrive_ids_tmp, w->arrive_cap);
+    FREE_ARRAY(arrive_pos, w->arrive_cap);
+    FREE_ARRAY(arrive_pos_tmp, w->arrive_cap);
 #undef FREE_ARRAY
 }

@@ -53,6 +53,10 @@ bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes
         return status;
     size_t n = *count, record = 8 + sizeof(bpx_box) + payload_size;
     unsigned char *data = payload;
+    // The next collide may carry the last one's order over this move (ids.c) when this is the
+    // first move since, of the same objects. home is rewritten from here on.
+    bool carry = w->last_pos_valid && !w->order_hint && n == w->last_ids_count;
+    w->last_pos_valid = w->order_hint = false;
 
     // Where each object goes.
     memset(w->send_counts, 0, sizeof(int) * (size_t)w->size);
@@ -110,6 +114,7 @@ bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes
     size_t stay = 0;
     for (size_t i = 0; i < n; i++) {
         int home = w->home[i];
+        w->home[i] = home == w->rank ? (int)stay : -1; // where it is now, for the next collide
         if (home == w->rank) {
             ids[stay] = ids[i];
             boxes[stay] = boxes[i];
@@ -138,6 +143,9 @@ bpx_status bpx_mpi_world_migrate(bpx_mpi_world *w, uint64_t *ids, bpx_box *boxes
             memcpy(data + (stay + k) * payload_size, rec + 8 + sizeof(bpx_box), payload_size);
     }
     *count = stay + received;
+    w->last_pos_valid = w->order_hint = carry;
+    w->hint_stay = stay;
+    w->hint_count = stay + received;
     w->stats.migrated_sent = sent;
     w->stats.migrated_received = received;
     w->stats.migrate_bytes_sent = sent * record;

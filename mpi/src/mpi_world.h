@@ -86,6 +86,15 @@ struct bpx_mpi_world {
     uint32_t *own_pos, *own_pos_tmp;
     size_t own_ids_cap, own_ids_tmp_cap, own_pos_cap, own_pos_tmp_cap, last_ids_cap;
     size_t own_ids_count, last_ids_count, dropped_out_cap, added_out_count, dropped_out_count;
+    // The last successful collide's order, kept for the next call's sort (ids.c): own_pos
+    // holds its positions while last_pos_valid; after one migrate since, order_hint says that
+    // home maps each of those positions to its new one (-1: the object left), hint_stay
+    // objects stayed and the input then holds hint_count. Scratch for the arrivals' sort.
+    bool last_pos_valid, order_hint;
+    size_t hint_stay, hint_count;
+    uint64_t *arrive_ids, *arrive_ids_tmp;
+    uint32_t *arrive_pos, *arrive_pos_tmp;
+    size_t arrive_cap;
     uint64_t *dir_ids;
     int *dir_ranks;
     size_t dir_cap, dir_count; // slots (a power of two, or 0), ids held
@@ -98,7 +107,7 @@ struct bpx_mpi_world {
     int *plan_send, *plan_recv;
     size_t *id_cursor;
 
-    // Migrate: each object's home rank.
+    // Migrate: each object's home rank, then its new position (-1: it left).
     int *home;
     size_t home_cap;
 

@@ -807,6 +807,75 @@ static void test_migrate(void)
     scene_free(&s);
 }
 
+// Objects kept at home by migrate while they move: each collide carries the last one's order
+// over the move (ids.c), unless the caller changed its arrays since, which it must notice
+// (two objects swapped, an id given twice); and two collides on the same arrays. The pairs
+// stay the reference's throughout.
+static void check_gathered(run *r, scene *s)
+{
+    CHECK_STATUS(bpx_world_set_boxes(s->reference, s->boxes, (uint32_t)s->n), BPX_OK);
+    CHECK_STATUS(bpx_world_collide(s->reference), BPX_OK);
+    size_t want_count, all_count;
+    bpx_mpi_pair *want = to_global(bpx_world_pairs(s->reference, &want_count), want_count);
+    const bpx_mpi_pair *all = NULL;
+    CHECK_STATUS(bpx_mpi_world_gather_pairs(r->world, 0, &all, &all_count), BPX_OK);
+    if (rank == 0)
+        CHECK_MSG(same_pairs(all, all_count, want, want_count), "gathered %zu pairs, want %zu",
+                  all_count, want_count);
+    free(want);
+}
+
+static void test_migrate_cycles(void)
+{
+    size_t n = 3000;
+    check_set_context("migrate cycles ranks=%d", ranks);
+    scene s = scene_make(n, false, false, 31);
+    scene_uniform_density((uint32_t)n, 1.0f, 31, s.boxes);
+    run r = run_open(&s, bpx_mpi_default_world_def(), 31);
+    cycle(&r, &s, OWN_ROUND_ROBIN, 0); // the regions
+    size_t count = take_share(&r, &s, OWN_ROUND_ROBIN);
+    for (int c = 0; c < 8; c++) {
+        check_set_context("migrate cycles ranks=%d cycle=%d", ranks, c);
+        size_t moved = count;
+        CHECK_STATUS(bpx_mpi_world_migrate(r.world, r.ids, r.boxes, NULL, 0, n, &moved, NULL),
+                     BPX_OK);
+        count = moved;
+        if (c == 3 && count >= 2) { // the order carried over no longer holds
+            uint64_t id = r.ids[0];
+            bpx_box box = r.boxes[0];
+            r.ids[0] = r.ids[count - 1], r.boxes[0] = r.boxes[count - 1];
+            r.ids[count - 1] = id, r.boxes[count - 1] = box;
+        }
+        if (c == 5) { // an id twice on rank 0: refused everywhere, then given right
+            uint64_t kept = count >= 2 ? r.ids[1] : 0;
+            if (rank == 0 && count >= 2)
+                r.ids[1] = r.ids[0];
+            bpx_status got = bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count);
+            int bad = got == BPX_ERR_INVALID_ARGUMENT, rank0_has_two = rank == 0 && count >= 2;
+            MPI_Bcast(&rank0_has_two, 1, MPI_INT, 0, MPI_COMM_WORLD);
+            CHECK(bad == rank0_has_two || (!rank0_has_two && got == BPX_OK));
+            if (rank == 0 && count >= 2)
+                r.ids[1] = kept;
+        }
+        CHECK_STATUS(bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count), BPX_OK);
+        check_gathered(&r, &s);
+        if (c == 6) { // again on the same arrays
+            CHECK_STATUS(bpx_mpi_world_collide(r.world, r.ids, r.boxes, NULL, count), BPX_OK);
+            check_gathered(&r, &s);
+        }
+        // Every object moves a little (the same draws on every rank), and the arrays follow.
+        for (size_t k = 0; k < n; k++)
+            for (int a = 0; a < 3; a++) {
+                float d = scene_rng_range(&r.rng, -0.3f, 0.3f);
+                s.boxes[k].min[a] += d, s.boxes[k].max[a] += d;
+            }
+        for (size_t i = 0; i < count; i++)
+            r.boxes[i] = s.boxes[object_of(&r, r.ids[i])];
+    }
+    run_close(&r);
+    scene_free(&s);
+}
+
 // Filters switched on and off between cycles (the rank's world must drop the old ones).
 static void test_filters_toggle(void)
 {
@@ -906,6 +975,7 @@ int main(int argc, char **argv)
     test_clustered();
     test_huge_and_borders();
     test_migrate();
+    test_migrate_cycles();
     test_filters_toggle();
     test_auto_rebalance();
     test_mismatched_def();
