@@ -65,13 +65,11 @@ static bool reserve_present(bpx_mpi_world *w, size_t n)
 {
     void **arrays[] = {(void **)&w->ids,       (void **)&w->ids_tmp,   (void **)&w->order,
                        (void **)&w->order_tmp, (void **)&w->own_index, (void **)&w->boxes,
-                       (void **)&w->category,  (void **)&w->mask,      (void **)&w->inside,
-                       (void **)&w->source};
+                       (void **)&w->category,  (void **)&w->mask,      (void **)&w->present};
     const size_t sizes[] = {sizeof *w->ids,       sizeof *w->ids_tmp,   sizeof *w->order,
                             sizeof *w->order_tmp, sizeof *w->own_index, sizeof *w->boxes,
-                            sizeof *w->category,  sizeof *w->mask,      sizeof *w->inside,
-                            sizeof *w->source};
-    return bpx_mpi__reserve(arrays, sizes, 10, &w->present_cap, n) == 0;
+                            sizeof *w->category,  sizeof *w->mask,      sizeof *w->present};
+    return bpx_mpi__reserve(arrays, sizes, 9, &w->present_cap, n) == 0;
 }
 
 // The rank a present box came from: own boxes first, then the records by sender.
@@ -308,14 +306,15 @@ static void find_local(bpx_mpi_world *w, const bpx_box *boxes, const bpx_mpi_fil
             if (record_bytes == BPX_MPI_RECORD_FILTER_BYTES)
                 memcpy(&f, rec + 32, sizeof f);
         }
-        w->inside[k] = (uint8_t)bpx_mpi__rcb_inside(&w->tree, w->rank, &w->boxes[k]);
-        w->source[k] = source_rank(w, from, own);
+        w->present[k] = (bpx_mpi_present){w->ids[k], source_rank(w, from, own),
+                                          (uint32_t)bpx_mpi__rcb_inside(&w->tree, w->rank,
+                                                                        &w->boxes[k])};
         if (gather_filters) {
             w->category[k] = f.category;
             w->mask[k] = f.mask;
         }
         if (k > 0 && w->ids[k] == w->ids[k - 1]) { // a guard: the id checks have caught it
-            int a = w->source[k - 1], b = w->source[k];
+            int a = w->present[k - 1].source, b = w->present[k].source;
             bpx_mpi__fail(w, BPX_ERR_INVALID_ARGUMENT, w->ids[k], SIZE_MAX, -1,
                           "id %llu is given twice (by ranks %d and %d)",
                           (unsigned long long)w->ids[k], a < b ? a : b, a < b ? b : a);
@@ -349,7 +348,8 @@ static void select_pairs(bpx_mpi_world *w)
     size_t kept = 0;
     for (size_t k = 0; k < m; k++) {
         uint32_t i = local[k].i, j = local[k].j;
-        if (!(w->inside[i] | w->inside[j])) { // near a border: where is the corner?
+        const bpx_mpi_present *p = &w->present[i], *q = &w->present[j];
+        if (!(p->inside | q->inside)) { // near a border: where is the corner?
             const bpx_box *a = &w->boxes[i], *b = &w->boxes[j];
             float corner[3];
             for (int d = 0; d < 3; d++)
@@ -357,8 +357,8 @@ static void select_pairs(bpx_mpi_world *w)
             if (!bpx_mpi__rcb_holds(&w->tree, w->rank, corner))
                 continue;
         }
-        w->next_ranks[kept] = (bpx_mpi_pair_ranks){w->source[i], w->source[j]};
-        w->next[kept++] = (bpx_mpi_pair){w->ids[i], w->ids[j]};
+        w->next_ranks[kept] = (bpx_mpi_pair_ranks){p->source, q->source};
+        w->next[kept++] = (bpx_mpi_pair){p->id, q->id};
     }
     w->next_count = kept;
 }

@@ -21,6 +21,13 @@ typedef struct bpx_mpi_event_record {
     uint32_t pad;
 } bpx_mpi_event_record;
 
+/// A box this rank tests, as its pairs need it: one 16-byte read for a pair's second box.
+typedef struct bpx_mpi_present {
+    uint64_t id;
+    int source;      ///< the rank that passed the box
+    uint32_t inside; ///< the box lies wholly in this rank's region: its pairs' corners do too
+} bpx_mpi_present;
+
 struct bpx_mpi_world {
     MPI_Comm comm;
     int rank, size;
@@ -55,8 +62,7 @@ struct bpx_mpi_world {
     uint32_t *order, *order_tmp, *own_index;
     bpx_box *boxes;
     uint32_t *category, *mask;
-    uint8_t *inside; // the box lies wholly in this rank's region: its pairs' corners do too
-    int *source;     // the rank that passed the box
+    bpx_mpi_present *present; // per box, in that order: what the pairs are reported with
     size_t present_cap;
 
     // This rank's pairs: the last successful cycle's, and the next one's being made.

@@ -160,8 +160,7 @@ static void free_buffers(bpx_mpi_world *w)
     FREE_ARRAY(boxes, w->present_cap);
     FREE_ARRAY(category, w->present_cap);
     FREE_ARRAY(mask, w->present_cap);
-    FREE_ARRAY(inside, w->present_cap);
-    FREE_ARRAY(source, w->present_cap);
+    FREE_ARRAY(present, w->present_cap);
     FREE_ARRAY(pairs, w->pairs_cap);
     FREE_ARRAY(ranks, w->pairs_cap);
     FREE_ARRAY(next, w->next_cap);

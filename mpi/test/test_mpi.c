@@ -816,7 +816,8 @@ static void check_gathered(run *r, scene *s)
     CHECK_STATUS(bpx_world_set_boxes(s->reference, s->boxes, (uint32_t)s->n), BPX_OK);
     CHECK_STATUS(bpx_world_collide(s->reference), BPX_OK);
     size_t want_count, all_count;
-    bpx_mpi_pair *want = to_global(bpx_world_pairs(s->reference, &want_count), want_count);
+    const bpx_pair *want_local = bpx_world_pairs(s->reference, &want_count);
+    bpx_mpi_pair *want = to_global(want_local, want_count);
     const bpx_mpi_pair *all = NULL;
     CHECK_STATUS(bpx_mpi_world_gather_pairs(r->world, 0, &all, &all_count), BPX_OK);
     if (rank == 0)

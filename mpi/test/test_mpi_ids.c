@@ -211,10 +211,85 @@ static void test_directory(void)
     bpx_mpi__ids_free(&w);
 }
 
+// The order carried from one call to the next (sort_own_from_last): over moves as
+// bpx_mpi_world_migrate makes them (stayers kept in order, leavers out, arrivals at the end),
+// over an unchanged input, and over inputs changed behind its back (two entries swapped, an id
+// replaced, one given twice): always the sorted ids with their positions, or the repeat found.
+static void test_carried_order(void)
+{
+    check_set_context("carried order");
+    enum { N = 3000 };
+    bpx_mpi_world w;
+    memset(&w, 0, sizeof w);
+    w.rank = 1;
+    w.size = 3;
+    scene_rng rng;
+    scene_rng_seed(&rng, 4);
+    uint64_t ids[N], next_id = 0;
+    size_t n = 1000;
+    for (size_t k = 0; k < n; k++)
+        ids[k] = id_of(next_id++);
+    w.home = check_alloc(N * sizeof *w.home);
+    for (int round = 0; round < 200; round++) {
+        int kind = (int)scene_rng_below(&rng, 6);
+        if (kind <= 2) { // a move: each stays with probability 9/10, some arrive
+            bool carry = w.last_pos_valid && !w.order_hint && n == w.last_ids_count;
+            size_t stay = 0, arrive = scene_rng_below(&rng, 120);
+            for (size_t i = 0; i < n; i++) {
+                bool stays = scene_rng_below(&rng, 10) != 0;
+                w.home[i] = stays ? (int)stay : -1;
+                if (stays)
+                    ids[stay++] = ids[i];
+            }
+            for (size_t k = 0; k < arrive && stay + k < N; k++)
+                ids[stay + k] = id_of(next_id++);
+            n = stay + arrive < N ? stay + arrive : N;
+            w.last_pos_valid = w.order_hint = carry;
+            w.hint_stay = stay;
+            w.hint_count = n;
+            if (kind == 1) // a second move before the call: the first one's map is gone
+                w.last_pos_valid = w.order_hint = false;
+        } else if (kind == 3 && n >= 2) { // two entries swapped behind its back
+            size_t a = scene_rng_below(&rng, (uint32_t)n), b = scene_rng_below(&rng, (uint32_t)n);
+            uint64_t t = ids[a];
+            ids[a] = ids[b];
+            ids[b] = t;
+        } else if (kind == 4 && n >= 1) { // an id replaced by a new one
+            ids[scene_rng_below(&rng, (uint32_t)n)] = id_of(next_id++);
+        } // kind 5: the same input again
+        size_t first = SIZE_MAX, second = SIZE_MAX;
+        uint64_t kept = 0;
+        if (round % 7 == 6 && n >= 2) { // one id twice, then put back
+            first = scene_rng_below(&rng, (uint32_t)n - 1);
+            second = first + 1 + scene_rng_below(&rng, (uint32_t)(n - first - 1));
+            kept = ids[second];
+            ids[second] = ids[first];
+        }
+        bpx_mpi__clear_error(&w);
+        bpx_status got = bpx_mpi__ids_check_own(&w, ids, n);
+        if (first != SIZE_MAX) {
+            CHECK_STATUS(got, BPX_ERR_INVALID_ARGUMENT);
+            CHECK(w.error.id == ids[first] && w.error.index == second);
+            ids[second] = kept;
+            continue; // a failed call commits nothing
+        }
+        CHECK_STATUS(got, BPX_OK);
+        for (size_t k = 1; k < n; k++)
+            CHECK(w.own_ids[k - 1] < w.own_ids[k]);
+        for (size_t k = 0; k < n; k++)
+            CHECK(w.own_pos[k] < n && ids[w.own_pos[k]] == w.own_ids[k]);
+        w.added_count = w.dropped_count = 0; // this white box keeps no directory
+        bpx_mpi__ids_commit(&w);
+    }
+    free(w.home);
+    bpx_mpi__ids_free(&w);
+}
+
 int main(void)
 {
     test_own();
     test_change();
     test_directory();
+    test_carried_order();
     return check_finish("test_mpi_ids", 1);
 }
