@@ -226,7 +226,9 @@ BPX_API bpx_status bpx_mpi_world_home_ranks(const bpx_mpi_world *world, const bp
 /// when payload_size is 0) hold this rank's *count objects in arrays with room for capacity;
 /// on return they hold its objects after the move: those that stayed, in their order, then the
 /// arrivals by source rank and their order there, and *count their number. *needed (may be
-/// NULL) receives the count this rank has, or would have, after the move.
+/// NULL) receives the count this rank has, or would have, after the move. The next collide on
+/// these arrays, as they are, reuses the last collide's order of the ids through the move
+/// instead of sorting them again (checked against the ids: any other input is sorted anew).
 /// Errors, the same on every rank, with nothing moved and *count unchanged: CAPACITY when any
 /// rank lacks room (*needed tells each rank the room it needs; call again with more),
 /// BAD_STATE before the first collide, NULL_ARGUMENT, INVALID_ARGUMENT (*count > capacity,
