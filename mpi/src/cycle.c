@@ -114,11 +114,14 @@ static bpx_status plan_exchange(bpx_mpi_world *w, const bpx_box *boxes, size_t c
     size_t own = 0, foreign = 0;
     uint64_t sent = 0;
     uint64_t cpu = bpx_mpi__cpu_ns();
+    uint32_t *arrival = w->own_pos_tmp; // per input box: 0 inside the region, for pack
     for (size_t i = 0; i < count; i++) {
         if (bpx_mpi__rcb_inside(&w->tree, w->rank, &boxes[i])) {
+            arrival[i] = 0;
             own++; // most boxes: no copies, no descent
             continue;
         }
+        arrival[i] = BPX_MPI_NOT_HERE;
         int touched = bpx_mpi__rcb_touching(&w->tree, &boxes[i], w->touched);
         for (int t = 0; t < touched; t++) {
             int r = w->touched[t];
@@ -180,15 +183,15 @@ static void pack(bpx_mpi_world *w, const uint64_t *ids, const bpx_box *boxes,
                  const bpx_mpi_filter *filters, size_t count, size_t record_bytes)
 {
     memcpy(w->cursor, w->send_displs, sizeof(int) * (size_t)w->size);
-    uint32_t *arrival = w->own_pos_tmp; // per input box; the sort of the own ids is done with it
+    uint32_t *arrival = w->own_pos_tmp; // per input box: plan_exchange's inside test, then
+                                        // its arrival position (the id sort is done with it)
     size_t own = 0;
     for (size_t i = 0; i < count; i++) {
-        if (bpx_mpi__rcb_inside(&w->tree, w->rank, &boxes[i])) {
+        if (arrival[i] != BPX_MPI_NOT_HERE) { // wholly inside: read no box
             arrival[i] = (uint32_t)own;
             w->own_index[own++] = (uint32_t)i;
             continue;
         }
-        arrival[i] = BPX_MPI_NOT_HERE;
         bpx_mpi_filter f = filters ? filters[i] : (bpx_mpi_filter){1, 0xFFFFFFFFu};
         int touched = bpx_mpi__rcb_touching(&w->tree, &boxes[i], w->touched);
         for (int t = 0; t < touched; t++) {
