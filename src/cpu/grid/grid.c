@@ -21,15 +21,18 @@
 //  4. Scatter: each box (coordinates, id, x cell, flags) to its columns, 32 bytes an entry;
 //     two entries of a column that share a cache line go out together as one streamed line
 //     (the second waits in a small per-worker stash), so no line is read before it is written.
+//     The first columns' entries go to the world's spare boxes, lent for the cycle
+//     (bpx_cycle.scratch: 24 bytes a box, half the entries), the rest to the grid's own array.
 //  5. Per column: a counting sort on the x cell, mended by insertion sort on min x (radix when
 //     that gives up), written out as SoA runs.
 //  6. Tests (grid_kernel.h): each box against the rest of its run, and from its home column
 //     against windows of the columns it covers at each coarser level; big boxes against all.
 //     A pair met in several columns is kept in one (a rule on the flags), so no dedupe pass.
-//  7. Hits to (i, j) order: a scatter by i / 2048 into buckets, then in cache each bucket by
-//     i (a counting pass) and each i's few pairs by j; the result goes to block 0. Every test
-//     is the exact float comparison of overlap.h; the grid only decides which pairs are tested,
-//     and the order is a full sort, so the bytes are the same for any worker count or schedule.
+//  7. Hits to (i, j) order: a scatter by i / 2048 into buckets (in the entries, dead by then),
+//     then in cache each bucket by i (a counting pass) and each i's few pairs by j, straight
+//     into block 0's list. Every test is the exact float comparison of overlap.h; the grid only
+//     decides which pairs are tested, and the order is a full sort, so the bytes are the same
+//     for any worker count or schedule.
 
 #include <math.h>
 #include <stdio.h>
