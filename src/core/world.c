@@ -712,7 +712,12 @@ static bpx_status compare(bpx_world *w, size_t *total, uint64_t *end)
         status = bpx__periodic_compare(w); // fills the stats of the backend's report itself
     } else {
         // The spare set is dead until the next update writes it whole: the backend's scratch
-        // (the grid's entries, most of its memory).
+        // (the grid's entries, most of its memory). After the first update it is not there yet
+        // (that update's set became the boxes): made now, since the next update makes it
+        // anyway, so that the backend sizes its own memory for what it borrows from the first
+        // cycle on. Without memory for it the cycle just lends nothing.
+        if (w->spare.capacity < w->boxes.capacity)
+            (void)bpx__box_arrays_reserve(&w->spare, w->n);
         cycle.scratch = w->spare.lo[0];
         cycle.scratch_bytes = 6 * sizeof(float) * (size_t)w->spare.capacity;
         status = w->backend->compare(&w->backend_state, &cycle);

@@ -139,11 +139,12 @@ typedef struct bpx_grid_job {
 } bpx_grid_job;
 
 // Makes *array hold at least `need` elements of `size` bytes (contents not kept), with need /
-// `slack` more, so that it settles after a few cycles. Never zero-sized, so NULL means no memory.
+// `slack` more, so that it settles after a few cycles; with `shrink`, also made again when it
+// holds over half as much again as needed. Never zero-sized, so NULL means no memory.
 static inline bool reserve_slack(void **array, size_t *capacity, size_t need, size_t size,
-                                 size_t slack)
+                                 size_t slack, bool shrink)
 {
-    if (need <= *capacity && *array)
+    if (need <= *capacity && *array && (!shrink || *capacity <= need + need / 2 + 64))
         return true;
     bpx__free(*array, *capacity * size);
     *capacity = need + need / slack + 64;
@@ -156,15 +157,16 @@ static inline bool reserve_slack(void **array, size_t *capacity, size_t need, si
 // Grows by half again: for the small arrays (per column, per chunk, per bucket).
 static inline bool reserve_array(void **array, size_t *capacity, size_t need, size_t size)
 {
-    return reserve_slack(array, capacity, need, size, 2);
+    return reserve_slack(array, capacity, need, size, 2, false);
 }
 
 // A sixteenth more: for the arrays of an entry per position or a key per box, most of the
 // grid's memory. Their need moves by a fraction of a percent between cycles of one scene, and
-// half again was a third of the peak (10M boxes: 72 of 162 bytes a box).
+// half again was a third of the peak (10M boxes: 72 of 162 bytes a box). Shrunk when the need
+// fell by a third (the own entries, once the world lends memory for half of them).
 static inline bool reserve_tight(void **array, size_t *capacity, size_t need, size_t size)
 {
-    return reserve_slack(array, capacity, need, size, 16);
+    return reserve_slack(array, capacity, need, size, 16, true);
 }
 
 // Sentinels after a run: never in reach (min x +inf), never overlapping.
