@@ -3,7 +3,8 @@
 // coherent and jumping motion, so sap mends and rebuilds, and at 100k boxes, where sap's rebuild
 // and auto run the grid); every stage named, its bytes > 0 and its records random only when
 // its access is; the stages' times summed no more than the cycle's wall time; no stages with it
-// off. Not a timed test: nothing here depends on how fast a stage is.
+// off. And the grid's peak memory at 100k uniform boxes (issue 34: at most 100 bytes a box).
+// Not a timed test: nothing here depends on how fast a stage is.
 #define _POSIX_C_SOURCE 200809L
 #include <time.h>
 
@@ -149,6 +150,45 @@ static void run(bpx_backend backend, int workers, uint32_t n, float step, int cy
     free(centres);
 }
 
+// Issue 34's memory target: the grid (auto's choice here) holds at most 100 bytes a box at its
+// peak, the world's boxes included (93 at 100k-10M uniform boxes: docs/performance.md). Bytes,
+// not time: the library's own count of what it allocated.
+static void check_peak_memory(bpx_backend backend, int workers)
+{
+    uint32_t n = 100000;
+    check_set_context("peak memory: backend=%s workers=%d n=%u", bpx_backend_name(backend),
+                      workers, n);
+    bpx_box *boxes = check_alloc(sizeof(bpx_box) * n);
+    scene_uniform_density(n, 1.0f, 11, boxes);
+    int64_t before = bpx_allocated_bytes();
+    bpx_reset_allocated_peak();
+    bpx_world_def def = bpx_default_world_def();
+    def.backend = backend;
+    def.worker_count = workers;
+    bpx_world *w = NULL;
+    CHECK_STATUS(bpx_world_create(&def, &w), BPX_OK);
+    scene_rng r;
+    scene_rng_seed(&r, 7);
+    size_t pairs = 0;
+    for (int cycle = 0; cycle < 4; cycle++) {
+        for (uint32_t i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) {
+                float d = scene_rng_range(&r, -0.05f, 0.05f);
+                boxes[i].min[a] += d;
+                boxes[i].max[a] += d;
+            }
+        CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+        CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+        bpx_world_pairs(w, &pairs);
+    }
+    double per_box = (double)(bpx_allocated_peak() - before) / n;
+    CHECK_MSG(per_box <= 100.0, "peak %.1f bytes a box (%zu pairs a cycle)", per_box, pairs);
+    printf("peak memory, %s, %d worker%s, %u boxes, %zu pairs: %.1f bytes a box\n",
+           bpx_backend_name(backend), workers, workers > 1 ? "s" : "", n, pairs, per_box);
+    bpx_world_destroy(w);
+    free(boxes);
+}
+
 int main(void)
 {
     const bpx_backend backends[] = {BPX_BACKEND_GRID, BPX_BACKEND_SAP, BPX_BACKEND_AUTO,
@@ -166,6 +206,11 @@ int main(void)
     for (int workers = 1; workers <= 2; workers++) {
         run(BPX_BACKEND_SAP, workers, 100000, 0.5f, 3, false, &saw);
         run(BPX_BACKEND_AUTO, workers, 100000, 0.5f, 2, false, &saw);
+        ran += 2;
+    }
+    for (int workers = 1; workers <= 2; workers++) {
+        check_peak_memory(BPX_BACKEND_GRID, workers);
+        check_peak_memory(BPX_BACKEND_AUTO, workers);
         ran += 2;
     }
     CHECK(saw.grid_keys && saw.grid_scatter && saw.grid_sort && saw.grid_tests);

@@ -340,7 +340,9 @@ static void allocation_failure(const alloc_case *c)
     printf("  allocation failure, %s: a full run needs %lld allocations; every shorter budget "
            "failed cleanly\n",
            c->name, budget);
-    CHECK(budget > 5 && budget < 10000);
+    // More than a handful, so that failures in several places were met (400 boxes: 4, since
+    // a box set is one allocation, not six: e9734b8).
+    CHECK(budget > 3 && budget < 10000);
     for (int k = 0; k < steps; k++)
         pair_list_free(&wants[k]);
     free(boxes);

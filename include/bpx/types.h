@@ -22,8 +22,10 @@ extern "C" {
 ///   BPX_ERR_TOO_MANY_BOXES naming the count, before reading the array; a capacity_hint past
 ///   it makes bpx_world_create return BPX_ERR_INVALID_ARGUMENT.
 /// - Memory: a box costs about 56 bytes in a world (two sets of six floats, the per-id arrays)
-///   plus what the backend keeps (sap and grid: about as much again), and a pair 8 bytes, held
-///   twice while it is merged; 10 million boxes take about 1 GB. An allocation that fails, at
+///   plus what the backend keeps (sap: about as much again; grid: about 30 bytes, since it
+///   borrows the spare set during collide), and a pair 8 bytes, held about three times (the
+///   backend's lists, the world's merged copy); 10 million uniform boxes with the grid take
+///   under 1 GB at the peak (93 bytes a box, docs/performance.md). An allocation that fails, at
 ///   any n, gives BPX_ERR_OUT_OF_MEMORY ("no memory for 10000000 boxes"; for a collide the
 ///   backend and n), and the world keeps its previous state.
 /// - More than 2^32 - 1 pairs in one cycle (all of 92,683 boxes overlapping each other, say):

@@ -44,7 +44,8 @@ typedef struct bpx_soa {
 } bpx_soa;
 
 /// Six SoA arrays with their capacity in boxes (padding included): the world's boxes, and boxes
-/// of a backend's own (hybrid's sides), made with bpx__box_arrays_* (boxes.c).
+/// of a backend's own (hybrid's sides), made with bpx__box_arrays_* (boxes.c). One block:
+/// lo[0] is its start, 6 * capacity floats (the spare set is lent whole as a cycle's scratch).
 typedef struct bpx_box_arrays {
     float *lo[3];
     float *hi[3];
@@ -126,6 +127,10 @@ typedef struct bpx_cycle {
     bpx_error *error;             // a backend that can name what failed writes it here
     bpx_backend_report report;    // out
     bpx_profile *profile;         // bpx_world_def.profile: the stages go here; else NULL
+    // Memory the backend may use during this call only, contents not kept (the world's spare
+    // boxes, dead until the next update writes them whole); NULL when none.
+    void *scratch;
+    size_t scratch_bytes;
 } bpx_cycle;
 
 /// How the boxes were replaced (told to boxes_set): by whole boxes (set_boxes, or objects added,

@@ -10,10 +10,7 @@
 
 void bpx__box_arrays_free(bpx_box_arrays *b)
 {
-    for (int a = 0; a < 3; a++) {
-        bpx__free(b->lo[a], sizeof(float) * b->capacity);
-        bpx__free(b->hi[a], sizeof(float) * b->capacity);
-    }
+    bpx__free(b->lo[0], 6 * sizeof(float) * b->capacity); // one block (bpx__box_arrays_reserve)
     *b = (bpx_box_arrays){0};
 }
 
@@ -29,14 +26,15 @@ bool bpx__box_arrays_reserve(bpx_box_arrays *b, uint32_t n)
     uint32_t capacity = bpx__boxes_padded(n);
     if (capacity <= b->capacity)
         return true;
+    // One block, so that the spare set can be lent whole (bpx_cycle.scratch); capacity is a
+    // multiple of BPX_PAD_LANES, so each array starts on a whole cache line like the first.
     bpx_box_arrays grown = {.capacity = capacity};
+    float *block = bpx__alloc(6 * sizeof(float) * capacity);
+    if (!block)
+        return false;
     for (int a = 0; a < 3; a++) {
-        grown.lo[a] = bpx__alloc(sizeof(float) * capacity);
-        grown.hi[a] = bpx__alloc(sizeof(float) * capacity);
-        if (!grown.lo[a] || !grown.hi[a]) {
-            bpx__box_arrays_free(&grown); // frees what was allocated (NULL is fine)
-            return false;
-        }
+        grown.lo[a] = block + (size_t)a * capacity;
+        grown.hi[a] = block + (size_t)(3 + a) * capacity;
     }
     bpx__box_arrays_free(b);
     *b = grown;

@@ -657,8 +657,16 @@ bpx_status bpx_world_update_centres(bpx_world *w, const float *centres)
 static bool merge_own(bpx_world *w, size_t total)
 {
     w->pairs.count = 0;
-    if (!bpx__list_reserve(&w->pairs, total))
-        return false;
+    // A sixteenth over what is needed, not the next power of two: this list is one of the
+    // biggest a world holds (10M boxes: 5M pairs, 40 MB), and totals move little between cycles.
+    if (w->pairs.capacity < total) {
+        size_t capacity = total + total / 16 + 64;
+        if (capacity > SIZE_MAX / sizeof(bpx_pair) ||
+            !bpx__grow((void **)&w->pairs.pairs, w->pairs.capacity * sizeof(bpx_pair),
+                       capacity * sizeof(bpx_pair)))
+            return false;
+        w->pairs.capacity = capacity;
+    }
     bpx__emitter_merge(&w->emitter, w->pairs.pairs);
     w->pairs.count = total;
     w->merged = true;
@@ -703,6 +711,15 @@ static bpx_status compare(bpx_world *w, size_t *total, uint64_t *end)
     if (periodic) {
         status = bpx__periodic_compare(w); // fills the stats of the backend's report itself
     } else {
+        // The spare set is dead until the next update writes it whole: the backend's scratch
+        // (the grid's entries, most of its memory). After the first update it is not there yet
+        // (that update's set became the boxes): made now, since the next update makes it
+        // anyway, so that the backend sizes its own memory for what it borrows from the first
+        // cycle on. Without memory for it the cycle just lends nothing.
+        if (w->spare.capacity < w->boxes.capacity)
+            (void)bpx__box_arrays_reserve(&w->spare, w->n);
+        cycle.scratch = w->spare.lo[0];
+        cycle.scratch_bytes = 6 * sizeof(float) * (size_t)w->spare.capacity;
         status = w->backend->compare(&w->backend_state, &cycle);
         const bpx_backend_report *r = &cycle.report;
         w->stats.rebuilt = r->rebuilt;

@@ -12,8 +12,8 @@ typedef struct emit_job {
     const bpx_cycle *cycle;
     bpx_grid_state *st;
     int groups, buckets, items, j_passes, shift;
-    bpx_pair *to;    // the bucketed pairs
-    bpx_pair *other; // scratch of the same length
+    bpx_pair *to;    // the bucketed pairs (scratch)
+    bpx_pair *other; // the result: block 0's list
 } emit_job;
 
 static void emit_range(const emit_job *job, int g, int *b0, int *b1)
@@ -152,16 +152,35 @@ bpx_status bpx__grid_emit_sorted(const bpx_cycle *cycle, bpx_grid_state *st, uin
     for (uint32_t top = n ? n - 1 : 0;
          EMIT_SHIFT * j_passes < 32 && top >> (EMIT_SHIFT * j_passes);)
         j_passes++;
-    if (!bpx__list_reserve(&st->a, total + total / 4) ||
-        !bpx__list_reserve(&st->b, total + total / 4) ||
+    // The result goes to block 0's list, whose hits are read (into the buckets) before it is
+    // written: grown to hold them all, its hits kept, a sixteenth over (it is most of the pairs'
+    // memory, and coherent cycles' totals move little).
+    bpx_pair_list *result = &cycle->sink->blocks[0].hits;
+    if (result->capacity < total) {
+        size_t capacity = total + total / 16 + 64;
+        if (!bpx__grow((void **)&result->pairs, result->capacity * sizeof(bpx_pair),
+                       capacity * sizeof(bpx_pair)))
+            return BPX_ERR_OUT_OF_MEMORY;
+        result->capacity = capacity;
+    }
+    // The buckets: in the entries, dead since the tests, when they hold the pairs (about one a
+    // box against 1.5 entries of 32 bytes at the grid's density); else the grid's own list.
+    bpx_pair *to = NULL;
+    size_t need = total * sizeof(bpx_pair);
+    if (st->entry_capacity * sizeof(bpx_grid_entry) >= need)
+        to = (bpx_pair *)(void *)st->entries;
+    else if (st->lent_bytes >= need)
+        to = (bpx_pair *)st->lent_base;
+    else if (bpx__list_reserve(&st->a, total + total / 4))
+        to = st->a.pairs;
+    if (!to ||
         !reserve_array((void **)&st->emit_hist, &st->emit_hist_capacity,
                        (size_t)groups * (size_t)buckets, sizeof(uint32_t)) ||
         !reserve_array((void **)&st->bucket_start, &st->bucket_capacity, (size_t)buckets + 1,
                        sizeof(uint32_t)))
         return BPX_ERR_OUT_OF_MEMORY;
-    emit_job job = {
-        cycle,    st,    groups,      buckets,    buckets < EMIT_ITEMS ? buckets : EMIT_ITEMS,
-        j_passes, shift, st->a.pairs, st->b.pairs};
+    emit_job job = {cycle,    st,    groups, buckets, buckets < EMIT_ITEMS ? buckets : EMIT_ITEMS,
+                    j_passes, shift, to,     result->pairs};
     bpx_profile *prof = cycle->profile;
     uint64_t t = bpx__profile_clock(prof), bytes = 8 * (uint64_t)total;
     if (total) {
@@ -187,17 +206,12 @@ bpx_status bpx__grid_emit_sorted(const bpx_cycle *cycle, bpx_grid_state *st, uin
         // Each bucket in cache: read, counted by i, written in (i, j) order.
         bpx__profile_add(prof, "grid", "order: sort", &t, BPX_ACCESS_SEQUENTIAL, bytes, bytes, 0);
     }
-    // Block 0 takes the ordered list (a swap, not a copy); its old list becomes scratch.
-    bpx_pair_list *result = &st->b;
-    result->count = total;
+    // Block 0 holds the ordered list.
     for (int k = 0; k < cycle->sink->block_count; k++) {
         cycle->sink->blocks[k].hits.count = 0;
         cycle->sink->blocks[k].tests = 0;
     }
-    bpx_pair_list block0 = cycle->sink->blocks[0].hits;
-    cycle->sink->blocks[0].hits = *result;
+    result->count = total;
     cycle->sink->blocks[0].tests = tests;
-    *result = block0;
-    result->count = 0;
     return BPX_OK;
 }

@@ -21,15 +21,18 @@
 //  4. Scatter: each box (coordinates, id, x cell, flags) to its columns, 32 bytes an entry;
 //     two entries of a column that share a cache line go out together as one streamed line
 //     (the second waits in a small per-worker stash), so no line is read before it is written.
+//     The first columns' entries go to the world's spare boxes, lent for the cycle
+//     (bpx_cycle.scratch: 24 bytes a box, half the entries), the rest to the grid's own array.
 //  5. Per column: a counting sort on the x cell, mended by insertion sort on min x (radix when
 //     that gives up), written out as SoA runs.
 //  6. Tests (grid_kernel.h): each box against the rest of its run, and from its home column
 //     against windows of the columns it covers at each coarser level; big boxes against all.
 //     A pair met in several columns is kept in one (a rule on the flags), so no dedupe pass.
-//  7. Hits to (i, j) order: a scatter by i / 2048 into buckets, then in cache each bucket by
-//     i (a counting pass) and each i's few pairs by j; the result goes to block 0. Every test
-//     is the exact float comparison of overlap.h; the grid only decides which pairs are tested,
-//     and the order is a full sort, so the bytes are the same for any worker count or schedule.
+//  7. Hits to (i, j) order: a scatter by i / 2048 into buckets (in the entries, dead by then),
+//     then in cache each bucket by i (a counting pass) and each i's few pairs by j, straight
+//     into block 0's list. Every test is the exact float comparison of overlap.h; the grid only
+//     decides which pairs are tested, and the order is a full sort, so the bytes are the same
+//     for any worker count or schedule.
 
 #include <math.h>
 #include <stdio.h>
@@ -92,7 +95,6 @@ void bpx__grid_free(void **state)
     bpx__free(st->stash_at, st->stash_at_capacity * sizeof(uint32_t));
     bpx__free(st->big_ids, st->big_capacity * sizeof(uint32_t));
     bpx__free(st->a.pairs, st->a.capacity * sizeof(bpx_pair));
-    bpx__free(st->b.pairs, st->b.capacity * sizeof(bpx_pair));
     bpx__free(st->emit_hist, st->emit_hist_capacity * sizeof(uint32_t));
     bpx__free(st->bucket_start, st->bucket_capacity * sizeof(uint32_t));
     bpx__free(st->block_hits, st->block_hits_capacity * sizeof(size_t));
@@ -221,7 +223,7 @@ static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
         st->chunks[c].end = (uint32_t)((uint64_t)n * (c + 1) / chunks);
     }
     size_t padded = ((size_t)n + PAD - 1) / PAD * PAD + PAD;
-    if (!reserve_array((void **)&st->key, &st->key_capacity, padded, sizeof(uint32_t)) ||
+    if (!reserve_tight((void **)&st->key, &st->key_capacity, padded, sizeof(uint32_t)) ||
         !reserve_array((void **)&st->hist, &st->hist_capacity, (size_t)chunks * columns,
                        sizeof(uint32_t)))
         return BPX_ERR_OUT_OF_MEMORY;
@@ -285,13 +287,36 @@ static bpx_status find(const bpx_cycle *cycle, void **state, bpx_soa boxes)
     }
     st->column_start[wcolumns] = (uint32_t)at;
     uint32_t positions = (uint32_t)at;
+    // Entries: the first columns in the memory the world lends (as many whole columns as fit),
+    // the rest in the grid's own array.
+    size_t lent = cycle->scratch ? cycle->scratch_bytes / sizeof(bpx_grid_entry) : 0;
+    uint32_t split = 0;
+    if (lent >= positions) {
+        split = positions;
+    } else if (lent) { // the last column start that fits
+        uint32_t lo = 0, hi = wcolumns;
+        while (lo < hi) {
+            uint32_t mid = lo + (hi - lo + 1) / 2;
+            if (st->column_start[mid] <= lent)
+                lo = mid;
+            else
+                hi = mid - 1;
+        }
+        split = st->column_start[lo];
+    }
+    st->split = split;
+    st->skew = split & 1;
+    st->lent_bytes = split ? cycle->scratch_bytes : 0;
     // Coarser runs in shared positions (indexed like the entries; level 0's part untouched),
     // level 0's in each worker's scratch, one column at a time.
     bool coarse = positions > st->column_start[level1];
-    if (!reserve_array((void **)&st->entries, &st->entry_capacity, positions,
-                       sizeof(bpx_grid_entry)) ||
+    if (!reserve_tight((void **)&st->entries, &st->entry_capacity,
+                       (size_t)(positions - split) + st->skew, sizeof(bpx_grid_entry)) ||
         (coarse && !reserve_soa(&st->positions, (size_t)positions + PAD)))
         return BPX_ERR_OUT_OF_MEMORY;
+    st->lent_base = split ? (uintptr_t)cycle->scratch : 0;
+    // Wraps below the array for positions under split, which never take this base.
+    st->own_base = (uintptr_t)st->entries - (uintptr_t)(split - st->skew) * sizeof(bpx_grid_entry);
     for (int k = 0; k < workers && k < WORKERS_MAX; k++)
         if (!reserve_soa(&st->scratch[k], (size_t)longest + PAD))
             return BPX_ERR_OUT_OF_MEMORY;

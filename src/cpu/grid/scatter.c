@@ -39,9 +39,9 @@ static inline void put(bpx_grid_state *st, bpx_grid_entry *stash, uint32_t *stas
         stash[column] = *e;
         stash_at[column] = at;
     } else if (stash_at[column] == at - 1) {
-        put_line(st->entries + at - 1, &stash[column], e);
+        put_line(entry_at(st, at - 1), &stash[column], e); // one column: one side of split
     } else {
-        st->entries[at] = *e;
+        *entry_at(st, at) = *e;
     }
 }
 
@@ -90,7 +90,7 @@ void bpx__grid_scatter_task(int begin, int end, int worker, void *context)
         // Entries still waiting: the last of their column's range, at an even position.
         for (uint32_t k = 0; k < wcolumns; k++)
             if (stash_at[k] != UINT32_MAX && stash_at[k] + 1 == offset[k])
-                st->entries[stash_at[k]] = stash[k];
+                *entry_at(st, stash_at[k]) = stash[k];
     }
 #if defined(__SSE2__)
     _mm_sfence(); // the streamed lines are visible before the tests read them

@@ -73,7 +73,7 @@ void bpx__grid_sort_task(int begin, int end, int worker, void *context)
                 l++;
             uint32_t s = st->column_start[c], e = st->column_start[c + 1];
             if (l > 0 && e > s)
-                sort_column(st->entries + s, e - s, &st->positions, s,
+                sort_column(entry_at(st, s), e - s, &st->positions, s,
                             st->params.fine_bits + 2 * l);
         }
     }
@@ -108,7 +108,7 @@ void bpx__grid_test_task(int begin, int end, int worker, void *context)
                     at = 0;
                     r = own;
                     uint64_t sort_start = job->profile ? bpx__now_ns() : 0;
-                    sort_column(st->entries + s, e - s, own, 0, st->params.fine_bits);
+                    sort_column(entry_at(st, s), e - s, own, 0, st->params.fine_bits);
                     pad_soa(own, e - s);
                     if (job->profile)
                         st->worker_time[worker].sort_ns += bpx__now_ns() - sort_start;
