@@ -118,9 +118,7 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     inner.user_task_context = &w->executor;
     bpx_error err;
     bpx_status status =
-        bpx__find_neighbors_kept(&def, data, live, &p->inner, &inner, &p->images_in,
-                                 &p->images_in_capacity, &p->wrap, &p->wrap_capacity,
-                                 &p->images, &err);
+        bpx__find_neighbors_kept(&def, data, live, &p->search, &inner, &p->images, &err);
     if (status != BPX_OK) {
         if (err.index < live && removed) // the search counts live boxes only: name the id
             return bpx__error(&w->error, status, p->ids[err.index], err.axis,
@@ -154,7 +152,7 @@ bpx_status bpx__periodic_compare(bpx_world *w)
         distinct += fresh;
     }
     block->hits.count = distinct;
-    bpx_cycle_stats inner_stats = bpx_world_stats(p->inner);
+    bpx_cycle_stats inner_stats = bpx_world_stats(p->search.inner);
     block->tests = inner_stats.pair_tests;
     w->stats.rebuilt = inner_stats.rebuilt;
     w->stats.transfer_in_ns = inner_stats.transfer_in_ns;
@@ -192,16 +190,14 @@ void bpx__periodic_filter_images(bpx_world *w)
 
 bpx_backend bpx__periodic_backend(const bpx_world *w)
 {
-    return w->periodic.inner ? bpx_world_backend(w->periodic.inner) : BPX_BACKEND_COUNT;
+    return w->periodic.search.inner ? bpx_world_backend(w->periodic.search.inner) : BPX_BACKEND_COUNT;
 }
 
 void bpx__periodic_free(bpx_periodic *p)
 {
-    bpx_world_destroy(p->inner);
+    bpx__search_keep_free(&p->search);
     bpx__free(p->boxes, (size_t)p->capacity * sizeof *p->boxes);
     bpx__free(p->ids, (size_t)p->capacity * sizeof *p->ids);
-    bpx__free(p->images_in, p->images_in_capacity * sizeof *p->images_in);
-    bpx__free(p->wrap, p->wrap_capacity * sizeof *p->wrap);
     bpx_neighbor_list_free(&p->images);
     *p = (bpx_periodic){0};
 }
