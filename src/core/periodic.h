@@ -28,6 +28,8 @@ typedef struct bpx__search_keep {
     size_t ghost_shift_capacity;
     uint32_t *moved_ids;
     size_t moved_capacity;
+    bpx_box *moved_boxes; // the sparse path's: moved images apart from the ghosts (in images)
+    size_t moved_box_capacity;
     void *imaged; // the pairs with an image (neighbors.c's found), before their sort
     size_t imaged_capacity;
 } bpx__search_keep;

@@ -69,6 +69,19 @@ static void *room(void *memory, size_t *capacity, size_t count, size_t size)
     return grown;
 }
 
+// Appends item (size bytes) at count in a kept array of *capacity items, doubling it when full.
+static bool push_kept(void *memory, size_t *capacity, size_t count, const void *item, size_t size)
+{
+    if (count >= *capacity) {
+        size_t grown = *capacity ? 2 * *capacity : 1024;
+        if (!bpx__grow((void **)memory, *capacity * size, grown * size))
+            return false;
+        *capacity = grown;
+    }
+    memcpy((char *)*(void **)memory + count * size, item, size);
+    return true;
+}
+
 bpx_neighbor_def bpx_default_neighbor_def(void)
 {
     return (bpx_neighbor_def){.format = BPX_BOXES_F32, .metric = BPX_METRIC_BOX,
@@ -204,6 +217,7 @@ typedef struct image_state {
     // wrap, exact and marked are s->keep's, kept clean (bpx__search_keep.clean): 0 and 1 at
     // every object that is not marked, so that the many in the cell are never written.
     bool sparse;
+    uint32_t ghosts_made; // the sparse path's ghosts so far (scan_cell makes them)
 } image_state;
 
 // The cell's lower corner for the image search: the lowest object's grown lower face on each
@@ -351,21 +365,106 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
     return BPX_OK;
 }
 
+static bool wraps(const search *s, uint32_t k);
+static bpx_box image_box(const search *s, uint32_t k, const int32_t u[3]);
+
+// The sparse path's make_images for object k, just marked: its moved image and its ghosts into
+// s->keep's arrays, while its box is in cache (a second pass over the marked, scattered over
+// the arrays, waited on memory for most of its time). Ghosts as make_images enumerates them.
+static bpx_status images_of(search *s, image_state *im, uint32_t k)
+{
+    static const int32_t zero[3] = {0, 0, 0};
+    bpx__search_keep *kept = s->keep;
+    bool moves = wraps(s, k);
+    kept->exact[k] = !moves;
+    if (moves) {
+        bpx_box b = image_box(s, k, zero);
+        if (!push_kept(&kept->moved_ids, &kept->moved_capacity, im->moved, &k, sizeof k) ||
+            !push_kept(&kept->moved_boxes, &kept->moved_box_capacity, im->moved, &b, sizeof b))
+            return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %u objects", s->n);
+        im->moved++;
+    }
+    double lo[3], hi[3];
+    object_box(&s->in, k, lo, hi);
+    int32_t lowest[3] = {0, 0, 0};
+    for (int a = 0; a < 3; a++) {
+        if (s->period[a] == 0)
+            continue;
+        double below =
+            images_below(s, a, lo[a], hi[a], s->wrap[k][a], im->origin[a], im->magnitude);
+        lowest[a] = below > 0 ? -(int32_t)below : 0;
+    }
+    int32_t u[3];
+    for (u[0] = 0; u[0] >= lowest[0]; u[0]--)
+        for (u[1] = 0; u[1] >= lowest[1]; u[1]--)
+            for (u[2] = 0; u[2] >= lowest[2]; u[2]--) {
+                if (!u[0] && !u[1] && !u[2])
+                    continue;
+                uint32_t g = im->ghosts_made;
+                bpx_box b = image_box(s, k, u);
+                if (!push_kept(&kept->images, &kept->image_capacity, g, &b, sizeof b) ||
+                    !push_kept(&kept->ghost_owner, &kept->ghost_owner_capacity, g, &k,
+                               sizeof k) ||
+                    !push_kept(&kept->ghost_shift, &kept->ghost_shift_capacity, g, u,
+                               sizeof *kept->ghost_shift))
+                    return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                                      "no memory for the periodic images");
+                im->ghosts_made++;
+            }
+    return BPX_OK;
+}
+
+// Four floats, and their lanes' masks (GCC and Clang vector extensions: SSE2 on x86-64, NEON
+// on arm64, scalar code elsewhere).
+typedef float f4 __attribute__((vector_size(16)));
+typedef int32_t i4 __attribute__((vector_size(16)));
+
+static inline f4 load4(const float *p)
+{
+    f4 v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static inline f4 pick4(i4 mask, f4 yes, f4 no)
+{
+    return (f4)(((i4)yes & mask) | ((i4)no & ~mask));
+}
+
+static inline f4 abs4(f4 v)
+{
+    return (f4)((i4)v & 0x7fffffff);
+}
+
 // check_objects and cell_origin for a periodic world's own float32 boxes without cutoff (the
-// sparse path): the origin and magnitude from float passes over the arrays (a float's min and
-// largest |x| are the double's, so the cell is cell_origin's), then the inside test of
-// wrap_object on whole blocks, branch-free so that it vectorises; wrap_object runs on the few
-// boxes outside the cell only. The others' wraps are 0 already (s->keep is clean).
+// sparse path), the same wraps, images and marks in a fraction of the time: the origin and
+// magnitude from a float pass over the arrays (a float's min and largest |x| are the double's,
+// so the cell is cell_origin's), then a float test, four boxes at a time, that a box is in the
+// cell on every periodic axis (it implies wrap_object's inside test, with room for that test's
+// rounding); wrap_object decides the few others. The inside boxes' wraps are 0 already (s->keep
+// is clean).
 static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
 {
     const bpx__soa_boxes *b = &s->in.soa;
-    uint32_t n = s->n;
+    uint32_t n = s->n, n4 = n & ~3u;
     float most = 0;
     double farthest = 0;
     for (int a = 0; a < 3; a++) {
         const float *lo = b->lo[a], *hi = b->hi[a];
+        f4 low4 = {INFINITY, INFINITY, INFINITY, INFINITY}, big4 = {0, 0, 0, 0};
+        for (uint32_t k = 0; k < n4; k += 4) {
+            f4 l = load4(lo + k), x = abs4(l), y = abs4(load4(hi + k));
+            low4 = pick4(l < low4, l, low4);
+            big4 = pick4(x > big4, x, big4);
+            big4 = pick4(y > big4, y, big4);
+        }
         float low = INFINITY, big = 0;
-        for (uint32_t k = 0; k < n; k++) {
+        for (int q = 0; q < 4; q++) {
+            low = low4[q] < low ? low4[q] : low;
+            big = big4[q] > big ? big4[q] : big;
+        }
+        for (uint32_t k = n4; k < n; k++) {
             float x = fabsf(lo[k]), y = fabsf(hi[k]);
             low = lo[k] < low ? lo[k] : low;
             big = x > big ? x : big;
@@ -377,28 +476,53 @@ static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
     }
     im->magnitude = (double)most + s->def->cutoff / 2 + farthest;
     inside_test in = make_inside_test(s, im);
+    // Per periodic axis, in float: lo >= o is wrap_object's lo - o >= 0 exactly (o is a float);
+    // |lo| < near_f implies |lo| < near_limit; hi < top_f implies (hi - o) + slack < L (which
+    // implies lo - o < L) with 2^-48 of room, far more than the sums' rounding (a few 2^-53).
+    float o_f[3], near_f[3], top_f[3];
+    int axes[3], axis_count = 0;
+    for (int a = 0; a < 3; a++) {
+        double L = s->period[a], o = im->origin[a], slack = in.inside_slack[a];
+        if (L == 0)
+            continue;
+        axes[axis_count++] = a;
+        o_f[a] = (float)o;
+        near_f[a] = round_down(in.near_limit[a]);
+        top_f[a] = round_down(o + L - slack - 0x1p-48 * (fabs(o) + L + slack));
+    }
     uint64_t total = 0;
     enum { BLOCK = 1024 };
-    uint8_t inside[BLOCK];
+    i4 inside[BLOCK / 4];
     for (uint32_t k0 = 0; k0 < n; k0 += BLOCK) {
-        uint32_t m = n - k0 < BLOCK ? n - k0 : BLOCK;
-        memset(inside, 1, m);
-        for (int a = 0; a < 3; a++) {
-            double L = s->period[a], o = im->origin[a];
-            double near = in.near_limit[a], slack = in.inside_slack[a];
-            const float *lo = b->lo[a] + k0, *hi = b->hi[a] + k0;
-            for (uint32_t x = 0; L > 0 && x < m; x++) {
-                double l = lo[x], from_origin = l - o;
-                inside[x] &= (from_origin >= 0) & (from_origin < L) & (fabs(l) < near) &
-                             ((hi[x] - o) + slack < L);
+        uint32_t m = n - k0 < BLOCK ? n - k0 : BLOCK, m4 = m & ~3u;
+        for (uint32_t x = 0; x < m4; x += 4) {
+            i4 yes = {-1, -1, -1, -1};
+            for (int c = 0; c < axis_count; c++) {
+                int a = axes[c];
+                f4 l = load4(b->lo[a] + k0 + x), h = load4(b->hi[a] + k0 + x);
+                yes &= (l >= o_f[a]) & (abs4(l) < near_f[a]) & (h < top_f[a]);
             }
+            inside[x / 4] = yes;
         }
         for (uint32_t x = 0; x < m; x++) {
-            if (inside[x])
+            bool yes = true;
+            if (x >= m4) // the last few, one at a time
+                for (int c = 0; c < axis_count; c++) {
+                    int a = axes[c];
+                    float l = b->lo[a][k0 + x], h = b->hi[a][k0 + x];
+                    yes &= l >= o_f[a] && fabsf(l) < near_f[a] && h < top_f[a];
+                }
+            else
+                yes = inside[x / 4][x % 4] != 0;
+            if (yes)
                 continue;
             double lo[3], hi[3];
             object_box(&s->in, k0 + x, lo, hi);
+            uint32_t marked = im->marked_count;
             bpx_status status = wrap_object(s, im, k0 + x, lo, hi, &in, &total);
+            // (past the images' limit the search fails: no more ghosts made)
+            if (status == BPX_OK && im->marked_count > marked && im->past_limit == UINT32_MAX)
+                status = images_of(s, im, k0 + x);
             if (status != BPX_OK)
                 return status;
         }
@@ -507,6 +631,19 @@ static bpx_status make_images(search *s, image_state *im)
     // them, then the ghosts: no copy of the many.
     bool own = (s->in.format == BPX_BOXES_F32 || s->in.format == BPX__BOXES_SOA) &&
                s->def->cutoff == 0;
+    if (im->sparse) { // scan_cell made them (own is true)
+        bpx__search_keep *kept = s->keep;
+        im->boxes = s->in.data;
+        im->all_exact = im->moved == 0; // the ghosts never pair as they stand
+        im->exact = im->all_exact ? NULL : kept->exact;
+        im->moved_ids = kept->moved_ids;
+        im->moved_boxes = kept->moved_boxes;
+        im->ghost_boxes = kept->images;
+        s->images = kept->images;
+        s->ghost_owner = kept->ghost_owner;
+        s->ghost_shift = kept->ghost_shift;
+        return BPX_OK;
+    }
     uint32_t moved = 0;
     for (uint32_t x = 0; own && im->mark && x < im->marked_count; x++)
         moved += wraps(s, im->marked[x]);
@@ -1161,6 +1298,7 @@ void bpx__search_keep_free(bpx__search_keep *k)
     bpx__free(k->ghost_owner, k->ghost_owner_capacity * sizeof *k->ghost_owner);
     bpx__free(k->ghost_shift, k->ghost_shift_capacity * sizeof *k->ghost_shift);
     bpx__free(k->moved_ids, k->moved_capacity * sizeof *k->moved_ids);
+    bpx__free(k->moved_boxes, k->moved_box_capacity * sizeof *k->moved_boxes);
     bpx__free(k->imaged, k->imaged_capacity * sizeof(found));
     *k = (bpx__search_keep){0};
 }
