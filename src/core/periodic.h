@@ -15,11 +15,13 @@ typedef struct bpx__search_keep {
     size_t wrap_capacity;
     uint8_t *exact; // per object: whether its image is its box
     size_t exact_capacity;
-    uint32_t *marked; // the objects that wrap or have ghosts, last cycle's
-    uint32_t marked_capacity, marked_count;
-    // wrap is 0 and exact 1 at every object but marked[0 .. marked_count): the next cycle
-    // resets those few, not the whole arrays (false: it clears them whole).
+    uint32_t *marked; // the objects that wrap or have ghosts
+    uint32_t marked_capacity;
+    // wrap is 0 and exact 1 at every object but moved_ids[0 .. moved_count), last cycle's
+    // wrapped objects: the next cycle resets those few, not the whole arrays (false: it clears
+    // them whole).
     bool clean;
+    uint32_t moved_count;
     bpx_box *images; // the moved images and the ghosts
     size_t image_capacity;
     uint32_t *ghost_owner;

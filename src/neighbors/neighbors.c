@@ -278,14 +278,15 @@ static inside_test make_inside_test(const search *s, const image_state *im)
 // Object k's wrap and image count (check_objects, on a periodic search): into s->wrap[k] (and
 // im->marked when it wraps or has ghosts), its ghosts added to *total.
 static bpx_status wrap_object(search *s, image_state *im, uint32_t k, const double lo[3],
-                              const double hi[3], const inside_test *in, uint64_t *total)
+                              const double hi[3], const inside_test *in, uint64_t *total,
+                              int32_t wk[3])
 {
     const double *origin = im->origin;
     double half = s->def->cutoff / 2;
     uint64_t images = 1;
+    wk[0] = wk[1] = wk[2] = 0;
     for (int a = 0; a < 3; a++) {
         double L = s->period[a];
-        s->wrap[k][a] = 0;
         if (L == 0)
             continue;
         double grown_lo = lo[a] - half, from_origin = grown_lo - origin[a];
@@ -305,7 +306,7 @@ static bpx_status wrap_object(search *s, image_state *im, uint32_t k, const doub
                               "object %u lies or reaches more than 2^29 periods (%g) from "
                               "the origin on axis %c",
                               k, L, "xyz"[a]);
-        s->wrap[k][a] = (int32_t)w;
+        wk[a] = (int32_t)w;
         uint64_t copies = 1 + (uint64_t)(below > 0 ? below : 0);
         if (copies > BPX_MAX_BOXES / images) // before the product can wrap around
             return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
@@ -315,8 +316,11 @@ static bpx_status wrap_object(search *s, image_state *im, uint32_t k, const doub
         images *= copies;
     }
     *total += images - 1;
-    if (im->mark && (images > 1 || s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]) &&
-        !mark(im, k))
+    // Sparse: s->wrap[k] is 0 already; written only when it wraps (a line of 12 MB at 1M
+    // objects, a cache miss each, was a quarter of scan_cell's time written for every marked).
+    if (!im->sparse || (wk[0] | wk[1] | wk[2]))
+        memcpy(s->wrap[k], wk, sizeof s->wrap[k]);
+    if (im->mark && (images > 1 || wk[0] | wk[1] | wk[2]) && !mark(im, k))
         return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", s->n);
     // The images' limit is the image search's: the cell list makes no images, so it is
@@ -357,7 +361,8 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
                                   "xyz"[a]);
         if (!s->periodic)
             continue;
-        bpx_status status = wrap_object(s, im, k, lo, hi, &inside, &total);
+        int32_t wk[3];
+        bpx_status status = wrap_object(s, im, k, lo, hi, &inside, &total, wk);
         if (status != BPX_OK)
             return status;
     }
@@ -365,20 +370,20 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
     return BPX_OK;
 }
 
-static bool wraps(const search *s, uint32_t k);
-static bpx_box image_box(const search *s, uint32_t k, const int32_t u[3]);
+static bpx_box image_box_of(const search *s, uint32_t k, const int32_t u[3], const int32_t w[3]);
 
-// The sparse path's make_images for object k, just marked: its moved image and its ghosts into
-// s->keep's arrays, while its box is in cache (a second pass over the marked, scattered over
-// the arrays, waited on memory for most of its time). Ghosts as make_images enumerates them.
-static bpx_status images_of(search *s, image_state *im, uint32_t k)
+// The sparse path's make_images for object k of wrap wk, just marked: its moved image and its
+// ghosts into s->keep's arrays, while its box is in cache (a second pass over the marked,
+// scattered over the arrays, waited on memory for most of its time). Ghosts in make_images'
+// order.
+static bpx_status images_of(search *s, image_state *im, uint32_t k, const int32_t wk[3])
 {
     static const int32_t zero[3] = {0, 0, 0};
     bpx__search_keep *kept = s->keep;
-    bool moves = wraps(s, k);
-    kept->exact[k] = !moves;
-    if (moves) {
-        bpx_box b = image_box(s, k, zero);
+    bool moves = wk[0] | wk[1] | wk[2];
+    if (moves) { // (exact[k] is 1 already for the others)
+        kept->exact[k] = 0;
+        bpx_box b = image_box_of(s, k, zero, wk);
         if (!push_kept(&kept->moved_ids, &kept->moved_capacity, im->moved, &k, sizeof k) ||
             !push_kept(&kept->moved_boxes, &kept->moved_box_capacity, im->moved, &b, sizeof b))
             return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
@@ -391,8 +396,7 @@ static bpx_status images_of(search *s, image_state *im, uint32_t k)
     for (int a = 0; a < 3; a++) {
         if (s->period[a] == 0)
             continue;
-        double below =
-            images_below(s, a, lo[a], hi[a], s->wrap[k][a], im->origin[a], im->magnitude);
+        double below = images_below(s, a, lo[a], hi[a], wk[a], im->origin[a], im->magnitude);
         lowest[a] = below > 0 ? -(int32_t)below : 0;
     }
     int32_t u[3];
@@ -402,7 +406,7 @@ static bpx_status images_of(search *s, image_state *im, uint32_t k)
                 if (!u[0] && !u[1] && !u[2])
                     continue;
                 uint32_t g = im->ghosts_made;
-                bpx_box b = image_box(s, k, u);
+                bpx_box b = image_box_of(s, k, u, wk);
                 if (!push_kept(&kept->images, &kept->image_capacity, g, &b, sizeof b) ||
                     !push_kept(&kept->ghost_owner, &kept->ghost_owner_capacity, g, &k,
                                sizeof k) ||
@@ -519,10 +523,11 @@ static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
             double lo[3], hi[3];
             object_box(&s->in, k0 + x, lo, hi);
             uint32_t marked = im->marked_count;
-            bpx_status status = wrap_object(s, im, k0 + x, lo, hi, &in, &total);
+            int32_t wk[3];
+            bpx_status status = wrap_object(s, im, k0 + x, lo, hi, &in, &total, wk);
             // (past the images' limit the search fails: no more ghosts made)
             if (status == BPX_OK && im->marked_count > marked && im->past_limit == UINT32_MAX)
-                status = images_of(s, im, k0 + x);
+                status = images_of(s, im, k0 + x, wk);
             if (status != BPX_OK)
                 return status;
         }
@@ -531,13 +536,13 @@ static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
     return BPX_OK;
 }
 
-// The sparse path's start: s->keep's wrap back to 0 and exact to 1 where last cycle marked
-// (or whole, when it did not end clean); marked emptied, for this cycle's.
+// The sparse path's start: s->keep's wrap back to 0 and exact to 1 where last cycle's objects
+// wrapped (or whole, when it did not end clean).
 static void clean_keep(bpx__search_keep *keep, image_state *im)
 {
     if (keep->clean) {
-        for (uint32_t x = 0; x < keep->marked_count; x++) {
-            uint32_t k = keep->marked[x];
+        for (uint32_t x = 0; x < keep->moved_count; x++) {
+            uint32_t k = keep->moved_ids[x];
             keep->wrap[k][0] = keep->wrap[k][1] = keep->wrap[k][2] = 0;
             keep->exact[k] = 1;
         }
@@ -546,7 +551,7 @@ static void clean_keep(bpx__search_keep *keep, image_state *im)
         memset(keep->exact, 1, keep->exact_capacity);
     }
     keep->clean = false; // until this cycle's images are made
-    keep->marked_count = 0;
+    keep->moved_count = 0;
     im->sparse = true;
 }
 
@@ -560,14 +565,23 @@ static bpx_status too_many_images(const search *s, const image_state *im)
 
 // The float32 box of object k shifted by (u - w) periods, grown by cutoff / 2, rounded outward
 // past the error of computing it in double.
+static bpx_box image_box_of(const search *s, uint32_t k, const int32_t u[3], const int32_t w[3]);
+
 static bpx_box image_box(const search *s, uint32_t k, const int32_t u[3])
+{
+    static const int32_t zero[3] = {0, 0, 0};
+    return image_box_of(s, k, u, s->wrap ? s->wrap[k] : zero);
+}
+
+// image_box for object k of wrap w.
+static bpx_box image_box_of(const search *s, uint32_t k, const int32_t u[3], const int32_t w[3])
 {
     double lo[3], hi[3];
     object_box(&s->in, k, lo, hi);
     double half = s->def->cutoff / 2;
     bpx_box b;
     for (int a = 0; a < 3; a++) {
-        double t = s->wrap ? ((double)u[a] - s->wrap[k][a]) * s->period[a] : 0;
+        double t = s->wrap ? ((double)u[a] - w[a]) * s->period[a] : 0;
         // Nothing to round when there is nothing to add: the box as given, rounded once.
         double error =
             half == 0 && t == 0 ? 0 : 0x1p-48 * (fabs(lo[a]) + fabs(hi[a]) + half + fabs(t));
@@ -1243,7 +1257,7 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
         status = make_images(&s, &im);
         if (status == BPX_OK && sparse) { // wrap and exact differ from 0 and 1 at marked only
             kept->clean = true;
-            kept->marked_count = im.marked_count;
+            kept->moved_count = im.moved;
         }
         if (status == BPX_OK)
             status = run(&s, &im, keep, list, out, capacity, out_count);
