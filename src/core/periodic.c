@@ -77,7 +77,12 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     // Float64 boxes (all live: they are set whole), and float32 boxes with no id removed, are
     // searched where they lie; only a world with removed ids copies its live boxes out.
     const bpx_box_arrays *b = &w->boxes;
-    bpx__soa_boxes soa = {{b->lo[0], b->lo[1], b->lo[2]}, {b->hi[0], b->hi[1], b->hi[2]}};
+    bpx__soa_boxes soa = {.lo = {b->lo[0], b->lo[1], b->lo[2]},
+                          .hi = {b->hi[0], b->hi[1], b->hi[2]}};
+    if (w->bounds_set && w->bounds_version == w->boxes_version) { // set_boxes found them
+        soa.low = w->bounds_low;
+        soa.most = w->bounds_most;
+    }
     bpx_neighbor_def def = bpx_default_neighbor_def();
     def.format = w->boxes64_set ? BPX_BOXES_F64 : BPX__BOXES_SOA;
     const void *data = w->boxes64_set ? (const void *)w->boxes64 : (const void *)&soa;
@@ -190,7 +195,8 @@ void bpx__periodic_filter_images(bpx_world *w)
 
 bpx_backend bpx__periodic_backend(const bpx_world *w)
 {
-    return w->periodic.search.inner ? bpx_world_backend(w->periodic.search.inner) : BPX_BACKEND_COUNT;
+    const bpx_world *inner = w->periodic.search.inner;
+    return inner ? bpx_world_backend(inner) : BPX_BACKEND_COUNT;
 }
 
 void bpx__periodic_free(bpx_periodic *p)

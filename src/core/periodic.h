@@ -72,6 +72,11 @@ void bpx__periodic_free(bpx_periodic *p);
 typedef struct bpx__soa_boxes {
     const float *lo[3];
     const float *hi[3];
+    // The set_boxes that wrote them found, or NULL: the least lo per axis, and the largest
+    // |coordinate| (the image search's cell origin and magnitude, without a pass of its own;
+    // it checks them as it reads the boxes).
+    const float *low;
+    float most;
 } bpx__soa_boxes;
 bpx_status bpx__world_set_images(bpx_world *w, const bpx__soa_boxes *soa, uint32_t n,
                                  const uint32_t *moved_ids, const bpx_box *moved,

@@ -443,12 +443,13 @@ static inline f4 abs4(f4 v)
 
 // check_objects and cell_origin for a periodic world's own float32 boxes without cutoff (the
 // sparse path), the same wraps, images and marks in a fraction of the time: the origin and
-// magnitude from a float pass over the arrays (a float's min and largest |x| are the double's,
-// so the cell is cell_origin's), then a float test, four boxes at a time, that a box is in the
-// cell on every periodic axis (it implies wrap_object's inside test, with room for that test's
-// rounding); wrap_object decides the few others. The inside boxes' wraps are 0 already (s->keep
-// is clean).
-static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
+// magnitude from the bounds set_boxes found (or a float pass over the arrays: a float's min and
+// largest |x| are the double's, so the cell is cell_origin's), then a float test, four boxes at
+// a time, that a box is in the cell on every periodic axis (it implies wrap_object's inside
+// test, with room for that test's rounding); wrap_object decides the few others. The inside
+// boxes' wraps are 0 already (s->keep is clean). *stale: the bounds given were not the boxes'
+// (checked in the same pass), and nothing found is to be used.
+static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts, bool *stale)
 {
     const bpx__soa_boxes *b = &s->in.soa;
     uint32_t n = s->n, n4 = n & ~3u;
@@ -457,7 +458,7 @@ static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
     for (int a = 0; a < 3; a++) {
         const float *lo = b->lo[a], *hi = b->hi[a];
         f4 low4 = {INFINITY, INFINITY, INFINITY, INFINITY}, big4 = {0, 0, 0, 0};
-        for (uint32_t k = 0; k < n4; k += 4) {
+        for (uint32_t k = 0; k < n4 && !b->low; k += 4) {
             f4 l = load4(lo + k), x = abs4(l), y = abs4(load4(hi + k));
             low4 = pick4(l < low4, l, low4);
             big4 = pick4(x > big4, x, big4);
@@ -468,17 +469,20 @@ static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
             low = low4[q] < low ? low4[q] : low;
             big = big4[q] > big ? big4[q] : big;
         }
-        for (uint32_t k = n4; k < n; k++) {
+        for (uint32_t k = n4; k < n && !b->low; k++) {
             float x = fabsf(lo[k]), y = fabsf(hi[k]);
             low = lo[k] < low ? lo[k] : low;
             big = x > big ? x : big;
             big = y > big ? y : big;
         }
+        if (b->low) {
+            low = b->low[a];
+            big = b->most;
+        }
         im->origin[a] = s->period[a] > 0 && low < INFINITY ? (double)low : 0;
         farthest = fmax(farthest, fabs(im->origin[a]));
         most = big > most ? big : most;
     }
-    im->magnitude = (double)most + s->def->cutoff / 2 + farthest;
     inside_test in = make_inside_test(s, im);
     // Per periodic axis, in float: lo >= o is wrap_object's lo - o >= 0 exactly (o is a float);
     // |lo| < near_f implies |lo| < near_limit; hi < top_f implies (hi - o) + slack < L (which
@@ -497,6 +501,11 @@ static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
     uint64_t total = 0;
     enum { BLOCK = 1024 };
     i4 inside[BLOCK / 4];
+    // With bounds given, the bounds of what is read, to check them.
+    f4 seen_low4[3] = {{INFINITY, INFINITY, INFINITY, INFINITY},
+                       {INFINITY, INFINITY, INFINITY, INFINITY},
+                       {INFINITY, INFINITY, INFINITY, INFINITY}};
+    f4 seen_big4 = {0, 0, 0, 0};
     for (uint32_t k0 = 0; k0 < n; k0 += BLOCK) {
         uint32_t m = n - k0 < BLOCK ? n - k0 : BLOCK, m4 = m & ~3u;
         for (uint32_t x = 0; x < m4; x += 4) {
@@ -507,17 +516,31 @@ static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
                 yes &= (l >= o_f[a]) & (abs4(l) < near_f[a]) & (h < top_f[a]);
             }
             inside[x / 4] = yes;
+            for (int a = 0; a < 3 && b->low; a++) {
+                f4 l = load4(b->lo[a] + k0 + x), x4 = abs4(l);
+                f4 y4 = abs4(load4(b->hi[a] + k0 + x));
+                seen_low4[a] = pick4(l < seen_low4[a], l, seen_low4[a]);
+                seen_big4 = pick4(x4 > seen_big4, x4, seen_big4);
+                seen_big4 = pick4(y4 > seen_big4, y4, seen_big4);
+            }
         }
         for (uint32_t x = 0; x < m; x++) {
             bool yes = true;
-            if (x >= m4) // the last few, one at a time
+            if (x >= m4) { // the last few, one at a time
                 for (int c = 0; c < axis_count; c++) {
                     int a = axes[c];
                     float l = b->lo[a][k0 + x], h = b->hi[a][k0 + x];
                     yes &= l >= o_f[a] && fabsf(l) < near_f[a] && h < top_f[a];
                 }
-            else
+                for (int a = 0; a < 3 && b->low; a++) {
+                    float l = b->lo[a][k0 + x], h = b->hi[a][k0 + x];
+                    seen_low4[a][0] = l < seen_low4[a][0] ? l : seen_low4[a][0];
+                    seen_big4[0] = fabsf(l) > seen_big4[0] ? fabsf(l) : seen_big4[0];
+                    seen_big4[0] = fabsf(h) > seen_big4[0] ? fabsf(h) : seen_big4[0];
+                }
+            } else {
                 yes = inside[x / 4][x % 4] != 0;
+            }
             if (yes)
                 continue;
             double lo[3], hi[3];
@@ -532,6 +555,16 @@ static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts)
                 return status;
         }
     }
+    for (int q = 0; q < 4 && b->low; q++) {
+        for (int a = 0; a < 3; a++)
+            *stale |= s->period[a] > 0 && seen_low4[a][q] < b->low[a];
+        *stale |= seen_big4[q] > b->most;
+    }
+    for (int a = 0; a < 3 && b->low && n > 0; a++) // the least is one of them
+        *stale |= s->period[a] > 0 && !(seen_low4[a][0] == b->low[a] ||
+                                        seen_low4[a][1] == b->low[a] ||
+                                        seen_low4[a][2] == b->low[a] ||
+                                        seen_low4[a][3] == b->low[a]);
     *ghosts = total;
     return BPX_OK;
 }
@@ -1228,7 +1261,17 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
     }
     if (sparse) {
         clean_keep(kept, &im);
-        status = scan_cell(&s, &im, &ghosts);
+        bool stale = false;
+        status = scan_cell(&s, &im, &ghosts, &stale);
+        if (status == BPX_OK && stale) { // (a bug of a path that changed the boxes unversioned)
+            s.in.soa.low = NULL;
+            image_state fresh = {.past_limit = UINT32_MAX, .mark = true};
+            fresh.marked = im.marked;
+            fresh.marked_capacity = im.marked_capacity;
+            im = fresh;
+            clean_keep(kept, &im); // clears the arrays whole
+            status = scan_cell(&s, &im, &ghosts, &stale);
+        }
     } else {
         if (kept && s.periodic)
             kept->clean = false; // every wrap written
