@@ -510,19 +510,20 @@ static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts, bool *
         uint32_t m = n - k0 < BLOCK ? n - k0 : BLOCK, m4 = m & ~3u;
         for (uint32_t x = 0; x < m4; x += 4) {
             i4 yes = {-1, -1, -1, -1};
-            for (int c = 0; c < axis_count; c++) {
-                int a = axes[c];
+            for (int a = 0; a < 3; a++) { // each box read once, for the test and the check
+                if (s->period[a] == 0 && !b->low)
+                    continue;
                 f4 l = load4(b->lo[a] + k0 + x), h = load4(b->hi[a] + k0 + x);
-                yes &= (l >= o_f[a]) & (abs4(l) < near_f[a]) & (h < top_f[a]);
+                f4 x4 = abs4(l), y4 = abs4(h);
+                if (s->period[a] > 0)
+                    yes &= (l >= o_f[a]) & (x4 < near_f[a]) & (h < top_f[a]);
+                if (b->low) {
+                    seen_low4[a] = pick4(l < seen_low4[a], l, seen_low4[a]);
+                    seen_big4 = pick4(x4 > seen_big4, x4, seen_big4);
+                    seen_big4 = pick4(y4 > seen_big4, y4, seen_big4);
+                }
             }
             inside[x / 4] = yes;
-            for (int a = 0; a < 3 && b->low; a++) {
-                f4 l = load4(b->lo[a] + k0 + x), x4 = abs4(l);
-                f4 y4 = abs4(load4(b->hi[a] + k0 + x));
-                seen_low4[a] = pick4(l < seen_low4[a], l, seen_low4[a]);
-                seen_big4 = pick4(x4 > seen_big4, x4, seen_big4);
-                seen_big4 = pick4(y4 > seen_big4, y4, seen_big4);
-            }
         }
         for (uint32_t x = 0; x < m; x++) {
             bool yes = true;
