@@ -842,11 +842,104 @@ static void test_out_of_memory(void)
     free(want.pairs);
 }
 
+// ---------------------------------------------------------------------------------------------
+// Boxes moving across the faces over many cycles (they wrap, unwrap, gain and lose ghosts, and
+// the count changes), each cycle against the brute force; then the allocations of a steady cycle
+
+static atomic_llong allocations; // counted by counting_alloc
+
+static void *counting_alloc(size_t size, size_t alignment, void *user)
+{
+    (void)user;
+    atomic_fetch_add(&allocations, 1);
+    size_t align = alignment < 16 ? 16 : alignment;
+    return aligned_alloc(align, (size + align - 1) / align * align);
+}
+
+static void counting_free(void *memory, void *user)
+{
+    (void)user;
+    free(memory);
+}
+
+static void test_moving(void)
+{
+    enum { N = 160, CYCLES = 12 };
+    config c = {{8, 8, 5}, N, 0.4};
+    image_list want = {0};
+    bpx_pair *want_pairs = malloc((size_t)N * N * 27 * sizeof *want_pairs);
+    for (int b = 0; b < BACKENDS; b++) {
+        if (!bpx_backend_query(cpu_backends[b]).available)
+            continue;
+        for (int workers = 1; workers <= 3; workers += 2) {
+            scene_rng r;
+            scene_rng_seed(&r, 77);
+            bpx_box boxes[N];
+            random_boxes(&r, &c, boxes);
+            bpx_world *w = make(cpu_backends[b], workers, c.period, true);
+            for (int cycle = 0; cycle < CYCLES; cycle++) {
+                check_set_context("moving, backend %s workers %d cycle %d",
+                                  bpx_backend_name(cpu_backends[b]), workers, cycle);
+                uint32_t n = cycle == 5 ? N - 30 : cycle == 6 ? N - 31 : N;
+                for (uint32_t k = 0; k < N && cycle > 0; k++)
+                    for (int a = 0; a < 3; a++) { // up to a period's fifth, in 1/8 steps
+                        float d = dyadic(&r, -c.period[a] / 5, c.period[a] / 5);
+                        boxes[k].min[a] += d;
+                        boxes[k].max[a] += d;
+                    }
+                brute(boxes, n, NULL, c.period, &want);
+                size_t want_count = distinct(&want, want_pairs);
+                CHECK_STATUS(bpx_world_set_boxes(w, boxes, n), BPX_OK);
+                CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+                size_t count = 0, images = 0;
+                const bpx_pair *pairs = bpx_world_pairs(w, &count);
+                const bpx_image_pair *got = bpx_world_image_pairs(w, &images);
+                CHECK_MSG(same_images(got, images, &want), "%zu images, want %zu", images,
+                          want.count);
+                CHECK_MSG(same_pairs(pairs, count, want_pairs, want_count),
+                          "%zu pairs, want %zu", count, want_count);
+            }
+            bpx_world_destroy(w);
+        }
+    }
+    // A steady cycle of the image search allocates nothing: the world of images' box sets, the
+    // wraps, flags, ghosts and pair lists are kept. Brute force as the backend (it keeps no
+    // per-cycle memory of its own either), boxes that move a little and cross the faces.
+    bpx_set_allocator(counting_alloc, counting_free, NULL);
+    for (int workers = 1; workers <= 3; workers += 2) {
+        check_set_context("steady cycle allocations, %d workers", workers);
+        scene_rng r;
+        scene_rng_seed(&r, 78);
+        bpx_box boxes[N];
+        random_boxes(&r, &c, boxes);
+        bpx_world *w = make(BPX_BACKEND_BRUTE, workers, c.period, false);
+        long long last = -1;
+        for (int cycle = 0; cycle < 8; cycle++) {
+            for (uint32_t k = 0; k < N; k++)
+                for (int a = 0; a < 3; a++) {
+                    float d = cycle % 2 ? 0.125f : -0.125f; // back and forth across
+                    boxes[k].min[a] += d;
+                    boxes[k].max[a] += d;
+                }
+            atomic_store(&allocations, 0);
+            CHECK_STATUS(bpx_world_set_boxes(w, boxes, N), BPX_OK);
+            CHECK_STATUS(bpx_world_collide(w), BPX_OK);
+            last = atomic_load(&allocations);
+        }
+        CHECK_MSG(last == 0, "a steady cycle made %lld allocations", last);
+        bpx_world_destroy(w);
+    }
+    bpx_set_allocator(NULL, NULL, NULL);
+    free(want.pairs);
+    free(want_pairs);
+}
+
 int main(void)
 {
     int64_t start = bpx_allocated_bytes();
     test_bad();
     test_random();
+    test_moving();
     test_rules_and_events();
     test_two_phase();
     test_snapshot();

@@ -77,7 +77,12 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     // Float64 boxes (all live: they are set whole), and float32 boxes with no id removed, are
     // searched where they lie; only a world with removed ids copies its live boxes out.
     const bpx_box_arrays *b = &w->boxes;
-    bpx__soa_boxes soa = {{b->lo[0], b->lo[1], b->lo[2]}, {b->hi[0], b->hi[1], b->hi[2]}};
+    bpx__soa_boxes soa = {.lo = {b->lo[0], b->lo[1], b->lo[2]},
+                          .hi = {b->hi[0], b->hi[1], b->hi[2]}};
+    if (w->bounds_set && w->bounds_version == w->boxes_version) { // set_boxes found them
+        soa.low = w->bounds_low;
+        soa.most = w->bounds_most;
+    }
     bpx_neighbor_def def = bpx_default_neighbor_def();
     def.format = w->boxes64_set ? BPX_BOXES_F64 : BPX__BOXES_SOA;
     const void *data = w->boxes64_set ? (const void *)w->boxes64 : (const void *)&soa;
@@ -118,9 +123,7 @@ bpx_status bpx__periodic_compare(bpx_world *w)
     inner.user_task_context = &w->executor;
     bpx_error err;
     bpx_status status =
-        bpx__find_neighbors_kept(&def, data, live, &p->inner, &inner, &p->images_in,
-                                 &p->images_in_capacity, &p->wrap, &p->wrap_capacity,
-                                 &p->images, &err);
+        bpx__find_neighbors_kept(&def, data, live, &p->search, &inner, &p->images, &err);
     if (status != BPX_OK) {
         if (err.index < live && removed) // the search counts live boxes only: name the id
             return bpx__error(&w->error, status, p->ids[err.index], err.axis,
@@ -154,7 +157,7 @@ bpx_status bpx__periodic_compare(bpx_world *w)
         distinct += fresh;
     }
     block->hits.count = distinct;
-    bpx_cycle_stats inner_stats = bpx_world_stats(p->inner);
+    bpx_cycle_stats inner_stats = bpx_world_stats(p->search.inner);
     block->tests = inner_stats.pair_tests;
     w->stats.rebuilt = inner_stats.rebuilt;
     w->stats.transfer_in_ns = inner_stats.transfer_in_ns;
@@ -192,16 +195,15 @@ void bpx__periodic_filter_images(bpx_world *w)
 
 bpx_backend bpx__periodic_backend(const bpx_world *w)
 {
-    return w->periodic.inner ? bpx_world_backend(w->periodic.inner) : BPX_BACKEND_COUNT;
+    const bpx_world *inner = w->periodic.search.inner;
+    return inner ? bpx_world_backend(inner) : BPX_BACKEND_COUNT;
 }
 
 void bpx__periodic_free(bpx_periodic *p)
 {
-    bpx_world_destroy(p->inner);
+    bpx__search_keep_free(&p->search);
     bpx__free(p->boxes, (size_t)p->capacity * sizeof *p->boxes);
     bpx__free(p->ids, (size_t)p->capacity * sizeof *p->ids);
-    bpx__free(p->images_in, p->images_in_capacity * sizeof *p->images_in);
-    bpx__free(p->wrap, p->wrap_capacity * sizeof *p->wrap);
     bpx_neighbor_list_free(&p->images);
     *p = (bpx_periodic){0};
 }

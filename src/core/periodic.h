@@ -4,18 +4,45 @@
 
 #include "bpx/bpx.h"
 
-/// What a periodic world keeps between cycles: the world of images the search runs on (its
-/// backend state, sap's sorted lists included, carries over), the live boxes handed to it, and
-/// the image pairs of the last cycle.
-typedef struct bpx_periodic {
+/// What the image search keeps between the cycles of a periodic world, so that its steady
+/// cycle allocates nothing: the world of images (its backend state, sap's sorted lists
+/// included, carries over) and the search's per-object and per-image arrays.
+typedef struct bpx__search_keep {
     bpx_world *inner;
+    bpx_box *boxes; // the boxes with their images, as the world of images gets them (AoS input)
+    size_t box_capacity;
+    int32_t (*wrap)[3]; // per object: its wrap
+    size_t wrap_capacity;
+    uint8_t *exact; // per object: whether its image is its box
+    size_t exact_capacity;
+    uint32_t *marked; // the objects that wrap or have ghosts
+    uint32_t marked_capacity;
+    // wrap is 0 and exact 1 at every object but moved_ids[0 .. moved_count), last cycle's
+    // wrapped objects: the next cycle resets those few, not the whole arrays (false: it clears
+    // them whole).
+    bool clean;
+    uint32_t moved_count;
+    bpx_box *images; // the moved images and the ghosts
+    size_t image_capacity;
+    uint32_t *ghost_owner;
+    size_t ghost_owner_capacity;
+    int32_t (*ghost_shift)[3];
+    size_t ghost_shift_capacity;
+    uint32_t *moved_ids;
+    size_t moved_capacity;
+    bpx_box *moved_boxes; // the sparse path's: moved images apart from the ghosts (in images)
+    size_t moved_box_capacity;
+    void *imaged; // the pairs with an image (neighbors.c's found), before their sort
+    size_t imaged_capacity;
+} bpx__search_keep;
+
+/// What a periodic world keeps between cycles: the image search's state, the live boxes handed
+/// to it, and the image pairs of the last cycle.
+typedef struct bpx_periodic {
+    bpx__search_keep search;
     bpx_box *boxes;    // the live boxes, in id order
     uint32_t *ids;     // boxes[k]'s id, when some ids are removed
     uint32_t capacity; // of boxes and ids
-    bpx_box *images_in; // the boxes with their images, as the world of images gets them
-    size_t images_in_capacity;
-    int32_t (*wrap)[3]; // the search's wraps
-    size_t wrap_capacity;
     bpx_neighbor_list images; // sorted by (i, j, shift); filtered as the pairs are
 } bpx_periodic;
 
@@ -45,6 +72,11 @@ void bpx__periodic_free(bpx_periodic *p);
 typedef struct bpx__soa_boxes {
     const float *lo[3];
     const float *hi[3];
+    // The set_boxes that wrote them found, or NULL: the least lo per axis, and the largest
+    // |coordinate| (the image search's cell origin and magnitude, without a pass of its own;
+    // it checks them as it reads the boxes).
+    const float *low;
+    float most;
 } bpx__soa_boxes;
 bpx_status bpx__world_set_images(bpx_world *w, const bpx__soa_boxes *soa, uint32_t n,
                                  const uint32_t *moved_ids, const bpx_box *moved,
@@ -54,10 +86,11 @@ bpx_status bpx__world_set_images(bpx_world *w, const bpx__soa_boxes *soa, uint32
 void bpx__round_boxes64_soa(const bpx_box64 *in, uint32_t n, float *const lo[3],
                             float *const hi[3]);
 
-/// bpx_find_neighbors on float32 boxes (def->format BPX_BOXES_F32) or float64 ones, on the world of images *inner (made with inner_def at
-/// the first call and kept), into list (emptied; its arrays kept). neighbors.c.
+/// bpx_find_neighbors on float32 boxes (def->format BPX_BOXES_F32, BPX__BOXES_SOA) or float64
+/// ones, on the world of images keep->inner (made with inner_def at the first call and kept)
+/// and keep's arrays, into list (emptied; its arrays kept). neighbors.c.
 bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const void *boxes, uint32_t n,
-                                    bpx_world **inner, const bpx_world_def *inner_def,
-                                    bpx_box **scratch, size_t *scratch_capacity,
-                                    int32_t (**wrap)[3], size_t *wrap_capacity,
+                                    bpx__search_keep *keep, const bpx_world_def *inner_def,
                                     bpx_neighbor_list *list, bpx_error *err);
+/// Frees what keep holds. neighbors.c.
+void bpx__search_keep_free(bpx__search_keep *keep);

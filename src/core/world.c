@@ -268,6 +268,8 @@ typedef struct update_job {
     uint32_t n;
     int chunks;
     int ok[UPDATE_CHUNKS_MAX];
+    bool bounds; // set_boxes of a periodic world: per chunk, the least lo and largest |x|
+    float low[UPDATE_CHUNKS_MAX][3], most[UPDATE_CHUNKS_MAX];
 } update_job;
 
 static void chunk_range(const update_job *job, int c, uint32_t *begin, uint32_t *end)
@@ -288,10 +290,14 @@ static void set_task(int begin, int end, int worker, void *context)
         chunk_range(job, c, &i0, &i1);
         int ok = 1;
         uint32_t i = i0;
+        float least[3] = {INFINITY, INFINITY, INFINITY}, most = 0;
 #ifdef BPX_HAVE_TRANSPOSE4
         // Four boxes at a time: one transpose, three range checks on whole vectors.
         const __m128 low = _mm_set1_ps(-FLT_MAX), high = _mm_set1_ps(FLT_MAX);
+        const __m128 magnitude = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
         __m128 good = _mm_castsi128_ps(_mm_set1_epi32(-1));
+        __m128 least4[3] = {_mm_set1_ps(INFINITY), _mm_set1_ps(INFINITY), _mm_set1_ps(INFINITY)};
+        __m128 most4 = _mm_setzero_ps();
         for (; i + 4 <= i1; i += 4) {
             __m128 v[6];
             bpx__boxes4_to_soa(&job->boxes[i], v);
@@ -299,6 +305,11 @@ static void set_task(int begin, int end, int worker, void *context)
                 good = _mm_and_ps(good, _mm_and_ps(_mm_and_ps(_mm_cmple_ps(low, v[a]),
                                                               _mm_cmple_ps(v[a], v[3 + a])),
                                                    _mm_cmple_ps(v[3 + a], high)));
+            for (int a = 0; a < 3 && job->bounds; a++) {
+                least4[a] = _mm_min_ps(v[a], least4[a]);
+                most4 = _mm_max_ps(_mm_and_ps(v[a], magnitude), most4);
+                most4 = _mm_max_ps(_mm_and_ps(v[3 + a], magnitude), most4);
+            }
             _mm_storeu_ps(lx + i, v[0]);
             _mm_storeu_ps(ly + i, v[1]);
             _mm_storeu_ps(lz + i, v[2]);
@@ -307,6 +318,16 @@ static void set_task(int begin, int end, int worker, void *context)
             _mm_storeu_ps(hz + i, v[5]);
         }
         ok &= _mm_movemask_ps(good) == 0xf;
+        float lanes[4][4];
+        _mm_storeu_ps(lanes[0], least4[0]);
+        _mm_storeu_ps(lanes[1], least4[1]);
+        _mm_storeu_ps(lanes[2], least4[2]);
+        _mm_storeu_ps(lanes[3], most4);
+        for (int q = 0; q < 4 && job->bounds; q++) {
+            for (int a = 0; a < 3; a++)
+                least[a] = lanes[a][q] < least[a] ? lanes[a][q] : least[a];
+            most = lanes[3][q] > most ? lanes[3][q] : most;
+        }
 #endif
         for (; i < i1; i++) {
             const bpx_box *box = &job->boxes[i];
@@ -315,8 +336,17 @@ static void set_task(int begin, int end, int worker, void *context)
                       (box->max[a] <= FLT_MAX);
             lx[i] = box->min[0], ly[i] = box->min[1], lz[i] = box->min[2];
             hx[i] = box->max[0], hy[i] = box->max[1], hz[i] = box->max[2];
+            for (int a = 0; a < 3 && job->bounds; a++) {
+                float x = fabsf(box->min[a]), y = fabsf(box->max[a]);
+                least[a] = box->min[a] < least[a] ? box->min[a] : least[a];
+                most = x > most ? x : most;
+                most = y > most ? y : most;
+            }
         }
         job->ok[c] = ok;
+        for (int a = 0; a < 3; a++)
+            job->low[c][a] = least[a];
+        job->most[c] = most;
     }
 }
 
@@ -420,6 +450,7 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
     // in parallel for large n (each chunk writes its own range; a bad box anywhere sends the
     // serial check over all of them, which names the first).
     update_job job = {.boxes = boxes, .out = &w->spare, .n = n};
+    job.bounds = bpx__world_periodic(w); // the image search's first pass, done here
     int ok = run_update(w, set_task, &job);
     if (!ok)
         return bpx__check_boxes(boxes, n, &w->error); // names the first bad box
@@ -427,6 +458,14 @@ bpx_status bpx_world_set_boxes(bpx_world *w, const bpx_box *boxes, uint32_t n)
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", n);
     bpx__boxes_swap_in_spare(w, n);
+    w->bounds_set = job.bounds;
+    for (int c = 0; c < job.chunks && job.bounds; c++) {
+        for (int a = 0; a < 3; a++)
+            w->bounds_low[a] = c == 0 || job.low[c][a] < w->bounds_low[a] ? job.low[c][a]
+                                                                          : w->bounds_low[a];
+        w->bounds_most = c == 0 || job.most[c] > w->bounds_most ? job.most[c] : w->bounds_most;
+    }
+    w->bounds_version = w->boxes_version;
     // The boxes no longer come from the loaded extents: centres would rebuild stale boxes.
     w->extents_loaded = false;
     w->boxes64_set = false;
@@ -507,8 +546,17 @@ bpx_status bpx__world_set_images(bpx_world *w, const bpx__soa_boxes *soa, uint32
         return bpx__error(&w->error, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
                           "%llu boxes with their images exceed BPX_MAX_BOXES (%u)",
                           (unsigned long long)total, BPX_MAX_BOXES);
-    if (!bpx__box_arrays_reserve(&w->spare, (uint32_t)total) ||
-        !bpx__objects_reset(w, (uint32_t)total))
+    // The count of images wanders from cycle to cycle as boxes cross faces: room for 1/32 more,
+    // so that the two sets (boxes and spare, swapped each cycle) are not made again, on fresh
+    // pages, whenever the count passes the larger set's (1M boxes: 24 MB of page faults).
+    uint64_t roomy = total + total / 32;
+    if (bpx__boxes_padded((uint32_t)total) > w->spare.capacity &&
+        !bpx__box_arrays_reserve(&w->spare, roomy < BPX_MAX_BOXES ? (uint32_t)roomy
+                                                                  : (uint32_t)total) &&
+        !bpx__box_arrays_reserve(&w->spare, (uint32_t)total))
+        return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %llu boxes", (unsigned long long)total);
+    if (!bpx__objects_reset(w, (uint32_t)total))
         return bpx__error(&w->error, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %llu boxes", (unsigned long long)total);
     bpx_box_arrays *out = &w->spare;

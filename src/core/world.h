@@ -71,6 +71,11 @@ struct bpx_world {
     bool boxes_on_device; // the boxes live in a device buffer (opencl, cuda): no queries
 
     bpx_periodic periodic; // def.period set: the image search's state (periodic.c)
+    // A periodic world's set_boxes: the boxes' least lo per axis and largest |coordinate|,
+    // valid while boxes_version is bounds_version.
+    float bounds_low[3], bounds_most;
+    uint64_t bounds_version;
+    bool bounds_set;
 
     // bpx_world_set_boxes64: the float64 boxes, which decide each candidate of the float32
     // boxes (rounded outward) that the comparator sees.

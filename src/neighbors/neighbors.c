@@ -51,6 +51,37 @@ static void advise_huge(void *memory, size_t size)
 #endif
 }
 
+// Room for count items of size bytes in a kept array (*memory, of *capacity items), grown by a
+// quarter more than asked so that counts that wander a little from cycle to cycle do not
+// reallocate; its contents are not kept. NULL when out of memory (the old array stays).
+static void *room(void *memory, size_t *capacity, size_t count, size_t size)
+{
+    void **kept = (void **)memory;
+    if (*kept && count <= *capacity)
+        return *kept;
+    size_t want = count + count / 4 + 64;
+    void *grown = bpx__alloc(want * size);
+    if (!grown)
+        return NULL;
+    bpx__free(*kept, *capacity * size);
+    *kept = grown;
+    *capacity = want;
+    return grown;
+}
+
+// Appends item (size bytes) at count in a kept array of *capacity items, doubling it when full.
+static bool push_kept(void *memory, size_t *capacity, size_t count, const void *item, size_t size)
+{
+    if (count >= *capacity) {
+        size_t grown = *capacity ? 2 * *capacity : 1024;
+        if (!bpx__grow((void **)memory, *capacity * size, grown * size))
+            return false;
+        *capacity = grown;
+    }
+    memcpy((char *)*(void **)memory + count * size, item, size);
+    return true;
+}
+
 bpx_neighbor_def bpx_default_neighbor_def(void)
 {
     return (bpx_neighbor_def){.format = BPX_BOXES_F32, .metric = BPX_METRIC_BOX,
@@ -183,6 +214,10 @@ typedef struct image_state {
     uint32_t *marked;
     uint32_t marked_count, marked_capacity;
     uint32_t past_limit; // the object at which the images pass BPX_MAX_BOXES, or UINT32_MAX
+    // wrap, exact and marked are s->keep's, kept clean (bpx__search_keep.clean): 0 and 1 at
+    // every object that is not marked, so that the many in the cell are never written.
+    bool sparse;
+    uint32_t ghosts_made; // the sparse path's ghosts so far (scan_cell makes them)
 } image_state;
 
 // The cell's lower corner for the image search: the lowest object's grown lower face on each
@@ -225,12 +260,80 @@ static bool mark(image_state *im, uint32_t k)
     return true;
 }
 
+// The bounds of check_objects' fast test, "in the cell on axis a": w = 0 and no image there.
+typedef struct inside_test {
+    double inside_slack[3], near_limit[3];
+} inside_test;
+
+static inside_test make_inside_test(const search *s, const image_state *im)
+{
+    inside_test in;
+    for (int a = 0; a < 3; a++) {
+        in.inside_slack[a] = 0x1p-39 * (4 * im->magnitude + s->period[a]);
+        in.near_limit[a] = 0x1p28 * s->period[a];
+    }
+    return in;
+}
+
+// Object k's wrap and image count (check_objects, on a periodic search): into s->wrap[k] (and
+// im->marked when it wraps or has ghosts), its ghosts added to *total.
+static bpx_status wrap_object(search *s, image_state *im, uint32_t k, const double lo[3],
+                              const double hi[3], const inside_test *in, uint64_t *total,
+                              int32_t wk[3])
+{
+    const double *origin = im->origin;
+    double half = s->def->cutoff / 2;
+    uint64_t images = 1;
+    wk[0] = wk[1] = wk[2] = 0;
+    for (int a = 0; a < 3; a++) {
+        double L = s->period[a];
+        if (L == 0)
+            continue;
+        double grown_lo = lo[a] - half, from_origin = grown_lo - origin[a];
+        if (from_origin >= 0 && from_origin < L && fabs(grown_lo) < in->near_limit[a] &&
+            (hi[a] + half - origin[a]) + in->inside_slack[a] < L)
+            continue; // w = 0, one copy
+        // Within 2^29 periods of 0 (and of the cell, so that shifts fit): counted from 0,
+        // wherever the cell lies, so that the limit is the caller's to know.
+        double from_zero = lo[a] - half;
+        bool near = fabs(from_zero) < 0x1p28 * L ||
+                    fabs(floor_fast(from_zero / L)) < MAX_PERIODS;
+        double x = from_zero - origin[a]; // w = 0 within the cell without a division
+        double w = x >= 0 && x < L ? 0 : floor_fast(x / L);
+        double below = images_below(s, a, lo[a], hi[a], w, origin[a], im->magnitude);
+        if (!(near && fabs(w) < MAX_PERIODS && below < MAX_PERIODS))
+            return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
+                              "object %u lies or reaches more than 2^29 periods (%g) from "
+                              "the origin on axis %c",
+                              k, L, "xyz"[a]);
+        wk[a] = (int32_t)w;
+        uint64_t copies = 1 + (uint64_t)(below > 0 ? below : 0);
+        if (copies > BPX_MAX_BOXES / images) // before the product can wrap around
+            return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
+                              "object %u has more than BPX_MAX_BOXES (%u) periodic images: "
+                              "the cell is small for boxes and cutoff this large",
+                              k, BPX_MAX_BOXES);
+        images *= copies;
+    }
+    *total += images - 1;
+    // Sparse: s->wrap[k] is 0 already; written only when it wraps (a line of 12 MB at 1M
+    // objects, a cache miss each, was a quarter of scan_cell's time written for every marked).
+    if (!im->sparse || (wk[0] | wk[1] | wk[2]))
+        memcpy(s->wrap[k], wk, sizeof s->wrap[k]);
+    if (im->mark && (images > 1 || wk[0] | wk[1] | wk[2]) && !mark(im, k))
+        return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                          "no memory for %u objects", s->n);
+    // The images' limit is the image search's: the cell list makes no images, so it is
+    // checked only where the image search runs (too_many_images).
+    if (*total + s->n > BPX_MAX_BOXES && im->past_limit == UINT32_MAX)
+        im->past_limit = k;
+    return BPX_OK;
+}
+
 // The input checks, then each object's wrap (relative to the cell's lower corner, im->origin)
 // and image count. Fills s->wrap (and im->marked); returns the number of ghost images in *ghosts.
 static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
 {
-    const double *origin = im->origin;
-    double half = s->def->cutoff / 2;
     uint64_t total = 0;
     // A box in the cell on an axis (lower face in [o, o + L), upper face below o + L by more
     // than images_below's slack, at most 2^-40 (4 magnitude + L) for w = 0; twice that covers
@@ -238,11 +341,7 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
     // A world's own float32 boxes were checked as they came in (finite, min <= max, far below
     // 2^1000): not again.
     bool trusted = s->in.format == BPX__BOXES_SOA;
-    double inside_slack[3], near_limit[3];
-    for (int a = 0; a < 3; a++) {
-        inside_slack[a] = 0x1p-39 * (4 * im->magnitude + s->period[a]);
-        near_limit[a] = 0x1p28 * s->period[a];
-    }
+    inside_test inside = make_inside_test(s, im);
     for (uint32_t k = 0; k < s->n; k++) {
         double lo[3], hi[3];
         object_box(&s->in, k, lo, hi);
@@ -262,50 +361,232 @@ static bpx_status check_objects(search *s, image_state *im, uint64_t *ghosts)
                                   "xyz"[a]);
         if (!s->periodic)
             continue;
-        uint64_t images = 1;
-        for (int a = 0; a < 3; a++) {
-            double L = s->period[a];
-            s->wrap[k][a] = 0;
-            if (L == 0)
-                continue;
-            double grown_lo = lo[a] - half, from_origin = grown_lo - origin[a];
-            if (from_origin >= 0 && from_origin < L && fabs(grown_lo) < near_limit[a] &&
-                (hi[a] + half - origin[a]) + inside_slack[a] < L)
-                continue; // w = 0, one copy
-            // Within 2^29 periods of 0 (and of the cell, so that shifts fit): counted from 0,
-            // wherever the cell lies, so that the limit is the caller's to know.
-            double from_zero = lo[a] - half;
-            bool near = fabs(from_zero) < 0x1p28 * L ||
-                        fabs(floor_fast(from_zero / L)) < MAX_PERIODS;
-            double x = from_zero - origin[a]; // w = 0 within the cell without a division
-            double w = x >= 0 && x < L ? 0 : floor_fast(x / L);
-            double below = images_below(s, a, lo[a], hi[a], w, origin[a], im->magnitude);
-            if (!(near && fabs(w) < MAX_PERIODS && below < MAX_PERIODS))
-                return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
-                                  "object %u lies or reaches more than 2^29 periods (%g) from "
-                                  "the origin on axis %c",
-                                  k, L, "xyz"[a]);
-            s->wrap[k][a] = (int32_t)w;
-            uint64_t copies = 1 + (uint64_t)(below > 0 ? below : 0);
-            if (copies > BPX_MAX_BOXES / images) // before the product can wrap around
-                return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, k, a,
-                                  "object %u has more than BPX_MAX_BOXES (%u) periodic images: "
-                                  "the cell is small for boxes and cutoff this large",
-                                  k, BPX_MAX_BOXES);
-            images *= copies;
-        }
-        total += images - 1;
-        if (im->mark && (images > 1 || s->wrap[k][0] | s->wrap[k][1] | s->wrap[k][2]) &&
-            !mark(im, k))
-            return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
-                              "no memory for %u objects", s->n);
-        // The images' limit is the image search's: the cell list makes no images, so it is
-        // checked only where the image search runs (too_many_images).
-        if (total + s->n > BPX_MAX_BOXES && im->past_limit == UINT32_MAX)
-            im->past_limit = k;
+        int32_t wk[3];
+        bpx_status status = wrap_object(s, im, k, lo, hi, &inside, &total, wk);
+        if (status != BPX_OK)
+            return status;
     }
     *ghosts = total;
     return BPX_OK;
+}
+
+static bpx_box image_box_of(const search *s, uint32_t k, const int32_t u[3], const int32_t w[3]);
+
+// The sparse path's make_images for object k of wrap wk, just marked: its moved image and its
+// ghosts into s->keep's arrays, while its box is in cache (a second pass over the marked,
+// scattered over the arrays, waited on memory for most of its time). Ghosts in make_images'
+// order.
+static bpx_status images_of(search *s, image_state *im, uint32_t k, const int32_t wk[3])
+{
+    static const int32_t zero[3] = {0, 0, 0};
+    bpx__search_keep *kept = s->keep;
+    bool moves = wk[0] | wk[1] | wk[2];
+    if (moves) { // (exact[k] is 1 already for the others)
+        kept->exact[k] = 0;
+        bpx_box b = image_box_of(s, k, zero, wk);
+        if (!push_kept(&kept->moved_ids, &kept->moved_capacity, im->moved, &k, sizeof k) ||
+            !push_kept(&kept->moved_boxes, &kept->moved_box_capacity, im->moved, &b, sizeof b))
+            return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %u objects", s->n);
+        im->moved++;
+    }
+    double lo[3], hi[3];
+    object_box(&s->in, k, lo, hi);
+    int32_t lowest[3] = {0, 0, 0};
+    for (int a = 0; a < 3; a++) {
+        if (s->period[a] == 0)
+            continue;
+        double below = images_below(s, a, lo[a], hi[a], wk[a], im->origin[a], im->magnitude);
+        lowest[a] = below > 0 ? -(int32_t)below : 0;
+    }
+    int32_t u[3];
+    for (u[0] = 0; u[0] >= lowest[0]; u[0]--)
+        for (u[1] = 0; u[1] >= lowest[1]; u[1]--)
+            for (u[2] = 0; u[2] >= lowest[2]; u[2]--) {
+                if (!u[0] && !u[1] && !u[2])
+                    continue;
+                uint32_t g = im->ghosts_made;
+                bpx_box b = image_box_of(s, k, u, wk);
+                if (!push_kept(&kept->images, &kept->image_capacity, g, &b, sizeof b) ||
+                    !push_kept(&kept->ghost_owner, &kept->ghost_owner_capacity, g, &k,
+                               sizeof k) ||
+                    !push_kept(&kept->ghost_shift, &kept->ghost_shift_capacity, g, u,
+                               sizeof *kept->ghost_shift))
+                    return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                                      "no memory for the periodic images");
+                im->ghosts_made++;
+            }
+    return BPX_OK;
+}
+
+// Four floats, and their lanes' masks (GCC and Clang vector extensions: SSE2 on x86-64, NEON
+// on arm64, scalar code elsewhere).
+typedef float f4 __attribute__((vector_size(16)));
+typedef int32_t i4 __attribute__((vector_size(16)));
+
+static inline f4 load4(const float *p)
+{
+    f4 v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static inline f4 pick4(i4 mask, f4 yes, f4 no)
+{
+    return (f4)(((i4)yes & mask) | ((i4)no & ~mask));
+}
+
+static inline f4 abs4(f4 v)
+{
+    return (f4)((i4)v & 0x7fffffff);
+}
+
+// check_objects and cell_origin for a periodic world's own float32 boxes without cutoff (the
+// sparse path), the same wraps, images and marks in a fraction of the time: the origin and
+// magnitude from the bounds set_boxes found (or a float pass over the arrays: a float's min and
+// largest |x| are the double's, so the cell is cell_origin's), then a float test, four boxes at
+// a time, that a box is in the cell on every periodic axis (it implies wrap_object's inside
+// test, with room for that test's rounding); wrap_object decides the few others. The inside
+// boxes' wraps are 0 already (s->keep is clean). *stale: the bounds given were not the boxes'
+// (checked in the same pass), and nothing found is to be used.
+static bpx_status scan_cell(search *s, image_state *im, uint64_t *ghosts, bool *stale)
+{
+    const bpx__soa_boxes *b = &s->in.soa;
+    uint32_t n = s->n, n4 = n & ~3u;
+    float most = 0;
+    double farthest = 0;
+    for (int a = 0; a < 3; a++) {
+        const float *lo = b->lo[a], *hi = b->hi[a];
+        f4 low4 = {INFINITY, INFINITY, INFINITY, INFINITY}, big4 = {0, 0, 0, 0};
+        for (uint32_t k = 0; k < n4 && !b->low; k += 4) {
+            f4 l = load4(lo + k), x = abs4(l), y = abs4(load4(hi + k));
+            low4 = pick4(l < low4, l, low4);
+            big4 = pick4(x > big4, x, big4);
+            big4 = pick4(y > big4, y, big4);
+        }
+        float low = INFINITY, big = 0;
+        for (int q = 0; q < 4; q++) {
+            low = low4[q] < low ? low4[q] : low;
+            big = big4[q] > big ? big4[q] : big;
+        }
+        for (uint32_t k = n4; k < n && !b->low; k++) {
+            float x = fabsf(lo[k]), y = fabsf(hi[k]);
+            low = lo[k] < low ? lo[k] : low;
+            big = x > big ? x : big;
+            big = y > big ? y : big;
+        }
+        if (b->low) {
+            low = b->low[a];
+            big = b->most;
+        }
+        im->origin[a] = s->period[a] > 0 && low < INFINITY ? (double)low : 0;
+        farthest = fmax(farthest, fabs(im->origin[a]));
+        most = big > most ? big : most;
+    }
+    inside_test in = make_inside_test(s, im);
+    // Per periodic axis, in float: lo >= o is wrap_object's lo - o >= 0 exactly (o is a float);
+    // |lo| < near_f implies |lo| < near_limit; hi < top_f implies (hi - o) + slack < L (which
+    // implies lo - o < L) with 2^-48 of room, far more than the sums' rounding (a few 2^-53).
+    float o_f[3], near_f[3], top_f[3];
+    int axes[3], axis_count = 0;
+    for (int a = 0; a < 3; a++) {
+        double L = s->period[a], o = im->origin[a], slack = in.inside_slack[a];
+        if (L == 0)
+            continue;
+        axes[axis_count++] = a;
+        o_f[a] = (float)o;
+        near_f[a] = round_down(in.near_limit[a]);
+        top_f[a] = round_down(o + L - slack - 0x1p-48 * (fabs(o) + L + slack));
+    }
+    uint64_t total = 0;
+    enum { BLOCK = 1024 };
+    i4 inside[BLOCK / 4];
+    // With bounds given, the bounds of what is read, to check them.
+    f4 seen_low4[3] = {{INFINITY, INFINITY, INFINITY, INFINITY},
+                       {INFINITY, INFINITY, INFINITY, INFINITY},
+                       {INFINITY, INFINITY, INFINITY, INFINITY}};
+    f4 seen_big4 = {0, 0, 0, 0};
+    for (uint32_t k0 = 0; k0 < n; k0 += BLOCK) {
+        uint32_t m = n - k0 < BLOCK ? n - k0 : BLOCK, m4 = m & ~3u;
+        for (uint32_t x = 0; x < m4; x += 4) {
+            i4 yes = {-1, -1, -1, -1};
+            for (int a = 0; a < 3; a++) { // each box read once, for the test and the check
+                if (s->period[a] == 0 && !b->low)
+                    continue;
+                f4 l = load4(b->lo[a] + k0 + x), h = load4(b->hi[a] + k0 + x);
+                f4 x4 = abs4(l), y4 = abs4(h);
+                if (s->period[a] > 0)
+                    yes &= (l >= o_f[a]) & (x4 < near_f[a]) & (h < top_f[a]);
+                if (b->low) {
+                    seen_low4[a] = pick4(l < seen_low4[a], l, seen_low4[a]);
+                    seen_big4 = pick4(x4 > seen_big4, x4, seen_big4);
+                    seen_big4 = pick4(y4 > seen_big4, y4, seen_big4);
+                }
+            }
+            inside[x / 4] = yes;
+        }
+        for (uint32_t x = 0; x < m; x++) {
+            bool yes = true;
+            if (x >= m4) { // the last few, one at a time
+                for (int c = 0; c < axis_count; c++) {
+                    int a = axes[c];
+                    float l = b->lo[a][k0 + x], h = b->hi[a][k0 + x];
+                    yes &= l >= o_f[a] && fabsf(l) < near_f[a] && h < top_f[a];
+                }
+                for (int a = 0; a < 3 && b->low; a++) {
+                    float l = b->lo[a][k0 + x], h = b->hi[a][k0 + x];
+                    seen_low4[a][0] = l < seen_low4[a][0] ? l : seen_low4[a][0];
+                    seen_big4[0] = fabsf(l) > seen_big4[0] ? fabsf(l) : seen_big4[0];
+                    seen_big4[0] = fabsf(h) > seen_big4[0] ? fabsf(h) : seen_big4[0];
+                }
+            } else {
+                yes = inside[x / 4][x % 4] != 0;
+            }
+            if (yes)
+                continue;
+            double lo[3], hi[3];
+            object_box(&s->in, k0 + x, lo, hi);
+            uint32_t marked = im->marked_count;
+            int32_t wk[3];
+            bpx_status status = wrap_object(s, im, k0 + x, lo, hi, &in, &total, wk);
+            // (past the images' limit the search fails: no more ghosts made)
+            if (status == BPX_OK && im->marked_count > marked && im->past_limit == UINT32_MAX)
+                status = images_of(s, im, k0 + x, wk);
+            if (status != BPX_OK)
+                return status;
+        }
+    }
+    for (int q = 0; q < 4 && b->low; q++) {
+        for (int a = 0; a < 3; a++)
+            *stale |= s->period[a] > 0 && seen_low4[a][q] < b->low[a];
+        *stale |= seen_big4[q] > b->most;
+    }
+    for (int a = 0; a < 3 && b->low && n > 0; a++) // the least is one of them
+        *stale |= s->period[a] > 0 && !(seen_low4[a][0] == b->low[a] ||
+                                        seen_low4[a][1] == b->low[a] ||
+                                        seen_low4[a][2] == b->low[a] ||
+                                        seen_low4[a][3] == b->low[a]);
+    *ghosts = total;
+    return BPX_OK;
+}
+
+// The sparse path's start: s->keep's wrap back to 0 and exact to 1 where last cycle's objects
+// wrapped (or whole, when it did not end clean).
+static void clean_keep(bpx__search_keep *keep, image_state *im)
+{
+    if (keep->clean) {
+        for (uint32_t x = 0; x < keep->moved_count; x++) {
+            uint32_t k = keep->moved_ids[x];
+            keep->wrap[k][0] = keep->wrap[k][1] = keep->wrap[k][2] = 0;
+            keep->exact[k] = 1;
+        }
+    } else {
+        memset(keep->wrap, 0, keep->wrap_capacity * sizeof *keep->wrap);
+        memset(keep->exact, 1, keep->exact_capacity);
+    }
+    keep->clean = false; // until this cycle's images are made
+    keep->moved_count = 0;
+    im->sparse = true;
 }
 
 static bpx_status too_many_images(const search *s, const image_state *im)
@@ -318,14 +599,23 @@ static bpx_status too_many_images(const search *s, const image_state *im)
 
 // The float32 box of object k shifted by (u - w) periods, grown by cutoff / 2, rounded outward
 // past the error of computing it in double.
+static bpx_box image_box_of(const search *s, uint32_t k, const int32_t u[3], const int32_t w[3]);
+
 static bpx_box image_box(const search *s, uint32_t k, const int32_t u[3])
+{
+    static const int32_t zero[3] = {0, 0, 0};
+    return image_box_of(s, k, u, s->wrap ? s->wrap[k] : zero);
+}
+
+// image_box for object k of wrap w.
+static bpx_box image_box_of(const search *s, uint32_t k, const int32_t u[3], const int32_t w[3])
 {
     double lo[3], hi[3];
     object_box(&s->in, k, lo, hi);
     double half = s->def->cutoff / 2;
     bpx_box b;
     for (int a = 0; a < 3; a++) {
-        double t = s->wrap ? ((double)u[a] - s->wrap[k][a]) * s->period[a] : 0;
+        double t = s->wrap ? ((double)u[a] - w[a]) * s->period[a] : 0;
         // Nothing to round when there is nothing to add: the box as given, rounded once.
         double error =
             half == 0 && t == 0 ? 0 : 0x1p-48 * (fabs(lo[a]) + fabs(hi[a]) + half + fabs(t));
@@ -389,6 +679,19 @@ static bpx_status make_images(search *s, image_state *im)
     // them, then the ghosts: no copy of the many.
     bool own = (s->in.format == BPX_BOXES_F32 || s->in.format == BPX__BOXES_SOA) &&
                s->def->cutoff == 0;
+    if (im->sparse) { // scan_cell made them (own is true)
+        bpx__search_keep *kept = s->keep;
+        im->boxes = s->in.data;
+        im->all_exact = im->moved == 0; // the ghosts never pair as they stand
+        im->exact = im->all_exact ? NULL : kept->exact;
+        im->moved_ids = kept->moved_ids;
+        im->moved_boxes = kept->moved_boxes;
+        im->ghost_boxes = kept->images;
+        s->images = kept->images;
+        s->ghost_owner = kept->ghost_owner;
+        s->ghost_shift = kept->ghost_shift;
+        return BPX_OK;
+    }
     uint32_t moved = 0;
     for (uint32_t x = 0; own && im->mark && x < im->marked_count; x++)
         moved += wraps(s, im->marked[x]);
@@ -398,19 +701,36 @@ static bpx_status make_images(search *s, image_state *im)
         return BPX_OK;
     }
     size_t count = own ? (size_t)moved + s->ghost_count : (size_t)s->n + s->ghost_count;
-    s->images = bpx__alloc(count * sizeof *s->images);
-    advise_huge(s->images, count * sizeof *s->images);
+    bpx__search_keep *kept = s->keep; // a periodic world's: its arrays serve again
+    if (kept) {
+        s->images = room(&kept->images, &kept->image_capacity, count, sizeof *s->images);
+    } else {
+        s->images = bpx__alloc(count * sizeof *s->images);
+        advise_huge(s->images, count * sizeof *s->images);
+    }
     im->image_count = count;
     im->boxes = own ? s->in.data : s->images;
     im->moved = moved;
     im->moved_boxes = s->images;
     im->ghost_boxes = own ? s->images + moved : s->images + s->n;
     bpx_box *ghost_out = s->images ? (bpx_box *)im->ghost_boxes : NULL;
-    if ((s->def->cutoff == 0 && !(im->exact = bpx__alloc(s->n))) ||
-        (moved && !(im->moved_ids = bpx__alloc((size_t)moved * sizeof *im->moved_ids))))
+    if (s->def->cutoff == 0)
+        im->exact = im->sparse ? kept->exact // 1 but where marked: no memset
+                    : kept     ? room(&kept->exact, &kept->exact_capacity, s->n, 1)
+                               : bpx__alloc(s->n);
+    if (moved)
+        im->moved_ids = kept ? room(&kept->moved_ids, &kept->moved_capacity, moved,
+                                    sizeof *im->moved_ids)
+                             : bpx__alloc((size_t)moved * sizeof *im->moved_ids);
+    if ((s->def->cutoff == 0 && !im->exact) || (moved && !im->moved_ids))
         return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
                           "no memory for %u objects", s->n);
-    if (s->ghost_count) {
+    if (s->ghost_count && kept) {
+        s->ghost_owner = room(&kept->ghost_owner, &kept->ghost_owner_capacity, s->ghost_count,
+                              sizeof *s->ghost_owner);
+        s->ghost_shift = room(&kept->ghost_shift, &kept->ghost_shift_capacity, s->ghost_count,
+                              sizeof *s->ghost_shift);
+    } else if (s->ghost_count) {
         s->ghost_owner = bpx__alloc((size_t)s->ghost_count * sizeof *s->ghost_owner);
         s->ghost_shift = bpx__alloc((size_t)s->ghost_count * sizeof *s->ghost_shift);
     }
@@ -425,7 +745,8 @@ static bpx_status make_images(search *s, image_state *im)
         goto done;
     }
     if (own) {
-        memset(im->exact, 1, s->n); // but for those that move, below
+        if (!im->sparse)
+            memset(im->exact, 1, s->n); // but for those that move, below
         exact_count = s->n - moved;
     }
     uint32_t visits = own ? im->marked_count : s->n;
@@ -474,7 +795,8 @@ static bpx_status make_images(search *s, image_state *im)
 done:
     if (im->exact && (exact_count == 0 || exact_count == s->n)) {
         im->all_exact = exact_count == s->n;
-        bpx__free(im->exact, s->n);
+        if (!kept)
+            bpx__free(im->exact, s->n);
         im->exact = NULL;
     }
     return BPX_OK;
@@ -733,9 +1055,10 @@ static bpx_status merge_imaged(const search *s, found_list *imaged, bpx_neighbor
 
 static void free_search(search *s, image_state *im)
 {
+    if (s->keep)
+        return; // all of them the periodic world's
     bpx__free(im->exact, s->n);
-    if (!s->wrap_kept)
-        bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
+    bpx__free(s->wrap, (size_t)s->n * sizeof *s->wrap);
     bpx__free(s->ghost_owner, (size_t)s->ghost_count * sizeof *s->ghost_owner);
     bpx__free(s->ghost_shift, (size_t)s->ghost_count * sizeof *s->ghost_shift);
     bpx__free(s->images, im->image_count * sizeof *s->images);
@@ -747,10 +1070,7 @@ static void free_search(search *s, image_state *im)
 typedef struct keeper {
     bpx_world **world;           // NULL: make one and destroy it
     const bpx_world_def *def;    // how to make the kept one
-    bpx_box **boxes;             // the kept world's boxes, images in place, and their room
-    size_t *capacity;
-    int32_t (**wrap)[3];         // the wraps, kept too (fresh pages each cycle cost faults)
-    size_t *wrap_capacity;
+    bpx__search_keep *search;    // the kept world and arrays, or NULL
 } keeper;
 
 static void done_with(const keeper *k, bpx_world *w)
@@ -788,15 +1108,11 @@ static bpx_status run(search *s, image_state *im, const keeper *keep, bpx_neighb
         // A kept world gets every box in one set_boxes, so that its ids stay put and its
         // backend's state (sap's lists) carries over: no removed ids, no count that shrinks
         // between the calls.
-        if (image_total > *keep->capacity) {
-            bpx__free(*keep->boxes, *keep->capacity * sizeof **keep->boxes);
-            *keep->capacity = 0;
-            if (!(*keep->boxes = bpx__alloc(image_total * sizeof **keep->boxes)))
-                return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
-                                  "no memory for %zu periodic images", image_total);
-            *keep->capacity = image_total;
-        }
-        bpx_box *all = *keep->boxes;
+        bpx_box *all = room(&keep->search->boxes, &keep->search->box_capacity, image_total,
+                            sizeof *all);
+        if (!all)
+            return bpx__error(s->err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %zu periodic images", image_total);
         if (s->n)
             memcpy(all, im->boxes, (size_t)s->n * sizeof *all);
         for (uint32_t m = 0; m < im->moved; m++)
@@ -853,11 +1169,18 @@ static bpx_status run(search *s, image_state *im, const keeper *keep, bpx_neighb
     size_t count;
     const bpx_pair *candidates = bpx_world_pairs(w, &count);
     found_list imaged = {0};
+    if (s->keep) // last cycle's room
+        imaged = (found_list){s->keep->imaged, 0, s->keep->imaged_capacity};
     status = decide(s, im, candidates, count, list, &imaged);
     done_with(keep, w);
     if (status == BPX_OK)
         status = merge_imaged(s, &imaged, list);
-    bpx__free(imaged.items, imaged.capacity * sizeof(found));
+    if (s->keep) {
+        s->keep->imaged = imaged.items;
+        s->keep->imaged_capacity = imaged.capacity;
+    } else {
+        bpx__free(imaged.items, imaged.capacity * sizeof(found));
+    }
     if (status == BPX_OK && out_count) {
         *out_count = list->count;
         if (list->count > capacity) {
@@ -898,35 +1221,72 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
         s.period[a] = def->period[a];
         s.periodic |= def->period[a] > 0;
     }
-    if (s.periodic && keep->wrap) {
-        if (n > *keep->wrap_capacity) {
-            bpx__free(*keep->wrap, *keep->wrap_capacity * sizeof **keep->wrap);
-            *keep->wrap_capacity = 0;
-            if ((*keep->wrap = bpx__alloc((size_t)n * sizeof **keep->wrap)))
-                *keep->wrap_capacity = n;
+    // A periodic world's own float32 boxes without cutoff (its usual case) take the sparse
+    // path: the kept wraps and flags stay 0 and 1 but where boxes leave the cell, and only
+    // those are written.
+    bpx__search_keep *kept = keep->search;
+    bool sparse = kept && s.periodic && def->format == BPX__BOXES_SOA && def->cutoff == 0;
+    if (s.periodic && kept) {
+        s.keep = kept;
+        bool grows = !kept->wrap || n > kept->wrap_capacity ||
+                     (sparse && (!kept->exact || n > kept->exact_capacity));
+        bool fits = !grows;
+        if (grows) { // contents lost: cleared whole by clean_keep
+            kept->clean = false;
+            fits = room(&kept->wrap, &kept->wrap_capacity, n, sizeof *kept->wrap) &&
+                   (!sparse || room(&kept->exact, &kept->exact_capacity, n, 1));
+            if (fits)
+                advise_huge(kept->wrap, kept->wrap_capacity * sizeof *kept->wrap);
         }
-        s.wrap = *keep->wrap;
-        s.wrap_kept = true;
+        if (!fits)
+            return bpx__error(err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %u objects", n);
+        s.wrap = kept->wrap;
     } else if (s.periodic) {
         s.wrap = bpx__alloc((size_t)n * sizeof *s.wrap);
+        if (!s.wrap)
+            return bpx__error(err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
+                              "no memory for %u objects", n);
+        advise_huge(s.wrap, (size_t)n * sizeof *s.wrap);
     }
-    if (s.periodic && !s.wrap)
-        return bpx__error(err, BPX_ERR_OUT_OF_MEMORY, UINT32_MAX, -1,
-                          "no memory for %u objects", n);
-    advise_huge(s.wrap, s.periodic ? (size_t)n * sizeof *s.wrap : 0);
     uint64_t ghosts = 0;
     image_state im = {.past_limit = UINT32_MAX};
     // Points with the auto backend: the cell list, where the cell allows; its wraps are from 0.
     bool may_cells = !out_count && def->backend == BPX_BACKEND_AUTO &&
                      (def->format == BPX_POINTS_F32 || def->format == BPX_POINTS_F64);
-    if (s.periodic) {
-        cell_origin(&s, im.origin, &im.magnitude);
-        if (may_cells) // the image search then runs only where the cell list cannot
-            im.origin[0] = im.origin[1] = im.origin[2] = 0;
-    }
     im.mark = s.periodic && (def->format == BPX_BOXES_F32 || def->format == BPX__BOXES_SOA) &&
               def->cutoff == 0;
-    status = check_objects(&s, &im, &ghosts);
+    if (kept && s.periodic) { // marked is the world's (its last cycle's list, in sparse)
+        im.marked = kept->marked;
+        im.marked_capacity = kept->marked_capacity;
+    }
+    if (sparse) {
+        clean_keep(kept, &im);
+        bool stale = false;
+        status = scan_cell(&s, &im, &ghosts, &stale);
+        if (status == BPX_OK && stale) { // (a bug of a path that changed the boxes unversioned)
+            s.in.soa.low = NULL;
+            image_state fresh = {.past_limit = UINT32_MAX, .mark = true};
+            fresh.marked = im.marked;
+            fresh.marked_capacity = im.marked_capacity;
+            im = fresh;
+            clean_keep(kept, &im); // clears the arrays whole
+            status = scan_cell(&s, &im, &ghosts, &stale);
+        }
+    } else {
+        if (kept && s.periodic)
+            kept->clean = false; // every wrap written
+        if (s.periodic) {
+            cell_origin(&s, im.origin, &im.magnitude);
+            if (may_cells) // the image search then runs only where the cell list cannot
+                im.origin[0] = im.origin[1] = im.origin[2] = 0;
+        }
+        status = check_objects(&s, &im, &ghosts);
+    }
+    if (kept && s.periodic) { // grown, perhaps
+        kept->marked = im.marked;
+        kept->marked_capacity = im.marked_capacity;
+    }
     bool cells = false;
     if (status == BPX_OK && may_cells) {
         status = bpx__neighbors_cells(&s, list);
@@ -939,6 +1299,10 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
     if (status == BPX_OK && !cells) {
         s.ghost_count = (uint32_t)ghosts;
         status = make_images(&s, &im);
+        if (status == BPX_OK && sparse) { // wrap and exact differ from 0 and 1 at marked only
+            kept->clean = true;
+            kept->moved_count = im.moved;
+        }
         if (status == BPX_OK)
             status = run(&s, &im, keep, list, out, capacity, out_count);
     }
@@ -973,12 +1337,26 @@ bpx_status bpx_find_pairs_f64(const bpx_box64 *boxes, uint32_t n, bpx_backend ba
 }
 
 bpx_status bpx__find_neighbors_kept(const bpx_neighbor_def *def, const void *boxes, uint32_t n,
-                                    bpx_world **inner, const bpx_world_def *inner_def,
-                                    bpx_box **scratch, size_t *scratch_capacity,
-                                    int32_t (**wrap)[3], size_t *wrap_capacity,
+                                    bpx__search_keep *kept, const bpx_world_def *inner_def,
                                     bpx_neighbor_list *list, bpx_error *err)
 {
     bpx__error_clear(err);
-    keeper keep = {inner, inner_def, scratch, scratch_capacity, wrap, wrap_capacity};
+    keeper keep = {&kept->inner, inner_def, kept};
     return find(def, boxes, n, &keep, list, NULL, 0, NULL, err);
+}
+
+void bpx__search_keep_free(bpx__search_keep *k)
+{
+    bpx_world_destroy(k->inner);
+    bpx__free(k->boxes, k->box_capacity * sizeof *k->boxes);
+    bpx__free(k->wrap, k->wrap_capacity * sizeof *k->wrap);
+    bpx__free(k->exact, k->exact_capacity);
+    bpx__free(k->marked, (size_t)k->marked_capacity * sizeof *k->marked);
+    bpx__free(k->images, k->image_capacity * sizeof *k->images);
+    bpx__free(k->ghost_owner, k->ghost_owner_capacity * sizeof *k->ghost_owner);
+    bpx__free(k->ghost_shift, k->ghost_shift_capacity * sizeof *k->ghost_shift);
+    bpx__free(k->moved_ids, k->moved_capacity * sizeof *k->moved_ids);
+    bpx__free(k->moved_boxes, k->moved_box_capacity * sizeof *k->moved_boxes);
+    bpx__free(k->imaged, k->imaged_capacity * sizeof(found));
+    *k = (bpx__search_keep){0};
 }

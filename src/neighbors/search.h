@@ -69,7 +69,9 @@ typedef struct search {
     double period[3];  // 0 on open axes
     bool periodic;     // any axis
     int32_t (*wrap)[3]; // per object: w (0 on open axes); NULL when nothing is periodic
-    bool wrap_kept;     // wrap belongs to the caller (a periodic world's, kept between cycles)
+    // A periodic world's arrays, kept between its cycles (wrap among them), or NULL: the search
+    // allocates its own and frees them.
+    bpx__search_keep *keep;
     uint32_t ghost_count;
     uint32_t *ghost_owner;    // per image past n: its object
     int32_t (*ghost_shift)[3]; // per image past n: u (<= 0)
