@@ -24,6 +24,8 @@ void bpx__hw_emitter_reset(bpx_hw_emitter *e)
     e->push = 0;
     e->pop = -1;
     e->advance = true;
+    e->stall_next = false;
+    e->stall_decided = false;
     e->peak_fill = 0;
     e->emitted = 0;
 }
