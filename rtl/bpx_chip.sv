@@ -87,24 +87,29 @@ module bpx_chip #(
     wire out_valid, emi_busy, emi_busy_d;
     // The stall (hold every comparator register and RAM, write no hit: a FIFO might overflow)
     // is the emitter's almost-full stall_next registered again: once for the comparator's
-    // control and the emitter, once per comparator RAM (stall_ram, kept apart: merged, one net
-    // to every RAM's clock enable was the longest path on an ECP5). All copies are equal.
-    // No clear: a run starts only when the comparator is idle, and then stall_next is low.
-    reg stall;
+    // control (`stall`), once for the emitter (`stall_e`) and once per comparator RAM, there as
+    // its clock enable (ram_en = not stalled, so no inverter between it and the RAM). All
+    // copies are equal; they are kept apart from Yosys's merging: merged, one net to every RAM's
+    // clock enable was the longest path on an ECP5 (docs/rtl.md). No clear: a run starts only
+    // when the comparator is idle, and then stall_next is low.
+    reg stall, stall_e;
     initial stall = 1'b0;
+    initial stall_e = 1'b0;
     wire stall_next;
-    wire [6*M-1:0] stall_ram;
+    wire [6*M-1:0] ram_en;
     genvar gs;
     generate
         for (gs = 0; gs < 6 * M; gs = gs + 1) begin : hold
-            reg copy = 1'b0;
-            (* keep *) always @(posedge clk)
-                copy <= stall_next;
-            assign stall_ram[gs] = copy;
+            reg en = 1'b1;
+            (* keep *) always @(posedge clk)  // keep: on the always, so the flip-flop has it
+                en <= !stall_next;
+            assign ram_en[gs] = en;
         end
     endgenerate
     always @(posedge clk)
         stall <= stall_next;
+    (* keep *) always @(posedge clk)
+        stall_e <= stall_next;
     wire [IW-1:0] out_i, out_j;
     wire [31:0] count;
 
@@ -127,7 +132,7 @@ module bpx_chip #(
         .active(upd_active), .active_d(upd_active_d));
 
     bpx_comparator #(.M(M), .DEPTH(DEPTH), .AW(AW), .IW(IW)) cmp (
-        .clk(clk), .clear(clear), .stall(stall), .stall_ram(stall_ram), .start(cmp_start), .start_max(n_a - 1'b1),
+        .clk(clk), .clear(clear), .stall(stall), .ram_en(ram_en), .start(cmp_start), .start_max(n_a - 1'b1),
         .we(upd_we), .waddr(upd_waddr), .wdata(upd_wdata),
         .busy(cmp_busy), .busy_d(cmp_busy_d),
         .a_active(t_addressing), .a_max(t_max), .ports(t_ports),
@@ -135,7 +140,7 @@ module bpx_chip #(
         .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask));
 
     bpx_emitter #(.M(M), .FDEPTH(FDEPTH), .AW(AW), .IW(IW), .TRACE(TRACE)) emi (
-        .clk(clk), .clear(clear), .stall(stall), .r_valid(r_valid), .o_valid(o_valid),
+        .clk(clk), .clear(clear), .stall(stall_e), .r_valid(r_valid), .o_valid(o_valid),
         .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask), .ready(col_ready),
         .blocks(), .stall_next(stall_next), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .busy(emi_busy), .busy_d(emi_busy_d), .fill_max(t_fill_max));

@@ -12,8 +12,8 @@
 //   stage 2: the RAMs' output registers (o_*): a block RAM's clock-to-output (5.8 ns on an
 //            ECP5) leaves too little of a 108 MHz clock for six 32-bit compares after it;
 //   stage 3: the comparison results (h_*), read by the emitter.
-// The RAMs' read and output registers take their own copies of the stall (stall_ram): one net
-// to all of them was the longest path at 108 MHz on an ECP5 (docs/rtl.md).
+// The RAMs' read and output registers take their own copies of the stall, as clock enables
+// (ram_en): one net to all of them was the longest path at 108 MHz on an ECP5 (docs/rtl.md).
 // The updater writes one box (six words) into all M RAMs of each memory through port A.
 module bpx_comparator #(
     parameter integer M = 4,
@@ -24,7 +24,7 @@ module bpx_comparator #(
     input  wire              clk,
     input  wire              clear,     // empty the pipeline (start of a run)
     input  wire              stall,     // hold every register (a FIFO might overflow)
-    input  wire [6*M-1:0]    stall_ram, // the same stall, one copy per RAM (x * M + r)
+    input  wire [6*M-1:0]    ram_en,    // not stall, one copy per RAM (x * M + r)
     input  wire              start,     // start Table 1 on boxes 0 .. max (needs max >= 1)
     input  wire [AW-1:0]     start_max,
     // Write port, from the updater: one address in all M RAMs of the six memories.
@@ -160,7 +160,7 @@ module bpx_comparator #(
                 wire [AW-1:0] rb = ports[(2*gr+1)*AW +: AW];
                 wire [RW-1:0] adr_a = we ? waddr[RW-1:0] : ra[RW-1:0];
                 wire [RW-1:0] adr_b = rb[RW-1:0];
-                wire en_ram = !stall_ram[gx*M + gr];
+                wire en_ram = ram_en[gx*M + gr];
                 always @(posedge clk) begin
                     if (we)
                         word[adr_a] <= wkey[gx];
