@@ -87,14 +87,13 @@ module bpx_chip #(
     wire out_valid, emi_busy, emi_busy_d;
     // The stall (hold every comparator register and RAM, write no hit: a FIFO might overflow)
     // is the emitter's almost-full stall_next registered again: once for the comparator's
-    // control (`stall`), once for the emitter (`stall_e`) and once per comparator RAM, there as
-    // its clock enable (ram_en = not stalled, so no inverter between it and the RAM). All
-    // copies are equal; they are kept apart from Yosys's merging: merged, one net to every RAM's
-    // clock enable was the longest path on an ECP5 (docs/rtl.md). No clear: a run starts only
-    // when the comparator is idle, and then stall_next is low.
-    reg stall, stall_e;
+    // control and the emitter (`stall`) and once per comparator RAM, there as its clock enable
+    // (ram_en = not stalled, so no inverter between it and the RAM). All copies are equal; the
+    // RAMs' are kept apart from Yosys's merging: merged, one net to every RAM's clock enable was
+    // the longest path on an ECP5 (docs/rtl.md). No clear: a run starts only when the
+    // comparator is idle, and then stall_next is low.
+    reg stall;
     initial stall = 1'b0;
-    initial stall_e = 1'b0;
     wire stall_next;
     wire [6*M-1:0] ram_en;
     genvar gs;
@@ -108,8 +107,6 @@ module bpx_chip #(
     endgenerate
     always @(posedge clk)
         stall <= stall_next;
-    (* keep *) always @(posedge clk)
-        stall_e <= stall_next;
     wire [IW-1:0] out_i, out_j;
     wire [31:0] count;
 
@@ -140,7 +137,7 @@ module bpx_chip #(
         .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask));
 
     bpx_emitter #(.M(M), .FDEPTH(FDEPTH), .AW(AW), .IW(IW), .TRACE(TRACE)) emi (
-        .clk(clk), .clear(clear), .stall(stall_e), .r_valid(r_valid), .o_valid(o_valid),
+        .clk(clk), .clear(clear), .stall(stall), .r_valid(r_valid), .o_valid(o_valid),
         .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask), .ready(col_ready),
         .blocks(), .stall_next(stall_next), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .busy(emi_busy), .busy_d(emi_busy_d), .fill_max(t_fill_max));

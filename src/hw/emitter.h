@@ -22,7 +22,6 @@ typedef struct bpx_hw_emitter {
     uint32_t head[BPX_HW_MAX_UNITS];
     uint32_t fill[BPX_HW_MAX_UNITS];
     uint64_t nonempty; // bit k: FIFO pair k holds an entry (committed)
-    uint64_t full;     // bit k: FIFO pair k is full (committed)
     int next_lane;     // where the round robin looks first
     // The FIFO read registers (the served lane's) and the output register (committed).
     bool read_valid;
@@ -126,7 +125,6 @@ static inline void bpx__hw_emitter_commit(bpx_hw_emitter *e)
         e->emitted++;
         if (e->fill[k] == 0)
             e->nonempty &= ~(1ull << k);
-        e->full &= ~(1ull << k);
     }
     for (uint64_t mask = e->push; mask; mask &= mask - 1) {
         int k = __builtin_ctzll(mask);
@@ -135,8 +133,6 @@ static inline void bpx__hw_emitter_commit(bpx_hw_emitter *e)
             tail -= e->depth;
         e->slots[(size_t)k * e->depth + tail] = (bpx_pair){e->push_i, e->push_j0 + (uint32_t)k};
         uint32_t fill = ++e->fill[k];
-        if (fill == e->depth)
-            e->full |= 1ull << k;
         if (fill > e->peak_fill)
             e->peak_fill = fill;
     }
