@@ -79,18 +79,34 @@ module bpx_chip #(
     wire [6*32-1:0] upd_wdata;
     // Comparator.
     wire cmp_busy, cmp_busy_d, cmp_start;
-    wire h_valid, h_valid_n;
+    wire r_valid, o_valid, h_valid;
     wire [IW-1:0] h_i;
     wire [AW-1:0] h_j0;
-    wire [2*M-2:0] h_mask, h_mask_n, full_n;
+    wire [2*M-2:0] h_mask;
     // Emitter.
     wire out_valid, emi_busy, emi_busy_d;
-    // The stall (the comparator's results meet a full FIFO: hold every comparator register and
-    // RAM) is a register: this clock's registered hits against this clock's full FIFOs, computed
-    // a clock ahead from both units' next state, so the same clocks as the model's stall; it
-    // drives the clock enable of the whole comparator, which a combinational stall delayed.
+    // The stall (hold every comparator register and RAM, write no hit: a FIFO might overflow)
+    // is the emitter's almost-full stall_next registered again: once for the comparator's
+    // control and the emitter (`stall`) and once per comparator RAM, there as its clock enable
+    // (ram_en = not stalled, so no inverter between it and the RAM). All copies are equal; the
+    // RAMs' are kept apart from Yosys's merging: merged, one net to every RAM's clock enable was
+    // the longest path on an ECP5 (docs/rtl.md). No clear: a run starts only when the
+    // comparator is idle, and then stall_next is low.
     reg stall;
     initial stall = 1'b0;
+    wire stall_next;
+    wire [6*M-1:0] ram_en;
+    genvar gs;
+    generate
+        for (gs = 0; gs < 6 * M; gs = gs + 1) begin : hold
+            reg en = 1'b1;
+            (* keep *) always @(posedge clk)  // keep: on the always, so the flip-flop has it
+                en <= !stall_next;
+            assign ram_en[gs] = en;
+        end
+    endgenerate
+    always @(posedge clk)
+        stall <= stall_next;
     wire [IW-1:0] out_i, out_j;
     wire [31:0] count;
 
@@ -113,24 +129,22 @@ module bpx_chip #(
         .active(upd_active), .active_d(upd_active_d));
 
     bpx_comparator #(.M(M), .DEPTH(DEPTH), .AW(AW), .IW(IW)) cmp (
-        .clk(clk), .clear(clear), .stall(stall), .start(cmp_start), .start_max(n_a - 1'b1),
+        .clk(clk), .clear(clear), .stall(stall), .ram_en(ram_en), .start(cmp_start), .start_max(n_a - 1'b1),
         .we(upd_we), .waddr(upd_waddr), .wdata(upd_wdata),
         .busy(cmp_busy), .busy_d(cmp_busy_d),
         .a_active(t_addressing), .a_max(t_max), .ports(t_ports),
-        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask),
-        .h_valid_n(h_valid_n), .h_mask_n(h_mask_n));
+        .r_valid(r_valid), .o_valid(o_valid),
+        .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask));
 
     bpx_emitter #(.M(M), .FDEPTH(FDEPTH), .AW(AW), .IW(IW), .TRACE(TRACE)) emi (
-        .clk(clk), .clear(clear), .stall(stall),
+        .clk(clk), .clear(clear), .stall(stall), .r_valid(r_valid), .o_valid(o_valid),
         .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask), .ready(col_ready),
-        .blocks(), .full_n(full_n), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
+        .blocks(), .stall_next(stall_next), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .busy(emi_busy), .busy_d(emi_busy_d), .fill_max(t_fill_max));
 
     // The controller: the next clock's phase from the units' state after this edge.
     wire update_ends = phase == PH_UPDATE && !upd_active_d;
     assign cmp_start = update_ends && n_a >= 2;
-    always @(posedge clk)
-        stall <= !(clear || cmp_start) && h_valid_n && |(h_mask_n & full_n);
     always @(posedge clk) begin
         if (run) begin
             error <= too_many;

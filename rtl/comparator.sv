@@ -12,7 +12,8 @@
 //   stage 2: the RAMs' output registers (o_*): a block RAM's clock-to-output (5.8 ns on an
 //            ECP5) leaves too little of a 108 MHz clock for six 32-bit compares after it;
 //   stage 3: the comparison results (h_*), read by the emitter.
-// h_valid_n and h_mask_n are stage 3 after this edge, for the chip's registered stall.
+// The RAMs' read and output registers take their own copies of the stall, as clock enables
+// (ram_en): one net to all of them was the longest path at 108 MHz on an ECP5 (docs/rtl.md).
 // The updater writes one box (six words) into all M RAMs of each memory through port A.
 module bpx_comparator #(
     parameter integer M = 4,
@@ -22,7 +23,8 @@ module bpx_comparator #(
 ) (
     input  wire              clk,
     input  wire              clear,     // empty the pipeline (start of a run)
-    input  wire              stall,     // hold every register (a FIFO the results need is full)
+    input  wire              stall,     // hold every register (a FIFO might overflow)
+    input  wire [6*M-1:0]    ram_en,    // not stall, one copy per RAM (x * M + r)
     input  wire              start,     // start Table 1 on boxes 0 .. max (needs max >= 1)
     input  wire [AW-1:0]     start_max,
     // Write port, from the updater: one address in all M RAMs of the six memories.
@@ -35,13 +37,14 @@ module bpx_comparator #(
     output wire              a_active,
     output wire [AW-1:0]     a_max,
     output wire [2*M*AW-1:0] ports,     // port p at [p*AW +: AW]
-    // Stage 2: unit k found pair (h_i, h_j0 + k).
+    // Stages 1 and 2 hold a result (the stall's lookahead, rtl/emitter.sv).
+    output reg               r_valid,
+    output reg               o_valid,
+    // Stage 3: unit k found pair (h_i, h_j0 + k).
     output reg               h_valid,
     output reg  [IW-1:0]     h_i,
     output reg  [AW-1:0]     h_j0,
-    output reg  [2*M-2:0]    h_mask,
-    output wire              h_valid_n,
-    output wire [2*M-2:0]    h_mask_n
+    output reg  [2*M-2:0]    h_mask
 );
     localparam integer L = 2 * M - 1;  // comparison units
     localparam integer RW = (DEPTH > 1) ? $clog2(DEPTH) : 1;
@@ -80,7 +83,6 @@ module bpx_comparator #(
     endgenerate
 
     // ---- stages 1 and 2: registered addresses (the RAMs' registers are below) -------------
-    reg          r_valid, o_valid;
     reg [AW-1:0] r_first, r_base, r_kept;
     reg [AW-1:0] o_first, o_base, o_kept;
 
@@ -139,8 +141,7 @@ module bpx_comparator #(
     wire g_active_n = stall ? g_active : (g_active && !(g_wrap && g_first1 >= g_max));
     wire r_valid_n = stall ? r_valid : g_active;
     wire o_valid_n = stall ? o_valid : r_valid;
-    assign h_valid_n = stall ? h_valid : o_valid;
-    assign h_mask_n = stall ? h_mask : units;
+    wire h_valid_n = stall ? h_valid : o_valid;
     assign busy = g_active | r_valid | o_valid | h_valid;
     assign busy_d = start | (!clear & (g_active_n | r_valid_n | o_valid_n | h_valid_n));
 
@@ -159,18 +160,19 @@ module bpx_comparator #(
                 wire [AW-1:0] rb = ports[(2*gr+1)*AW +: AW];
                 wire [RW-1:0] adr_a = we ? waddr[RW-1:0] : ra[RW-1:0];
                 wire [RW-1:0] adr_b = rb[RW-1:0];
+                wire en_ram = ram_en[gx*M + gr];
                 always @(posedge clk) begin
                     if (we)
                         word[adr_a] <= wkey[gx];
-                    if (en)
+                    if (en_ram)
                         qa <= word[adr_a];
                 end
                 always @(posedge clk) begin
-                    if (en)
+                    if (en_ram)
                         qb <= word[adr_b];
                 end
                 always @(posedge clk) begin
-                    if (en) begin
+                    if (en_ram) begin
                         oa <= qa;
                         ob <= qb;
                     end

@@ -4,9 +4,19 @@
 // index of its hits (4M - 2 FIFOs), written and read together, so they share one pair of
 // pointers. A registered comparator result writes every hit into its unit's FIFOs; the round
 // robin serves the first non-empty FIFO pair at or after the one after the last served and moves
-// its head into the output register (one collision per clock). When a result has a hit for a
-// full FIFO, `blocks` is high: the comparator holds (nothing of that result is written) until
-// that FIFO has room. A pair is never dropped.
+// its head into the output register (one collision per clock). A pair is never dropped: the
+// comparator holds (`stall`, nothing of its result is written) while a FIFO might overflow.
+//
+// The stall is almost-full and takes effect two clocks after it is decided: `stall_next`, a
+// register, is computed from registers only (the FIFOs' fill thresholds, the comparator's
+// valid bits and result mask, the stall now and next), and the chip registers it again, once
+// per comparator RAM, as `stall`. Deciding from this clock's registers whether a push two
+// clocks on could find its FIFO full: lane k may then be pushed only if fill + the pushes of
+// this clock and the next (p0, p1: at most one each) < FDEPTH. p0 is known; p1 is known when
+// the comparator holds (its result stays), else bounded by the valid bit of the result coming
+// (its mask needs the comparison units: the slow lookahead this replaced). While both stall
+// registers are high, the result held is the one that will be pushed, so the stall is exact:
+// the result meets a full FIFO. Any FDEPTH >= 1 works (small FIFOs stall more often).
 //
 // The served FIFO's block RAMs register its head (their read registers, plus the registered lane
 // number that selects them); the output register takes the selected one a clock later: a block
@@ -28,13 +38,16 @@ module bpx_emitter #(
     input  wire           clk,
     input  wire           clear,
     input  wire           stall,      // the comparator holds: write nothing this clock
+    input  wire           r_valid,    // the comparator's stage 1 and 2 hold a result: the next
+    input  wire           o_valid,    //   results' valid bits (h_valid two clocks on)
     input  wire           h_valid,
     input  wire [IW-1:0]  h_i,
     input  wire [AW-1:0]  h_j0,
     input  wire [2*M-2:0] h_mask,
     input  wire           ready,      // the collision port takes the output register this clock
     output wire           blocks,     // a hit of the registered result meets a full FIFO
-    output wire [2*M-2:0] full_n,     // FIFOs full after this edge
+                                      // (never while not stalled: the formal proof's check)
+    output reg            stall_next, // the stall a clock on (the chip registers it as `stall`)
     output reg            out_valid,
     output reg  [IW-1:0]  out_i,
     output reg  [IW-1:0]  out_j,
@@ -55,6 +68,10 @@ module bpx_emitter #(
     reg           f_valid;                               // the FIFO read registers hold a pair
     wire [L-1:0]  nonempty, full;
     wire [L-1:0]  push = (!stall && h_valid) ? h_mask : {L{1'b0}};
+
+    function automatic at_least(input [FW-1:0] f, input integer t);
+        at_least = (t <= 0) ? 1'b1 : (f >= t);
+    endfunction
 
     // The output pipeline moves unless a collision waits in the output register for `ready`.
     wire         advance = !out_valid || ready;
@@ -83,7 +100,19 @@ module bpx_emitter #(
 
     assign blocks = h_valid && |(h_mask & full);
 
-    wire [L-1:0] nonempty_n;
+    // The almost-full stall (see the top). s0 = stall (now), s1 = stall_next (the next clock).
+    wire hv1 = stall ? h_valid : o_valid;                    // h_valid a clock on
+    wire hv2 = stall_next ? hv1 : (stall ? o_valid : r_valid); // two clocks on
+    wire [L-1:0] p0 = push;
+    wire [L-1:0] p1 = (!stall_next && hv1) ? (stall ? h_mask : {L{1'b1}}) : {L{1'b0}};
+    wire [L-1:0] m2 = (stall && stall_next) ? h_mask : {L{1'b1}}; // lanes hit two clocks on
+    wire [L-1:0] over = m2 & (full | (ge1 & (p0 | p1)) | (ge2 & p0 & p1));
+    initial stall_next = 1'b0;
+    always @(posedge clk)
+        stall_next <= !clear && hv2 && |over;
+
+    // Fill thresholds (registers): ge0 fill >= FDEPTH (full), ge1 >= FDEPTH - 1, ge2 >= FDEPTH - 2.
+    wire [L-1:0] nonempty_n, full_n, ge1, ge2;
     wire [IW-1:0] q_i [0:L-1];
     wire [IW-1:0] q_j [0:L-1];
     genvar g;
@@ -92,9 +121,11 @@ module bpx_emitter #(
             reg [IW-1:0] fifo_i [0:FDEPTH-1];
             reg [IW-1:0] fifo_j [0:FDEPTH-1];
             reg [IW-1:0] qi, qj;
-            reg ne_r, full_r;
+            reg ne_r, full_r, ge1_r, ge2_r;
             assign nonempty[g] = ne_r;
             assign full[g] = full_r;
+            assign ge1[g] = ge1_r;
+            assign ge2[g] = ge2_r;
             wire popped = pop_valid && pop == g;
             reg [PW-1:0] tail;  // head + fill, wrapped: a register, not an adder on the path
             wire [IW-1:0] j = h_j0[IW-1:0] + g;
@@ -103,6 +134,15 @@ module bpx_emitter #(
             wire one = fill[g] == 1, almost = fill[g] == FDEPTH - 1;
             assign nonempty_n[g] = !clear && (push[g] || (nonempty[g] && !(popped && one)));
             assign full_n[g] = !clear && !popped && (full[g] || (push[g] && almost));
+            // fill_n >= T from the registered fill's compares with constants (no adder); a clear
+            // empties the FIFO (fill 0 >= T for a FIFO of 1 or 2 entries).
+            wire up = push[g] && !popped, down = popped && !push[g];
+            wire ge1_n = clear ? FDEPTH <= 1 :
+                         up ? at_least(fill[g], FDEPTH - 2) :
+                         down ? at_least(fill[g], FDEPTH) : at_least(fill[g], FDEPTH - 1);
+            wire ge2_n = clear ? FDEPTH <= 2 :
+                         up ? at_least(fill[g], FDEPTH - 3) :
+                         down ? at_least(fill[g], FDEPTH - 1) : at_least(fill[g], FDEPTH - 2);
             always @(posedge clk) begin
                 if (push[g]) begin
                     fifo_i[tail] <= h_i;
@@ -116,6 +156,8 @@ module bpx_emitter #(
             always @(posedge clk) begin
                 ne_r <= nonempty_n[g];
                 full_r <= full_n[g];
+                ge1_r <= ge1_n;
+                ge2_r <= ge2_n;
                 if (clear) begin
                     fill[g] <= {FW{1'b0}};
                     head[g] <= {PW{1'b0}};

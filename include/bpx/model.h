@@ -142,7 +142,7 @@ typedef struct bpx_model_report {
 
     uint64_t update_clocks;    ///< updater (every tile load included), pipeline fill included
     uint64_t compare_clocks;   ///< comparator busy, stalls included
-    uint64_t stall_clocks;     ///< of compare_clocks: held by a full FIFO
+    uint64_t stall_clocks;     ///< of compare_clocks: held by the almost-full stall
     uint64_t emit_clocks;      ///< after the comparator: the emitter draining its FIFOs
     uint64_t chip_clocks;      ///< update + compare + emit
     uint64_t transfer_clocks;  ///< link time in chip clocks (rounded up)

@@ -47,7 +47,7 @@ module comparator_fv #(
     wire [L-1:0] h_mask;
 
     bpx_comparator #(.M(M), .DEPTH(DEPTH), .AW(AW), .IW(IW)) dut (
-        .clk(clk), .clear(clear), .stall(stall), .start(start), .start_max(n - 1'b1),
+        .clk(clk), .clear(clear), .stall(stall), .ram_en({6*M{!stall}}), .start(start), .start_max(n - 1'b1),
         .we(we), .waddr(waddr), .wdata(wdata), .busy(busy), .busy_d(busy_d),
         .a_active(a_active), .a_max(a_max), .ports(ports),
         .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask));

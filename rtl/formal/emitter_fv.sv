@@ -1,8 +1,9 @@
 // Formal wrapper: the emitter neither drops nor duplicates a hit (docs/rtl.md, "Formal proofs").
 //
-// The solver drives the comparator's stage-2 register (valid, i, j0, mask: any values). As in
-// the chip, the register holds while the emitter blocks (its `blocks` is the comparator's
-// stall). A watched payload (wi, wj) is chosen by the solver (anyconst) and assumed to arrive
+// The solver drives the comparator's stage-3 register (valid, i, j0, mask: any values). As in
+// the chip, the register holds while `stall` is high, the emitter's stall_next registered
+// again; the comparator's stages 1 and 2 are taken as always valid (any result may come next,
+// which is what the emitter's lookahead has to allow for). A watched payload (wi, wj) is chosen by the solver (anyconst) and assumed to arrive
 // at most once (the comparator presents each pair once: comparator_fv); since it can be any
 // payload, any lane and any clock, the checks below hold for every hit:
 //   - it comes out at most once, and never if it never came in;
@@ -10,7 +11,9 @@
 //     robin serving that lane at least once every L clocks, one clock each for the FIFO's read
 //     register and the output register);
 //   - nothing comes out before something went in;
-//   - a block lasts at most L clocks (the full lane is served within L clocks: no deadlock).
+//   - no hit is written into a full FIFO (the almost-full stall came in time);
+//   - a stall lasts at most L + 2 clocks (the full lane is served within L clocks and the
+//     stall ends two clocks after it is released: no deadlock).
 // A FIFO that overwrote or lost an entry would drop the watched hit when it is that entry.
 module emitter_fv #(
     parameter integer M = 2,
@@ -36,16 +39,20 @@ module emitter_fv #(
     (* anyseq *) wire [L-1:0]  n_mask;
     (* anyconst *) wire [IW-1:0] wi, wj;
 
-    // The comparator's stage 2: takes a new result only when not stalled.
+    // The comparator's stage 3: takes a new result only when not stalled.
     reg          h_valid = 1'b0;
     reg [IW-1:0] h_i;
     reg [AW-1:0] h_j0;
     reg [L-1:0]  h_mask;
-    wire blocks, out_valid, busy, busy_d;
+    wire blocks, stall_next, out_valid, busy, busy_d;
+    reg stall = 1'b0;  // as the chip registers it
+    always @(posedge clk) stall <= stall_next;
     wire [IW-1:0] out_i, out_j;
     wire [31:0] fill_max;
     always @(posedge clk) begin
-        if (!blocks) begin
+        if (init) begin
+            h_valid <= 1'b0;  // a run's start clears the comparator too
+        end else if (!stall) begin
             h_valid <= n_valid;
             h_i <= n_i;
             h_j0 <= n_j0;
@@ -54,14 +61,14 @@ module emitter_fv #(
     end
 
     bpx_emitter #(.M(M), .FDEPTH(FDEPTH), .AW(AW), .IW(IW), .TRACE(0)) dut (
-        .clk(clk), .clear(init), .stall(blocks),
+        .clk(clk), .clear(init), .stall(stall), .r_valid(1'b1), .o_valid(1'b1),
         .h_valid(h_valid), .h_i(h_i), .h_j0(h_j0), .h_mask(h_mask), .ready(1'b1),
-        .blocks(blocks), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
+        .blocks(blocks), .stall_next(stall_next), .out_valid(out_valid), .out_i(out_i), .out_j(out_j),
         .busy(busy), .busy_d(busy_d), .fill_max(fill_max));
 
 `ifdef FORMAL
     // What the emitter writes this clock: every hit of a result it does not block.
-    wire [L-1:0] push = (!init && h_valid && !blocks) ? h_mask : {L{1'b0}};
+    wire [L-1:0] push = (!init && h_valid && !stall) ? h_mask : {L{1'b0}};
     wire [L-1:0] push_w;  // the watched payload written by lane g
     genvar g;
     generate
@@ -85,7 +92,7 @@ module emitter_fv #(
     reg [1:0] in_w = 0, out_w_n = 0;  // watched payload: times in, times out
     reg [7:0] n_in = 0;               // all hits in
     reg [7:0] since = 0;              // clocks since the watched write
-    reg [3:0] blocked = 0;            // consecutive blocked clocks
+    reg [3:0] blocked = 0;            // consecutive stalled clocks
     always @(posedge clk) begin
         in_w <= in_w + ones(push_w);
         out_w_n <= out_w_n + out_w;
@@ -94,7 +101,7 @@ module emitter_fv #(
             since <= 1;
         else if (in_w != 0 && since != 8'hff)
             since <= since + 1'b1;
-        blocked <= (!init && blocks) ? blocked + 1'b1 : 4'd0;
+        blocked <= (!init && stall) ? blocked + 1'b1 : 4'd0;
     end
 
     // The comparator presents a pair once: the watched payload arrives at most once.
@@ -107,14 +114,15 @@ module emitter_fv #(
                 assert(out_w_n == 1);                    // no drop, within BOUND
             if (n_in == 0)
                 assert(!out_v && !busy);
-            assert(blocked <= L);                        // every block ends
+            assert(!(blocks && !stall));                 // no write into a full FIFO
+            assert(blocked <= L + 2);                    // every stall ends
         end
     end
 
-    // Reachability (sby cover tasks): a block, and the watched hit out at the bound itself.
+    // Reachability (sby cover tasks): a stall, and the watched hit out at the bound itself.
     always @(posedge clk) begin
         if (!init) begin
-            cover(blocks);
+            cover(stall && blocks);
             cover(out_w && since == BOUND);                 // the bound is tight
         end
     end

@@ -173,7 +173,7 @@ static inline int bpx__hw_addrgen_kept(const bpx_hw_addrgen *g)
 static inline void bpx__hw_comparator_evaluate(bpx_hw_comparator *c, bool stall)
 {
     c->stall = stall;
-    if (stall) // a FIFO is full: every register holds (the clock enable is low)
+    if (stall) // a FIFO might overflow: every register holds (the clock enable is low)
         return;
     const bpx_hw_cmp_regs *cur = c->cur;
     bpx_hw_cmp_regs *nxt = c->nxt;

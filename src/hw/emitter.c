@@ -17,13 +17,14 @@ void bpx__hw_emitter_reset(bpx_hw_emitter *e)
     memset(e->head, 0, sizeof e->head);
     memset(e->fill, 0, sizeof e->fill);
     e->nonempty = 0;
-    e->full = 0;
     e->next_lane = 0;
     e->read_valid = false;
     e->out_valid = false;
     e->push = 0;
     e->pop = -1;
     e->advance = true;
+    e->stall_next = false;
+    e->stall_decided = false;
     e->peak_fill = 0;
     e->emitted = 0;
 }

@@ -191,22 +191,24 @@ static inline bool clock_edge(bpx_hw_machine *mc, bool stall, bool ready)
     bpx__hw_emitter_evaluate(&mc->emi, c, stall, ready);
     bpx__hw_interface_evaluate(&mc->ifc, mc->emi.out_valid && ready, mc->emi.out);
 
+    const bool stall_next = mc->emi.stall_next;
     bpx__hw_updater_commit(&mc->upd);
     bpx__hw_comparator_commit(c);
     bpx__hw_emitter_commit(&mc->emi);
     bool ok = bpx__hw_interface_commit(&mc->ifc);
+    mc->stall = stall_next;
 
     mc->phase_clocks[mc->phase]++;
-    mc->stall_clocks += stall; // only a running comparator can be stalled
+    mc->stall_clocks += stall; // only a comparator with a result in flight can be stalled
     mc->clock++;
     return ok;
 }
 
-// One clock. The comparator is held when a result it must hand over meets a full FIFO; the
-// collision port takes the output register when it is ready (the back-pressure hook).
+// One clock. The comparator is held when the emitter decided, two clocks before, that a FIFO
+// might overflow (bpx__hw_emitter_stall_decide); the collision port takes the output register when it is ready (the back-pressure hook).
 static bool step(bpx_hw_machine *mc)
 {
-    const bool stall = bpx__hw_emitter_blocks(&mc->emi, &mc->cmp);
+    const bool stall = mc->stall;
     const bpx_model_config *c = &mc->config;
     const bool ready = !c->collision_ready || c->collision_ready(mc->clock, c->collision_ready_user);
     if (!c->trace)
@@ -231,11 +233,14 @@ static bpx_status run_updater(bpx_hw_machine *mc, bpx_model_phase phase, bpx_hw_
 }
 
 // Only the comparator has work this clock (see bpx__hw_comparator_run_quiet); with a trace
-// hook every clock is stepped in full, so that the hook sees each one.
+// hook every clock is stepped in full, so that the hook sees each one. No stall now or next,
+// and none decided in those clocks: empty FIFOs, no hit registered, and at most one result
+// (p1) still to arrive, which fills no FIFO of depth >= 2 (a FIFO of 1 stalls for it).
 static bool quiet(const bpx_hw_machine *mc)
 {
     return !mc->config.trace && !mc->upd.active && !bpx__hw_emitter_busy(&mc->emi) &&
-           !bpx__hw_interface_busy(&mc->ifc);
+           !bpx__hw_interface_busy(&mc->ifc) && !mc->stall && !mc->emi.stall_next &&
+           mc->config.fifo_depth >= 2;
 }
 
 static bpx_status run_comparator(bpx_hw_machine *mc, uint32_t first_begin, uint32_t first_end,
@@ -301,6 +306,7 @@ static void begin_run(bpx_hw_machine *mc, bpx_model_report *report, uint32_t n,
     mc->clock = 0;
     memset(mc->phase_clocks, 0, sizeof mc->phase_clocks);
     mc->stall_clocks = 0;
+    mc->stall = false;
     bpx__hw_interface_reset(&mc->ifc, c->ssram_latency, &c->link, collisions);
     mc->ifc.n_register = n;
     bpx__hw_comparator_reset(&mc->cmp);

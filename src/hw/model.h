@@ -36,6 +36,7 @@ typedef struct bpx_hw_machine {
     bpx_model_report *report;
     uint64_t phase_clocks[BPX_MODEL_PHASE_COUNT]; // clocks stepped in each phase this run
     uint64_t stall_clocks;
+    bool stall; // the comparator holds this clock: the emitter's stall_next, registered
     uint32_t trace_ports[2 * BPX_MODEL_MAX_M];
 } bpx_hw_machine;
 
