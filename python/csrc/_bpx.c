@@ -214,16 +214,16 @@ static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
     static const char where[] = "World";
     static char *keywords[] = {"backend",       "simd",         "threads",    "track_events",
                                "spin_us",       "capacity_hint", "begin_margin", "end_margin",
-                               "period",        NULL};
+                               "period",        "profile",       NULL};
     const char *backend_name = "auto", *simd_name = "auto";
-    int threads = 1, track_events = 0, spin_us = 0;
+    int threads = 1, track_events = 0, spin_us = 0, profile = 0;
     unsigned long capacity_hint = 0;
     float begin_margin = 0.0f, end_margin = 0.0f;
     double period[3] = {0, 0, 0};
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|ssipikff(ddd)", keywords, &backend_name,
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|ssipikff(ddd)p", keywords, &backend_name,
                                      &simd_name, &threads, &track_events, &spin_us,
                                      &capacity_hint, &begin_margin, &end_margin, &period[0],
-                                     &period[1], &period[2]))
+                                     &period[1], &period[2], &profile))
         return -1;
     if (self->world) {
         raise_status(where, BPX_ERR_BAD_STATE, "the world is already initialised");
@@ -245,6 +245,7 @@ static int World_init(WorldObject *self, PyObject *args, PyObject *kwargs)
     def.begin_margin = begin_margin;
     def.end_margin = end_margin;
     memcpy(def.period, period, sizeof period);
+    def.profile = profile != 0;
     if (!self->lock && !(self->lock = PyThread_allocate_lock())) {
         PyErr_NoMemory();
         return -1;
@@ -733,7 +734,25 @@ static PyObject *World_stats(WorldObject *self, PyObject *unused)
     const char *backend = bpx_backend_name(bpx_world_backend(self->world));
     const char *simd = bpx_simd_name(bpx_world_simd(self->world));
     world_leave(self);
-    return Py_BuildValue("{s:k,s:K,s:K,s:K,s:K,s:K,s:K,s:O,s:K,s:K,s:K,s:K,s:K,s:s,s:s}",
+    // The profiled stages (World(profile=True)) as tuples in the order they ran.
+    static const char *const access_names[] = {"sequential", "gather", "scatter"};
+    PyObject *stages = PyTuple_New(s.stage_count);
+    for (uint32_t k = 0; stages && k < s.stage_count; k++) {
+        const bpx_stage_stats *t = &s.stages[k];
+        PyObject *stage = Py_BuildValue(
+            "(ssKKKKs)", t->name, t->backend, (unsigned long long)t->ns,
+            (unsigned long long)t->bytes_read, (unsigned long long)t->bytes_written,
+            (unsigned long long)t->random,
+            (unsigned)t->access < 3 ? access_names[t->access] : "sequential");
+        if (!stage) {
+            Py_CLEAR(stages);
+            break;
+        }
+        PyTuple_SET_ITEM(stages, k, stage);
+    }
+    if (!stages)
+        return NULL;
+    return Py_BuildValue("{s:k,s:K,s:K,s:K,s:K,s:K,s:K,s:O,s:K,s:K,s:K,s:K,s:K,s:s,s:s,s:d,s:N}",
                          "box_count", (unsigned long)s.box_count, "pair_count",
                          (unsigned long long)s.pair_count, "pair_tests",
                          (unsigned long long)s.pair_tests, "update_ns",
@@ -746,7 +765,8 @@ static PyObject *World_stats(WorldObject *self, PyObject *unused)
                          (unsigned long long)s.transfer_out_ns, "device_ns",
                          (unsigned long long)s.device_ns, "bytes_in",
                          (unsigned long long)s.bytes_in, "bytes_out",
-                         (unsigned long long)s.bytes_out, "backend", backend, "simd", simd);
+                         (unsigned long long)s.bytes_out, "backend", backend, "simd", simd,
+                         "device_share", (double)s.device_share, "stages", stages);
 }
 
 static PyObject *World_box_count(WorldObject *self, PyObject *unused)

@@ -137,6 +137,29 @@ def test_stats_backend_and_repr():
     world.close()  # twice is fine
 
 
+def test_profile_stages():
+    boxes = uniform_density(20000, seed=3)
+    for backend in ("grid", "sap", "prune"):
+        with bpx.World(backend=backend, profile=True) as world, bpx.World(backend=backend) as plain:
+            world.set_boxes(boxes)
+            plain.set_boxes(boxes)
+            assert world.collide().tobytes() == plain.collide().tobytes()  # the same pairs
+            stages = world.stats.stages
+            assert plain.stats.stages == ()
+            assert stages and all(isinstance(t, bpx.Stage) for t in stages)
+            assert stages[0].name == "update" and stages[0].backend == "world"
+            # the backend's own stages after the updater's (sap's first cycle runs grid's
+            # inside); the pairs are merged straight into the array handed back, untimed
+            assert stages[1].backend == backend and len(stages) >= 3, stages
+            assert {t.backend for t in stages[1:]} <= {backend, "grid"}, stages
+            for t in stages:
+                assert t.access in ("sequential", "gather", "scatter")
+                assert t.bytes_read + t.bytes_written > 0 and t.ns >= 0
+                assert (t.random > 0) == (t.access != "sequential") or t.random == 0
+            # the updater reads and writes the six coordinates of every box
+            assert stages[0].bytes_read == 24 * len(boxes) == stages[0].bytes_written
+
+
 def test_results_are_owned_by_the_caller():
     boxes = uniform_density(1000, seed=4, overlaps_per_box=3)
     with bpx.World() as world:

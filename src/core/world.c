@@ -466,9 +466,11 @@ bpx_status bpx_world_collide_into(bpx_world *w, bpx_pair *out, size_t capacity, 
             return bpx__error(&w->error, status, UINT32_MAX, -1, "no memory for pair events");
         }
     }
-    if (total > capacity)
+    if (total > capacity) {
+        profile_done(w); // the cycle ran: its stages so far (the pairs stay in the blocks)
         return bpx__error(&w->error, BPX_ERR_CAPACITY, UINT32_MAX, -1,
                           "%zu pairs found, capacity %zu", total, capacity);
+    }
     uint64_t start = bpx__now_ns();
     bpx__emitter_merge(&w->emitter, out);
     w->stats.emit_ns = bpx__now_ns() - start;

@@ -75,7 +75,7 @@ from ._errors import (
 )
 from ._neighbors import Neighbors, neighbor_pairs
 from ._query import BatchHits, BatchIds, Hit, Hits, QueryStats
-from ._world import PairEvents, Stats, World
+from ._world import PairEvents, Stage, Stats, World
 
 __version__ = _c_version
 __all__ = [
@@ -84,6 +84,7 @@ __all__ = [
     "Neighbors",
     "World",
     "Stats",
+    "Stage",
     "PairEvents",
     "Hit",
     "Hits",

@@ -45,6 +45,20 @@ from ._query import (
 HitCallback = Callable[[int, float, int], Optional[float]]
 
 
+class Stage(NamedTuple):
+    """One stage of a profiled cycle (``World(profile=True)``; ``bpx_stage_stats``): its
+    wall-clock time, and the bytes it reads and writes as computed from the sizes of the arrays
+    it touches (not counted by hardware), to read against the machine's memory floor."""
+
+    name: str  #: e.g. "update", "keys", "scatter", "tests", "order", "merge"
+    backend: str  #: the backend that ran it ("grid", "sap"; "world" for the world's own)
+    ns: int  #: wall-clock nanoseconds
+    bytes_read: int  #: bytes the stage reads
+    bytes_written: int  #: bytes the stage writes
+    random: int  #: records reached at spread addresses ("gather", "scatter"), else 0
+    access: str  #: "sequential", "gather" or "scatter"
+
+
 @dataclass(frozen=True)
 class Stats:
     """Counts and timings of a world's last cycle (``bpx_world_stats``): the paper's registers
@@ -65,6 +79,10 @@ class Stats:
     device_ns: int = 0  #: opencl, cuda: kernel time
     bytes_in: int = 0  #: opencl, cuda: bytes sent to the device
     bytes_out: int = 0  #: opencl, cuda: bytes read back
+    device_share: float = 0.0  #: hybrid: the share of the boxes the device got
+    #: with ``World(profile=True)``: the cycle's stages in the order they ran (the updater's
+    #: first; grid, sap, prune and auto report theirs); empty without it
+    stages: Tuple[Stage, ...] = ()
 
 
 class PairEvents(NamedTuple):
@@ -124,6 +142,8 @@ class World:
             negative: never spin).
         capacity_hint: boxes to reserve memory for up front.
         begin_margin, end_margin: contact margins (not with a cell).
+        profile: time each stage of every cycle and count its bytes, into ``stats.stages``
+            (two clock reads a stage; the same pairs either way).
         cell, pbc: a periodic cell, as for ``neighbor_pairs`` (one length, three, or a diagonal
             3x3 matrix; ``pbc`` says which axes are periodic, default all). Then box j pairs
             with box i when any periodic image of j (j moved by whole cell lengths) overlaps
@@ -145,6 +165,7 @@ class World:
         end_margin: float = 0.0,
         cell: Any = None,
         pbc: Any = True,
+        profile: bool = False,
     ) -> None:
         backend = check_backend(backend, "World")
         threads = check_threads(threads, "World")
@@ -168,6 +189,7 @@ class World:
             begin,
             end,
             period_of(cell, pbc, "World"),
+            bool(profile),
         )
         self._requested = backend
         self._threads = threads
@@ -410,7 +432,9 @@ class World:
     @property
     def stats(self) -> Stats:
         """Counts and timings of the last cycle, as a ``bpx.Stats``."""
-        return Stats(**self._c.stats())
+        raw = self._c.stats()
+        raw["stages"] = tuple(Stage(*stage) for stage in raw["stages"])
+        return Stats(**raw)
 
     @property
     def backend(self) -> str:
