@@ -37,7 +37,7 @@ if(BPX_CUDA)
     # The kernels and sorts are an object library of their own (bpx_cuda_kernels, made by
     # bpx_cuda_kernel_objects): the fake device's tests (test/fake_cuda/) link the same host
     # objects with host loops in their place.
-    list(APPEND BPX_SOURCES src/cuda/backend.c src/cuda/cycle.cu)
+    list(APPEND BPX_SOURCES src/cuda/backend.c src/cuda/buffers.cu src/cuda/cycle.cu)
     list(APPEND BPX_SIMD_DEFINES BPX_HAVE_CUDA=1)
     add_feature_info(cuda BPX_CUDA "the cuda backend (CUDA ${CUDAToolkit_VERSION})")
     # For the installed package: consumers of the static library link the CUDA runtime too.
