@@ -103,11 +103,14 @@ def run_ckdtree(points, L, r):
 
 
 # Triclinic cells (--triclinic): the same density in a cell of LAMMPS tilts xy 0.3, xz 0.2,
-# yz -0.25 (or --shape fcc: the primitive cell of fcc, 60-degree angles), against bpx on a cube
+# yz -0.25 (or --shape fcc: the primitive cell of fcc, 60-degree angles; --shape sheared: a
+# strongly sheared one, which bpx reduces first), against bpx on a cube
 # of the same volume and points; the peers that take a triclinic cell.
 SHAPES = {
     "tilted": np.array([[1.0, 0.0, 0.0], [0.3, 1.0, 0.0], [0.2, -0.25, 1.0]]),
     "fcc": np.array([[0.0, 0.5, 0.5], [0.5, 0.0, 0.5], [0.5, 0.5, 0.0]]),
+    # strongly sheared (test_neighbors_triclinic's "sheared"): bins 23 times a cube's unreduced
+    "sheared": np.array([[4.0, 0.0, 0.0], [7.5, 3.0, 0.0], [-5.0, 6.25, 2.5]]),
 }
 
 

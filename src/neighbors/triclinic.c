@@ -42,7 +42,10 @@
 
 typedef struct tgrid {
     double H[3][3];    // the cell as given, rows a, b, c
-    double G[3][3];    // H^-1: s_a = x_0 G[0][a] + x_1 G[1][a] + x_2 G[2][a]
+    double R[3][3];    // the cell the bins are laid in: U H, reduced (reduce), rounded
+    int32_t U[3][3];   // R's rows in H's: a shift S' in R is S' U in H
+    bool reduced;      // U is not the identity
+    double G[3][3];    // R^-1: s_a = x_0 G[0][a] + x_1 G[1][a] + x_2 G[2][a]
     bool periodic[3];
     int count[3];      // bins per axis
     int reach[3];      // bins searched each way (R_a)
@@ -120,7 +123,120 @@ static void cross(const double u[3], const double v[3], double out[3])
     out[2] = u[0] * v[1] - u[1] * v[0];
 }
 
-// The cell's checks and inverse. *residual: max |H G - I|, plus a bound on its own rounding.
+// M^-1 into G (G[c][a]: column a is (b x c) / det for a, etc.), computed on M scaled by a power
+// of two (exact) so that the products neither overflow nor underflow. False when singular;
+// *det is a . (b x c) of M scaled by 2^-*scale, *condition ||M|| ||M^-1|| (infinity norms),
+// *residual max |M G - I| plus a bound on its own rounding.
+static bool invert_cell(const double M[3][3], double G[3][3], double *det, int *scale,
+                        double *condition, double *residual)
+{
+    double largest = 0;
+    for (int a = 0; a < 3; a++)
+        for (int c = 0; c < 3; c++)
+            largest = fmax(largest, fabs(M[a][c]));
+    int e = ilogb(largest);
+    double Ms[3][3], cof[3][3];
+    for (int a = 0; a < 3; a++)
+        for (int c = 0; c < 3; c++)
+            Ms[a][c] = ldexp(M[a][c], -e);
+    cross(Ms[1], Ms[2], cof[0]); // b x c: G's column 0 times det
+    cross(Ms[2], Ms[0], cof[1]);
+    cross(Ms[0], Ms[1], cof[2]);
+    *det = Ms[0][0] * cof[0][0] + Ms[0][1] * cof[0][1] + Ms[0][2] * cof[0][2];
+    *scale = e;
+    if (!(*det != 0) || !isfinite(*det))
+        return false;
+    double Gs[3][3], m_norm = 0, g_norm = 0;
+    for (int c = 0; c < 3; c++)
+        for (int a = 0; a < 3; a++)
+            Gs[c][a] = cof[a][c] / *det;
+    for (int r = 0; r < 3; r++) {
+        double mr = 0, gr = 0;
+        for (int c = 0; c < 3; c++) {
+            mr += fabs(Ms[r][c]);
+            gr += fabs(Gs[r][c]);
+        }
+        m_norm = fmax(m_norm, mr);
+        g_norm = fmax(g_norm, gr);
+    }
+    *condition = m_norm * g_norm;
+    double most = 0;
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            double p = Ms[a][0] * Gs[0][b] + Ms[a][1] * Gs[1][b] + Ms[a][2] * Gs[2][b];
+            most = fmax(most, fabs(p - (a == b)));
+        }
+    *residual = most + *condition * 0x1p-50;
+    for (int c = 0; c < 3; c++)
+        for (int a = 0; a < 3; a++)
+            G[c][a] = ldexp(Gs[c][a], -e);
+    return true;
+}
+
+static double dot(const double u[3], const double v[3])
+{
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+}
+
+// The cell the bins are laid in: the periodic vectors reduced pairwise (Lagrange-Gauss: b minus
+// the multiple of a that makes it shortest, while any gets shorter), R = U H with U integer and
+// unimodular, rows of open axes left alone. A sheared cell's bins are then about cubes again;
+// the lattice, and so the pairs, are the same. R is rounded; the search measures it against
+// U H (reduce's *mismatch) and the decision uses H itself.
+static void reduce(tgrid *g, double *mismatch)
+{
+    memcpy(g->R, g->H, sizeof g->R);
+    memset(g->U, 0, sizeof g->U);
+    for (int a = 0; a < 3; a++)
+        g->U[a][a] = 1;
+    for (int pass = 0; pass < 200; pass++) {
+        bool changed = false;
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++) {
+                if (a == b || !g->periodic[a] || !g->periodic[b])
+                    continue;
+                double aa = dot(g->R[a], g->R[a]), k = round(dot(g->R[b], g->R[a]) / aa);
+                if (k == 0 || !(fabs(k) < 0x1p20))
+                    continue;
+                double shorter[3];
+                for (int c = 0; c < 3; c++)
+                    shorter[c] = g->R[b][c] - k * g->R[a][c];
+                int64_t u[3];
+                bool fits = true;
+                for (int c = 0; c < 3; c++) {
+                    u[c] = g->U[b][c] - (int64_t)k * g->U[a][c];
+                    fits &= u[c] > -(1 << 20) && u[c] < (1 << 20);
+                }
+                if (!fits || !(dot(shorter, shorter) < dot(g->R[b], g->R[b]) * (1 - 0x1p-20)))
+                    continue;
+                for (int c = 0; c < 3; c++) {
+                    g->U[b][c] = (int32_t)u[c];
+                    // from U and H, not the running R: one rounding per product and sum
+                    g->R[b][c] = (double)u[0] * g->H[0][c] + (double)u[1] * g->H[1][c] +
+                                 (double)u[2] * g->H[2][c];
+                }
+                changed = true;
+            }
+        if (!changed)
+            break;
+    }
+    g->reduced = false;
+    double most = 0;
+    for (int a = 0; a < 3; a++)
+        for (int c = 0; c < 3; c++) {
+            g->reduced |= g->U[a][c] != (a == c);
+            most = fmax(most, fabs((double)g->U[a][c]));
+        }
+    // |R - U H| per entry: two roundings of at most 2^-53 of 3 most |H| each
+    double h_most = 0;
+    for (int a = 0; a < 3; a++)
+        for (int c = 0; c < 3; c++)
+            h_most = fmax(h_most, fabs(g->H[a][c]));
+    *mismatch = g->reduced ? 0x1p-50 * 3 * most * h_most : 0;
+}
+
+// The cell's checks, its reduced form and that form's inverse. *residual: max |(U H) G - I|,
+// plus a bound on its own rounding.
 static bpx_status check_cell(const tsearch *s, tgrid *g, double *residual)
 {
     const bpx_neighbor_def *def = s->def;
@@ -139,52 +255,36 @@ static bpx_status check_cell(const tsearch *s, tgrid *g, double *residual)
     if (largest < 1 / MAX_ENTRY)
         return bpx__error(s->err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
                           "the triclinic cell's largest entry, %g, is below 2^-960", largest);
-    // Scaled by a power of two (exact) so that the products below neither overflow nor
-    // underflow; G is scaled back.
-    int e = ilogb(largest);
-    double Hs[3][3], cof[3][3];
-    for (int a = 0; a < 3; a++)
-        for (int c = 0; c < 3; c++)
-            Hs[a][c] = ldexp(g->H[a][c], -e);
-    cross(Hs[1], Hs[2], cof[0]); // b x c: G's column 0 times det
-    cross(Hs[2], Hs[0], cof[1]);
-    cross(Hs[0], Hs[1], cof[2]);
-    double det = Hs[0][0] * cof[0][0] + Hs[0][1] * cof[0][1] + Hs[0][2] * cof[0][2];
-    if (!(det != 0) || !isfinite(det))
+    double det, condition;
+    int scale;
+    if (!invert_cell(g->H, g->G, &det, &scale, &condition, residual))
         return bpx__error(s->err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
                           "the triclinic cell is singular: its lattice vectors a, b, c are "
                           "linearly dependent (a . (b x c) = %g)",
-                          ldexp(det, 3 * e));
-    double Gs[3][3], h_norm = 0, g_norm = 0;
-    for (int c = 0; c < 3; c++)
-        for (int a = 0; a < 3; a++)
-            Gs[c][a] = cof[a][c] / det;
-    for (int r = 0; r < 3; r++) {
-        double hr = 0, gr = 0;
-        for (int c = 0; c < 3; c++) {
-            hr += fabs(Hs[r][c]);
-            gr += fabs(Gs[r][c]);
-        }
-        h_norm = fmax(h_norm, hr);
-        g_norm = fmax(g_norm, gr);
-    }
-    double condition = h_norm * g_norm;
+                          ldexp(det, 3 * scale));
     if (!(condition <= MAX_CONDITION))
         return bpx__error(s->err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
                           "the triclinic cell is too close to singular: condition number %g "
                           "(||H|| ||H^-1||, infinity norm) is past 2^24; its face distances are "
                           "tiny against its vectors",
                           condition);
-    double most = 0;
-    for (int a = 0; a < 3; a++)
-        for (int b = 0; b < 3; b++) {
-            double p = Hs[a][0] * Gs[0][b] + Hs[a][1] * Gs[1][b] + Hs[a][2] * Gs[2][b];
-            most = fmax(most, fabs(p - (a == b)));
-        }
-    *residual = most + condition * 0x1p-50;
+    double mismatch;
+    reduce(g, &mismatch);
+    if (!g->reduced)
+        return BPX_OK;
+    if (!invert_cell(g->R, g->G, &det, &scale, &condition, residual)) { // (cannot: U unimodular)
+        memcpy(g->R, g->H, sizeof g->R);
+        g->reduced = false;
+        return invert_cell(g->H, g->G, &det, &scale, &condition, residual)
+                   ? BPX_OK
+                   : bpx__error(s->err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                                "the triclinic cell is singular");
+    }
+    // (U H) G - I = (R G - I) - (R - U H) G
+    double g_norm = 0;
     for (int c = 0; c < 3; c++)
-        for (int a = 0; a < 3; a++)
-            g->G[c][a] = ldexp(Gs[c][a], -e);
+        g_norm = fmax(g_norm, fabs(g->G[c][0]) + fabs(g->G[c][1]) + fabs(g->G[c][2]));
+    *residual += 3 * mismatch * g_norm;
     return BPX_OK;
 }
 
@@ -195,12 +295,12 @@ static bpx_status plan(tsearch *s)
     tgrid *g = &s->g;
     const bpx_neighbor_def *def = s->def;
     double residual = 0;
+    for (int a = 0; a < 3; a++)
+        g->periodic[a] = !def->cell_open[a];
     bpx_status status = check_cell(s, g, &residual);
     if (status != BPX_OK)
         return status;
     g->cutoff = def->cutoff;
-    for (int a = 0; a < 3; a++)
-        g->periodic[a] = !def->cell_open[a];
     double least[3] = {INFINITY, INFINITY, INFINITY}, most[3] = {-INFINITY, -INFINITY, -INFINITY};
     double x_most = 0, s_most[3] = {0, 0, 0};
     for (uint32_t k = 0; k < s->n; k++) {
@@ -228,11 +328,16 @@ static bpx_status plan(tsearch *s)
             s_most[a] = fmax(s_most[a], fabs(f[a]));
         }
     }
-    // |S_b| bound over the pairs that can be decided: the wraps (|s| + 1 each) and the periods
-    // searched (r / d_b + 2; the slack added below stays under 1/16).
-    double h_sum = 0, col[3], g_sum[3], periodic_most = 0, reach_most = 0;
-    for (int c = 0; c < 3; c++)
+    // |S'_b| bound over the pairs that can be decided (shifts in R): the wraps (|s| + 1 each)
+    // and the periods searched (r / d_b + 2; the slack added below stays under 1/16). In H,
+    // S = S' U: up to u_sum times that.
+    double h_sum = 0, r_sum = 0, u_sum = 1, col[3], g_sum[3], periodic_most = 0, reach_most = 0;
+    for (int c = 0; c < 3; c++) {
         h_sum = fmax(h_sum, fabs(g->H[0][c]) + fabs(g->H[1][c]) + fabs(g->H[2][c]));
+        r_sum = fmax(r_sum, fabs(g->R[0][c]) + fabs(g->R[1][c]) + fabs(g->R[2][c]));
+        u_sum = fmax(u_sum, fabs((double)g->U[0][c]) + fabs((double)g->U[1][c]) +
+                                fabs((double)g->U[2][c]));
+    }
     for (int a = 0; a < 3; a++) {
         col[a] = sqrt(g->G[0][a] * g->G[0][a] + g->G[1][a] * g->G[1][a] +
                       g->G[2][a] * g->G[2][a]);
@@ -247,7 +352,12 @@ static bpx_status plan(tsearch *s)
                           "the cutoff %g reaches past 2^20 of the cell's face distances",
                           g->cutoff);
     double shift_most = 2 * periodic_most + 4 + 2 * reach_most;
-    double magnitude = x_most + h_sum * shift_most + g->cutoff; // |x|, |S H| in the sums
+    if (!(shift_most * u_sum < 0x1p30))
+        return bpx__error(s->err, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
+                          "the points lie too many cells from the origin for this sheared a cell "
+                          "(shifts would pass 2^30)");
+    // |x|, |S H| in the decision's sums
+    double magnitude = x_most + h_sum * shift_most * u_sum + g->cutoff;
     double enough = 2.0 * s->n + 64, bins = 1, reach_fraction[3];
     for (int a = 0; a < 3; a++) {
         // The rounding of s (x G), of the image's s (s_j + S (H G) for s_j + S), of the
@@ -304,9 +414,10 @@ static bpx_status plan(tsearch *s)
                           "the cutoff %g reaches %.0f bins and their images around each bin "
                           "(more than 2^24): the cell is far thinner than the cutoff",
                           g->cutoff, visits);
-    // The quick test: wrapped coordinates (|x - w H| up to x_most + h_sum (|s| + 1)) plus t H
-    // (|t| up to R + 1), against the decision's sums: both within 2^-50 of the magnitudes.
-    double quick = x_most + h_sum * (2 * periodic_most + reach_bins + 4) + magnitude;
+    // The quick test: wrapped coordinates (|x - w R| up to x_most + r_sum (|s| + 1)) plus t R
+    // (|t| up to R + 1), against the decision's sums: both within 2^-50 of the magnitudes
+    // (and R within 2^-50 of U H).
+    double quick = x_most + r_sum * (2 * periodic_most + reach_bins + 4) + magnitude;
     double reach = g->cutoff + 0x1p-40 * (quick + g->cutoff);
     // (At least 2^-1000: squares that underflow pass, and the decision decides them.)
     g->reach2 = fmax(nextafter(reach * reach, INFINITY), 0x1p-1000);
@@ -342,8 +453,8 @@ static void locate(const tsearch *s, uint32_t k, int bin[3], double x[3], int32_
         bin[a] = c;
     }
     for (int c = 0; c < 3; c++)
-        wrapped[c] = x[c] - ((double)wrap[0] * g->H[0][c] + (double)wrap[1] * g->H[1][c] +
-                             (double)wrap[2] * g->H[2][c]);
+        wrapped[c] = x[c] - ((double)wrap[0] * g->R[0][c] + (double)wrap[1] * g->R[1][c] +
+                             (double)wrap[2] * g->R[2][c]);
 }
 
 static int floor_div(int v, int n)
@@ -393,8 +504,8 @@ static size_t runs_around(const tgrid *g, const uint32_t *start, const int bin[3
                           {0, 0, 0}};
                 if (r.begin < r.end) {
                     for (int c = 0; c < 3; c++)
-                        r.offset[c] = (double)r.t[0] * g->H[0][c] +
-                                      (double)r.t[1] * g->H[1][c] + (double)r.t[2] * g->H[2][c];
+                        r.offset[c] = (double)r.t[0] * g->R[0][c] +
+                                      (double)r.t[1] * g->R[1][c] + (double)r.t[2] * g->R[2][c];
                     out[count++] = r;
                 }
                 x = last + 1;
@@ -481,6 +592,13 @@ static size_t search_point(const tsearch *s, const tpoints *p, uint32_t m, const
             thit hit = {.j = j->id};
             for (int a = 0; a < 3; a++)
                 hit.shift[a] = runs[r].t[a] + i->wrap[a] - j->wrap[a];
+            if (g->reduced) { // S = S' U: in the cell as given
+                int32_t S[3];
+                for (int b = 0; b < 3; b++)
+                    S[b] = hit.shift[0] * g->U[0][b] + hit.shift[1] * g->U[1][b] +
+                           hit.shift[2] * g->U[2][b];
+                memcpy(hit.shift, S, sizeof S);
+            }
             if (j->id == i->id && !positive(hit.shift))
                 continue;
             if (triclinic_within(g, i->x, j->x, hit.shift, &hit.distance))
