@@ -22,6 +22,8 @@
 // lower faces, and the backend finds the candidate pairs among them; each candidate is kept once
 // (the image pair whose shifts are 0 or less, with one of them 0 on every periodic axis). Both
 // decide each pair on the input coordinates in double, the same way (docs/neighbors.md).
+// Points in a triclinic cell (bpx_neighbor_def.cell) take a cell list of their own, binned in
+// fractional coordinates of the cell reduced to near-cubes (docs/neighbors.md, "Triclinic cells").
 #pragma once
 
 #include "types.h"
