@@ -94,8 +94,9 @@ typedef struct bpx_neighbor_def {
 
 /// One pair: box i and the image of box j shifted by shift[a] * period[a] on each axis (shift 0
 /// on open axes); with a triclinic cell, point i and point j moved by shift[0] a + shift[1] b +
-/// shift[2] c (ASE's S: vector = x_j - x_i + shift . cell). Reported with i < j, or i == j (a box and its own image, when a box and the
-/// cutoff span a period) with the shift's first non-zero component positive; (j, i, -shift) is
+/// shift[2] c (ASE's S: vector = x_j - x_i + shift . cell). Reported with i < j, or i == j (a
+/// box and its own image, when a box and the cutoff span a period) with the shift's first
+/// non-zero component positive; (j, i, -shift) is
 /// the same pair and is not reported again. A pair of boxes that meet in several images is
 /// reported once per image.
 typedef struct bpx_image_pair {
@@ -119,9 +120,9 @@ BPX_API bpx_neighbor_def bpx_default_neighbor_def(void);
 /// bpx_neighbor_list_free); on error it is empty and err (may be NULL) names what and where.
 /// Errors: NULL_ARGUMENT; INVALID_ARGUMENT (a period or the cutoff NaN, infinite or negative, an
 /// unknown format or metric, a worker count out of range; a triclinic cell that is not finite,
-/// singular or nearly so, or given with boxes, the box metric or a period); NOT_FINITE / MIN_GREATER_THAN_MAX
-/// naming the object; TOO_MANY_BOXES (n, or the objects with their images, past
-/// BPX_MAX_BOXES; an object more than 2^29 periods from the origin, or spanning that many; with
+/// singular or nearly so, or given with boxes, the box metric or a period); NOT_FINITE /
+/// MIN_GREATER_THAN_MAX naming the object; TOO_MANY_BOXES (n, or the objects with their
+/// images, past BPX_MAX_BOXES; an object more than 2^29 periods from the origin, or spanning that many; with
 /// a triclinic cell, a point more than 2^29 cells from the origin, or a cutoff that reaches more
 /// than 2^20 face distances or 2^24 images of the cell's bins);
 /// OUT_OF_MEMORY; BACKEND_UNAVAILABLE; TOO_MANY_PAIRS as the backend reports it.

@@ -41,11 +41,11 @@
 #define MAX_VISITS (1 << 24)
 
 typedef struct tgrid {
-    double H[3][3];    // the cell as given, rows a, b, c
-    double R[3][3];    // the cell the bins are laid in: U H, reduced (reduce), rounded
-    int32_t U[3][3];   // R's rows in H's: a shift S' in R is S' U in H
-    bool reduced;      // U is not the identity
-    double G[3][3];    // R^-1: s_a = x_0 G[0][a] + x_1 G[1][a] + x_2 G[2][a]
+    double H[3][3];  // the cell as given, rows a, b, c
+    double R[3][3];  // the cell the bins are laid in: U H, reduced (reduce), rounded
+    int32_t U[3][3]; // R's rows in H's: a shift S' in R is S' U in H
+    bool reduced;    // U is not the identity
+    double G[3][3];  // R^-1: s_a = x_0 G[0][a] + x_1 G[1][a] + x_2 G[2][a]
     bool periodic[3];
     int count[3];      // bins per axis
     int reach[3];      // bins searched each way (R_a)
@@ -107,8 +107,8 @@ static inline bool triclinic_within(const tgrid *g, const double xi[3], const do
 {
     double gaps[3];
     for (int c = 0; c < 3; c++) {
-        double p = (double)S[0] * g->H[0][c] + (double)S[1] * g->H[1][c] +
-                   (double)S[2] * g->H[2][c];
+        double p =
+            (double)S[0] * g->H[0][c] + (double)S[1] * g->H[1][c] + (double)S[2] * g->H[2][c];
         double image = xj[c] + p;
         double gap = image - xi[c];
         gaps[c] = gap < 0 ? -gap : gap;
@@ -339,8 +339,7 @@ static bpx_status plan(tsearch *s)
                                 fabs((double)g->U[2][c]));
     }
     for (int a = 0; a < 3; a++) {
-        col[a] = sqrt(g->G[0][a] * g->G[0][a] + g->G[1][a] * g->G[1][a] +
-                      g->G[2][a] * g->G[2][a]);
+        col[a] = sqrt(g->G[0][a] * g->G[0][a] + g->G[1][a] * g->G[1][a] + g->G[2][a] * g->G[2][a]);
         g_sum[a] = fabs(g->G[0][a]) + fabs(g->G[1][a]) + fabs(g->G[2][a]);
         if (g->periodic[a]) {
             periodic_most = fmax(periodic_most, s_most[a]);
@@ -390,9 +389,8 @@ static bpx_status plan(tsearch *s)
         for (int b = 1; b < 3; b++)
             if (g->count[b] > g->count[a])
                 a = b;
-        int fewer = g->periodic[a]
-                        ? g->count[a] / 2
-                        : (int)floor((most[a] - least[a]) * g->inverse[a] / 2) + 1;
+        int fewer = g->periodic[a] ? g->count[a] / 2
+                                   : (int)floor((most[a] - least[a]) * g->inverse[a] / 2) + 1;
         if (fewer >= g->count[a] || fewer < 1)
             break;
         bins = bins / g->count[a] * fewer;
@@ -500,12 +498,14 @@ static size_t runs_around(const tgrid *g, const uint32_t *start, const int bin[3
                 int last = (tx + 1) * g->count[0] - 1;
                 last = last < hi ? last : hi;
                 int from = x - tx * g->count[0], to = last - tx * g->count[0];
-                trun r = {start[row_start + from], start[row_start + to + 1], {tx, t[1], t[2]},
+                trun r = {start[row_start + from],
+                          start[row_start + to + 1],
+                          {tx, t[1], t[2]},
                           {0, 0, 0}};
                 if (r.begin < r.end) {
                     for (int c = 0; c < 3; c++)
-                        r.offset[c] = (double)r.t[0] * g->R[0][c] +
-                                      (double)r.t[1] * g->R[1][c] + (double)r.t[2] * g->R[2][c];
+                        r.offset[c] = (double)r.t[0] * g->R[0][c] + (double)r.t[1] * g->R[1][c] +
+                                      (double)r.t[2] * g->R[2][c];
                     out[count++] = r;
                 }
                 x = last + 1;
@@ -625,8 +625,7 @@ static int compare_hits(const void *pa, const void *pb)
 }
 
 // Appends point i's hits, sorted by (j, shift), to the list.
-static bool append(const tsearch *s, hit_room *h, size_t count, uint32_t i,
-                   bpx_neighbor_list *list)
+static bool append(const tsearch *s, hit_room *h, size_t count, uint32_t i, bpx_neighbor_list *list)
 {
     thit *hits = h->hits;
     uint64_t *keys = h->keys;
@@ -836,8 +835,17 @@ bpx_status bpx__neighbors_triclinic(const bpx_neighbor_def *def, const void *dat
             volume *= g->count[a] / g->inverse[a];
     double c3 = def->cutoff * def->cutoff * def->cutoff;
     double per_point = 0.5 * n * 4.18879 * c3 / fmax(volume, DBL_MIN);
-    tjob job = {&s,       start,  &points,        max_runs(g), row_most ? row_most : 1,
-                per_point < 64 ? per_point : 64, share_count, shares, first, counts, owner};
+    tjob job = {&s,
+                start,
+                &points,
+                max_runs(g),
+                row_most ? row_most : 1,
+                per_point < 64 ? per_point : 64,
+                share_count,
+                shares,
+                first,
+                counts,
+                owner};
     bpx_executor executor = {.worker_count = 1};
     if (workers > 1) {
         if (!(pool = bpx__pool_create(workers - 1, -1))) {
