@@ -8,6 +8,7 @@ and freud's full); every one is reduced to the sorted half list of (i, j) pairs 
 equal to bpx's before its time counts. Times are the median of --rounds calls, alternating.
 
     python bench_neighbors.py --sizes 100000 1000000 --rounds 3
+    python bench_neighbors.py --triclinic --sizes 100000 --rounds 5 --skip "ASE triclinic"
 """
 
 from __future__ import annotations
@@ -101,6 +102,110 @@ def run_ckdtree(points, L, r):
     return pairs[:, 0], pairs[:, 1]
 
 
+# Triclinic cells (--triclinic): the same density in a cell of LAMMPS tilts xy 0.3, xz 0.2,
+# yz -0.25 (or --shape fcc: the primitive cell of fcc, 60-degree angles; --shape sheared: a
+# strongly sheared one, which bpx reduces first), against bpx on a cube
+# of the same volume and points; the peers that take a triclinic cell.
+SHAPES = {
+    "tilted": np.array([[1.0, 0.0, 0.0], [0.3, 1.0, 0.0], [0.2, -0.25, 1.0]]),
+    "fcc": np.array([[0.0, 0.5, 0.5], [0.5, 0.0, 0.5], [0.5, 0.5, 0.0]]),
+    # strongly sheared (test_neighbors_triclinic's "sheared"): bins 23 times a cube's unreduced
+    "sheared": np.array([[4.0, 0.0, 0.0], [7.5, 3.0, 0.0], [-5.0, 6.25, 2.5]]),
+}
+
+
+def tri_bpx_cubic(points, cell, r):
+    # the orthorhombic fast path: a cube of the same volume, the same fractional points
+    L = abs(np.linalg.det(cell)) ** (1 / 3)
+    nl = bpx.neighbor_pairs(points @ np.linalg.inv(cell) * L, r, cell=L, threads=1,
+                            distances=False)
+    return nl.i, nl.j
+
+
+def tri_bpx(points, cell, r):
+    nl = bpx.neighbor_pairs(points, r, cell=cell, threads=1, distances=False)
+    return nl.i, nl.j
+
+
+def tri_bpx_distances(points, cell, r):
+    nl = bpx.neighbor_pairs(points, r, cell=cell, threads=1)
+    return nl.i, nl.j
+
+
+def tri_vesin(points, cell, r):
+    from vesin import NeighborList
+
+    return NeighborList(cutoff=r, full_list=False).compute(
+        points=points, box=cell, periodic=True, quantities="ij")
+
+
+def tri_matscipy(points, cell, r):
+    from matscipy.neighbours import neighbour_list
+
+    return neighbour_list("ij", positions=points, cutoff=r, cell=cell, pbc=[True] * 3)
+
+
+def tri_ase(points, cell, r):
+    import ase
+    from ase.neighborlist import neighbor_list
+
+    atoms = ase.Atoms(numbers=np.ones(len(points), dtype=int), positions=points, cell=cell,
+                      pbc=True)
+    return neighbor_list("ij", atoms, r)
+
+
+TRICLINIC_PEERS = {
+    "bpx cubic (same density)": tri_bpx_cubic,
+    "bpx triclinic": tri_bpx,
+    "bpx triclinic + distances": tri_bpx_distances,
+    "vesin triclinic": tri_vesin,
+    "matscipy triclinic": tri_matscipy,
+    "ASE triclinic": tri_ase,
+}
+
+
+def main_triclinic(args):
+    shape = SHAPES[args.shape]
+    print(f"# bench_neighbors --triclinic --shape {args.shape}: "
+          f"{platform.processor() or platform.machine()}, bpx {bpx.__version__}, one thread, "
+          f"median of {args.rounds} rounds; cell rows {shape.tolist()} scaled to unit density")
+    print("| points | library | ms | pairs (i < j) | / bpx cubic | / bpx triclinic | same pairs |")
+    print("| ---: | --- | ---: | ---: | ---: | ---: | --- |")
+    for n in args.sizes:
+        rng = np.random.default_rng(n)
+        cell = shape * (n / abs(np.linalg.det(shape))) ** (1 / 3)  # unit density
+        r = (3 * args.neighbours / (4 * np.pi)) ** (1 / 3)
+        points = rng.uniform(0, 1, size=(n, 3)) @ cell
+        times = {name: [] for name in TRICLINIC_PEERS if name not in args.skip}
+        counts, exact, want = {}, {}, {}
+        for _ in range(args.rounds):
+            for name in times:
+                if times[name] is None:
+                    continue
+                start = time.perf_counter()
+                try:
+                    i, j = TRICLINIC_PEERS[name](points, cell, r)
+                except ImportError:
+                    times[name] = None
+                    continue
+                times[name].append(time.perf_counter() - start)
+                if name not in exact:
+                    keys = half_pairs(i, j)
+                    group = "cubic" if "cubic" in name else "triclinic"
+                    want.setdefault(group, keys)
+                    counts[name] = len(keys)
+                    exact[name] = bool(np.array_equal(keys, want[group]))
+        base = statistics.median(times["bpx cubic (same density)"])
+        tri = statistics.median(times["bpx triclinic"])
+        for name, t in times.items():
+            if not t:
+                print(f"| {n:,} | {name} | not installed | | | | |")
+                continue
+            m = statistics.median(t)
+            print(f"| {n:,} | {name} | {m * 1e3:,.1f} | {counts[name]:,} | {m / base:.2f} | "
+                  f"{m / tri:.2f} | {'yes' if exact[name] else 'NO'} |", flush=True)
+
+
 PEERS = {
     "bpx": run_bpx,
     "bpx + distances": run_bpx_distances,
@@ -120,7 +225,13 @@ def main():
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--neighbours", type=float, default=30.0)
     parser.add_argument("--skip", nargs="*", default=[], help="peers to leave out")
+    parser.add_argument("--triclinic", action="store_true",
+                        help="a triclinic cell against a cube of the same density")
+    parser.add_argument("--shape", choices=sorted(SHAPES), default="tilted")
     args = parser.parse_args()
+    if args.triclinic:
+        main_triclinic(args)
+        return
     try:
         import freud
 

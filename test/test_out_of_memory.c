@@ -456,8 +456,10 @@ static void test_failure_keeps_world(void)
 
 // bpx_find_neighbors with every allocation failing in turn: OUT_OF_MEMORY, an empty list, nothing
 // held; the run that succeeds gives the pairs of an unhindered run (periodic points in a small
-// cell, so that images, pairs with images and distances are all allocated).
-static void test_neighbors_allocation_failure(void)
+// cell, so that images, pairs with images and distances are all allocated). Then the same in a
+// triclinic cell (the cutoff past half its thinnest face: several images of a pair, a point's
+// hits growing past their first room).
+static void test_neighbors_allocation_failure(bool triclinic)
 {
     enum { n = 300 };
     static double points[3 * n];
@@ -472,6 +474,12 @@ static void test_neighbors_allocation_failure(void)
     def.cutoff = 1.5;
     def.metric = BPX_METRIC_EUCLIDEAN;
     def.want_distances = true;
+    if (triclinic) {
+        const double cell[3][3] = {{6.0, 0.0, 0.0}, {2.5, 5.0, 0.0}, {-1.5, 2.0, 2.0}};
+        memset(def.period, 0, sizeof def.period);
+        memcpy(def.cell, cell, sizeof def.cell);
+        def.cutoff = 2.5;
+    }
     bpx_neighbor_list want;
     CHECK_STATUS(bpx_find_neighbors(&def, points, n, &want, NULL), BPX_OK);
     int64_t start = bpx_allocated_bytes();
@@ -480,8 +488,9 @@ static void test_neighbors_allocation_failure(void)
     for (def.worker_count = 1; def.worker_count <= 3; def.worker_count += 2) {
         long long budget = 0;
         for (; budget < 100000; budget++) {
-            check_set_context("neighbors: allocation failure after %lld allocations, %d workers",
-                              budget, def.worker_count);
+            check_set_context("neighbors%s: allocation failure after %lld allocations, %d "
+                              "workers",
+                              triclinic ? " (triclinic)" : "", budget, def.worker_count);
             atomic_store(&fa_budget, budget);
             bpx_neighbor_list list;
             bpx_error err;
@@ -499,9 +508,9 @@ static void test_neighbors_allocation_failure(void)
             CHECK_EQ_U64(atomic_load(&fa_live), 0);
             CHECK(bpx_allocated_bytes() == start);
         }
-        printf("  neighbors, %d workers: a full run needs %lld allocations; every shorter "
+        printf("  neighbors%s, %d workers: a full run needs %lld allocations; every shorter "
                "budget failed cleanly\n",
-               def.worker_count, budget);
+               triclinic ? " (triclinic)" : "", def.worker_count, budget);
         CHECK(budget > 3);
     }
     bpx_set_allocator(NULL, NULL, NULL);
@@ -515,6 +524,7 @@ int main(void)
            keep_n);
     test_allocation_failure();
     test_failure_keeps_world();
-    test_neighbors_allocation_failure();
+    test_neighbors_allocation_failure(false);
+    test_neighbors_allocation_failure(true);
     return check_finish("test_out_of_memory", 1);
 }

@@ -22,6 +22,8 @@
 // lower faces, and the backend finds the candidate pairs among them; each candidate is kept once
 // (the image pair whose shifts are 0 or less, with one of them 0 on every periodic axis). Both
 // decide each pair on the input coordinates in double, the same way (docs/neighbors.md).
+// Points in a triclinic cell (bpx_neighbor_def.cell) take a cell list of their own, binned in
+// fractional coordinates of the cell reduced to near-cubes (docs/neighbors.md, "Triclinic cells").
 #pragma once
 
 #include "types.h"
@@ -75,11 +77,26 @@ typedef struct bpx_neighbor_def {
     /// the output does not depend on it).
     bpx_backend backend;
     int worker_count;
+    /// A triclinic cell, for points: its lattice vectors as rows, a = cell[0], b = cell[1],
+    /// c = cell[2] (ASE's convention). All zero (the default): no triclinic cell, period[]
+    /// decides. When any entry is non-zero: period must be 0, 0, 0, the format
+    /// BPX_POINTS_F32 or BPX_POINTS_F64 and the metric BPX_METRIC_EUCLIDEAN; the cell must be
+    /// finite, every entry below 2^960 in magnitude, not singular (condition number up to
+    /// 2^24); either handedness. Each axis (fractional coordinate along a, b, c) is periodic
+    /// unless cell_open says otherwise; an open axis still needs its vector (any vector that
+    /// keeps the cell non-singular; it sets no period). The pair (i, j, shift) then stands for
+    /// the vector x_j + shift[0] a + shift[1] b + shift[2] c - x_i; its length is the distance.
+    /// Searched by a cell list in fractional coordinates whatever `backend` says (the backend
+    /// is not used); worker_count as above. docs/neighbors.md, "Triclinic cells".
+    double cell[3][3];
+    bool cell_open[3]; ///< per lattice vector: not periodic (with a triclinic cell). Default false
 } bpx_neighbor_def;
 
 /// One pair: box i and the image of box j shifted by shift[a] * period[a] on each axis (shift 0
-/// on open axes). Reported with i < j, or i == j (a box and its own image, when a box and the
-/// cutoff span a period) with the shift's first non-zero component positive; (j, i, -shift) is
+/// on open axes); with a triclinic cell, point i and point j moved by shift[0] a + shift[1] b +
+/// shift[2] c (ASE's S: vector = x_j - x_i + shift . cell). Reported with i < j, or i == j (a
+/// box and its own image, when a box and the cutoff span a period) with the shift's first
+/// non-zero component positive; (j, i, -shift) is
 /// the same pair and is not reported again. A pair of boxes that meet in several images is
 /// reported once per image.
 typedef struct bpx_image_pair {
@@ -102,9 +119,12 @@ BPX_API bpx_neighbor_def bpx_default_neighbor_def(void);
 /// every periodic image. On success *list owns its arrays (free them with
 /// bpx_neighbor_list_free); on error it is empty and err (may be NULL) names what and where.
 /// Errors: NULL_ARGUMENT; INVALID_ARGUMENT (a period or the cutoff NaN, infinite or negative, an
-/// unknown format or metric, a worker count out of range); NOT_FINITE / MIN_GREATER_THAN_MAX
-/// naming the object; TOO_MANY_BOXES (n, or the objects with their images, past
-/// BPX_MAX_BOXES; an object more than 2^29 periods from the origin, or spanning that many);
+/// unknown format or metric, a worker count out of range; a triclinic cell that is not finite,
+/// singular or nearly so, or given with boxes, the box metric or a period); NOT_FINITE /
+/// MIN_GREATER_THAN_MAX naming the object; TOO_MANY_BOXES (n, or the objects with their
+/// images, past BPX_MAX_BOXES; an object more than 2^29 periods from the origin, or spanning that many; with
+/// a triclinic cell, a point more than 2^29 cells from the origin, or a cutoff that reaches more
+/// than 2^20 face distances or 2^24 images of the cell's bins);
 /// OUT_OF_MEMORY; BACKEND_UNAVAILABLE; TOO_MANY_PAIRS as the backend reports it.
 BPX_API bpx_status bpx_find_neighbors(const bpx_neighbor_def *def, const void *data, uint32_t n,
                                       bpx_neighbor_list *list, bpx_error *err);

@@ -845,7 +845,8 @@ static PyMethodDef module_methods[] = {
     {"find_pairs", py_find_pairs, METH_VARARGS, find_pairs_doc},
     {"find_neighbors", py_find_neighbors, METH_VARARGS,
      "find_neighbors(where, data, format, period, cutoff, metric, want_distances, pairs_only, "
-     "backend, threads) -> (pairs bytearray, distances bytearray or None)"},
+     "backend, threads[, cell]) -> (pairs bytearray, distances bytearray or None); cell: None "
+     "or ((a), (b), (c), (open a, b, c)), a triclinic cell for points"},
     {"backends", py_backends, METH_NOARGS, "[(name, available, reason, detail)]"},
     {"simd_widths", py_simd_widths, METH_NOARGS, "[(name, supported, lanes)]"},
     {"_last_input_address", py_last_input_address, METH_NOARGS,

@@ -50,10 +50,21 @@ PyObject *py_find_neighbors(PyObject *module, PyObject *args)
     bpx_neighbor_def def = bpx_default_neighbor_def();
     int format, metric, want_distances, pairs_only;
     const char *backend_name;
-    if (!PyArg_ParseTuple(args, "sOi(ddd)dippsi", &where, &obj, &format, &def.period[0],
+    PyObject *cell = Py_None;
+    if (!PyArg_ParseTuple(args, "sOi(ddd)dippsi|O", &where, &obj, &format, &def.period[0],
                           &def.period[1], &def.period[2], &def.cutoff, &metric, &want_distances,
-                          &pairs_only, &backend_name, &def.worker_count))
+                          &pairs_only, &backend_name, &def.worker_count, &cell))
         return NULL;
+    // A triclinic cell: ((a), (b), (c), (open a, open b, open c)), rows as lattice vectors.
+    int open[3] = {0, 0, 0};
+    if (cell != Py_None &&
+        !PyArg_ParseTuple(cell, "(ddd)(ddd)(ddd)(ppp)", &def.cell[0][0], &def.cell[0][1],
+                          &def.cell[0][2], &def.cell[1][0], &def.cell[1][1], &def.cell[1][2],
+                          &def.cell[2][0], &def.cell[2][1], &def.cell[2][2], &open[0], &open[1],
+                          &open[2]))
+        return NULL;
+    for (int a = 0; a < 3; a++)
+        def.cell_open[a] = open[a] != 0;
     if (format < BPX_BOXES_F32 || format > BPX_POINTS_F64)
         return raise_status(where, BPX_ERR_INVALID_ARGUMENT, "unknown input format");
     def.format = (bpx_input_format)format;

@@ -145,8 +145,11 @@ def test_empty_and_open():
 
 @pytest.mark.parametrize(
     "cell, match",
-    [(0.0, "length"), (-1.0, "length"), (float("nan"), "length"),
-     ([[1, 0.5, 0], [0, 1, 0], [0, 0, 1]], "triclinic"), ([1, 2], "shape")],
+    [(0.0, "length"), (-1.0, "length"), (float("nan"), "length"), ([1, 2], "shape"),
+     ([[1, 0.5, 0], [2, 1, 0], [0, 0, 1]], "singular"),
+     ([[1, 0.5, 0], [0, 1, 0], [0, 0, np.nan]], "cell\\[2\\]\\[2\\]"),
+     ([[1, 0.5, 0], [0, 1, 0], [0.5, 0.5, 1e-9]], "close to singular"),
+     ([[1, 0.5, 0], [0, 1, 0], [0, 0, 0]], "zero on a periodic axis")],
 )
 def test_bad_cells(cell, match):
     with pytest.raises(bpx.InvalidArgumentError, match=match):
@@ -251,3 +254,154 @@ def test_find_pairs_open_shifts_and_bad_cells():
         bpx.find_pairs(boxes, cell=[0, 5, 5])
     with pytest.raises(bpx.InvalidArgumentError, match="triclinic"):
         bpx.find_pairs(boxes, cell=[[5, 1, 0], [0, 5, 0], [0, 0, 5]])
+
+
+# --- triclinic cells -------------------------------------------------------------------------
+
+TRICLINIC = {
+    "general": [[5.0, 0.0, 0.0], [1.25, 4.5, 0.0], [-0.75, 1.5, 4.0]],
+    # face distances 0.6 to 2.1 against vectors of length 4 to 9
+    "sheared": [[4.0, 0.0, 0.0], [7.5, 3.0, 0.0], [-5.0, 6.25, 2.5]],
+    "hexagonal": [[3.0, 0.0, 0.0], [-1.5, 1.5 * np.sqrt(3), 0.0], [0.0, 0.0, 4.9]],
+    "left-handed": [[1.25, 4.5, 0.0], [5.0, 0.0, 0.0], [-0.75, 1.5, 4.0]],
+    "rotated": [[3.1, 1.7, -0.4], [-1.2, 3.9, 0.8], [0.9, -0.6, 4.4]],
+}
+
+
+def face_distances(cell):
+    cell = np.asarray(cell, dtype=np.float64)
+    volume = abs(np.linalg.det(cell))
+    return np.array([volume / np.linalg.norm(np.cross(cell[(k + 1) % 3], cell[(k + 2) % 3]))
+                     for k in range(3)])
+
+
+def brute_force_triclinic(points, cutoff, cell, pbc=(True, True, True)):
+    """Every (i <= j, S) with |x_j - x_i + S @ cell| <= cutoff, over every image shift that can
+    reach (from the fractional coordinates, two more each way), in float64."""
+    points = np.asarray(points, dtype=np.float64)
+    cell = np.asarray(cell, dtype=np.float64)
+    frac = points @ np.linalg.inv(cell)
+    reach = cutoff / face_distances(cell)
+    span = np.ptp(frac, axis=0) if len(points) else np.zeros(3)
+    ranges = [range(-int(np.ceil(r + s)) - 2, int(np.ceil(r + s)) + 3) if p else range(1)
+              for r, s, p in zip(reach, span, pbc)]
+    out = {}
+    for shift in itertools.product(*ranges):
+        S = np.array(shift, dtype=np.float64)
+        image = S[0] * cell[0] + S[1] * cell[1] + S[2] * cell[2]
+        v = (points[None, :, :] + image) - points[:, None, :]
+        d = np.sqrt((v * v).sum(axis=2))
+        for i, j in zip(*np.nonzero(d <= cutoff)):
+            if i > j or (i == j and tuple(shift) <= (0, 0, 0)):
+                continue
+            out[(int(i), int(j), *shift)] = d[i, j]
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(TRICLINIC))
+@pytest.mark.parametrize("scale", [0.3, 0.7, 1.6])  # of the thinnest face distance
+def test_triclinic_against_brute_force(name, scale):
+    cell = np.array(TRICLINIC[name])
+    cutoff = scale * face_distances(cell).min()
+    rng = np.random.default_rng(int(scale * 10) + len(name))
+    frac = rng.uniform(-1, 2, size=(70, 3))  # inside and up to a cell out
+    frac[:6] = [[0, 0, 0], [1, 0, 0], [0, 1, 1], [0.5, 0, 0], [0, 0.5, 1], [1, 1, 1]]  # walls
+    points = frac @ cell
+    nl = bpx.neighbor_pairs(points, cutoff, cell=cell, vectors=True)
+    want = brute_force_triclinic(points, cutoff, cell)
+    got = as_dict(nl)
+    assert got.keys() == want.keys()
+    for key, d in want.items():
+        assert got[key] == pytest.approx(d, rel=1e-12, abs=1e-12)
+    keys = list(zip(nl.i, nl.j, *nl.shifts.T))
+    assert keys == sorted(keys)
+    # the vectors are x_j - x_i + S @ cell, their lengths the distances (same operations)
+    assert np.array_equal(np.sqrt((nl.vectors ** 2).sum(axis=1)), nl.distances)
+    assert np.allclose(nl.vectors, points[nl.j] - points[nl.i] + nl.shifts @ cell,
+                       rtol=0, atol=1e-12)
+    # past the shortest lattice vector: every point meets its own images
+    shortest = min(np.linalg.norm(np.array(S) @ cell)
+                   for S in itertools.product(range(-3, 4), repeat=3) if any(S))
+    if cutoff > shortest:
+        assert np.count_nonzero(nl.i == nl.j) >= len(points)
+
+
+def ase_half_list(atoms, cutoff):
+    from ase.neighborlist import neighbor_list
+
+    i, j, S, d, D = neighbor_list("ijSdD", atoms, cutoff)
+    keep = (i < j) | ((i == j) & np.array([tuple(s) > (0, 0, 0) for s in S], dtype=bool))
+    return {(int(a), int(b), *map(int, s)): (x, v)
+            for a, b, s, x, v in zip(i[keep], j[keep], S[keep], d[keep], D[keep])}
+
+
+@pytest.mark.parametrize("name", sorted(TRICLINIC))
+def test_triclinic_against_ase(name):
+    ase = pytest.importorskip("ase")
+    cell = np.array(TRICLINIC[name])
+    rng = np.random.default_rng(len(name))
+    frac = rng.uniform(-0.5, 1.5, size=(60, 3))  # ASE takes atoms outside the cell too
+    atoms = ase.Atoms("H" * 60, positions=frac @ cell, cell=cell, pbc=True)
+    faces = face_distances(cell)
+    # under half the thinnest face, past it (several images of a pair), past the thickest
+    for cutoff in (0.4 * faces.min(), 1.3 * faces.min(), 1.2 * faces.max()):
+        want = ase_half_list(atoms, cutoff)
+        nl = bpx.neighbor_pairs(atoms.positions, cutoff, cell=atoms.cell.array, vectors=True)
+        got = {key: (d, v) for key, d, v in zip(as_dict(nl), nl.distances, nl.vectors)}
+        # ASE keeps pairs strictly below the cutoff; bpx keeps those at it too.
+        assert {k for k, (d, _) in got.items() if d < cutoff} == want.keys()
+        for key, (d, v) in want.items():
+            assert got[key][0] == pytest.approx(d, rel=1e-12)
+            assert np.allclose(got[key][1], v, rtol=0, atol=1e-11)
+
+
+def test_triclinic_slab_against_ase():
+    ase = pytest.importorskip("ase")
+    # c open and zero in the cell, as ASE takes a slab; bpx completes it as ASE does
+    cell = np.array([[4.0, 0.0, 0.0], [1.7, 3.6, 0.0], [0.0, 0.0, 0.0]])
+    rng = np.random.default_rng(17)
+    positions = rng.uniform(0, 1, size=(90, 3)) @ np.array([cell[0], cell[1], [0, 0, 6.0]])
+    atoms = ase.Atoms("H" * 90, positions=positions, cell=cell, pbc=[True, True, False])
+    for cutoff in (1.5, 4.5):
+        want = ase_half_list(atoms, cutoff)
+        nl = bpx.neighbor_pairs(positions, cutoff, cell=cell, pbc=[True, True, False])
+        got = as_dict(nl)
+        assert {k for k, d in got.items() if d < cutoff} == want.keys()
+        assert not nl.shifts[:, 2].any()
+        for key, (d, _) in want.items():
+            assert got[key] == pytest.approx(d, rel=1e-12)
+
+
+def test_triclinic_float32_threads_and_open():
+    cell = np.array(TRICLINIC["sheared"])
+    rng = np.random.default_rng(23)
+    points = (rng.uniform(0, 3, size=(20000, 3)) @ cell).astype(np.float32)
+    one = bpx.neighbor_pairs(points, 0.25, cell=cell, threads=1)  # about 22 neighbours
+    three = bpx.neighbor_pairs(points, 0.25, cell=cell, threads=3)
+    for a, b in zip(one[:4], three[:4]):
+        assert np.array_equal(a, b)
+    small = (rng.uniform(0, 1, size=(120, 3)) @ cell).astype(np.float32)
+    want = brute_force_triclinic(small, 1.4, cell)
+    assert as_dict(bpx.neighbor_pairs(small, 1.4, cell=cell)).keys() == want.keys()
+    # no periodic axis: the cell does not matter
+    open_ = bpx.neighbor_pairs(small, 1.4, cell=cell, pbc=False)
+    plain = bpx.neighbor_pairs(small, 1.4)
+    assert np.array_equal(open_.pairs, plain.pairs) and not open_.shifts.any()
+
+
+def test_triclinic_refusals():
+    cell = TRICLINIC["general"]
+    boxes = np.array([[0, 0, 0, 1, 1, 1.0]])
+    with pytest.raises(bpx.InvalidArgumentError, match="triclinic cell takes points"):
+        bpx.neighbor_pairs(boxes, 1.0, cell=cell)
+    with pytest.raises(bpx.InvalidArgumentError, match="triclinic cell takes points"):
+        bpx.neighbor_pairs([[0, 0, 0]], 1.0, cell=cell, metric="box")
+    with pytest.raises(bpx.TooManyBoxesError, match="2\\^29 cells"):
+        bpx.neighbor_pairs([[0, 0, 0], [1e10, 0, 0]], 1.0, cell=cell)
+    with pytest.raises(bpx.TooManyBoxesError):
+        bpx.neighbor_pairs([[0, 0, 0]], 1e4, cell=cell)  # 2000^3 images of each bin
+    with pytest.raises(bpx.NotFiniteError) as info:
+        bpx.neighbor_pairs([[0, 0, 0], [0, 0, np.nan]], 1.0, cell=cell)
+    assert info.value.index == 1 and info.value.axis == 2
+    with pytest.raises(bpx.InvalidArgumentError, match="triclinic"):
+        bpx.find_pairs(boxes, cell=cell)  # find_pairs and World: orthorhombic only

@@ -1196,6 +1196,34 @@ static bpx_status run(search *s, image_state *im, const keeper *keep, bpx_neighb
     return status;
 }
 
+// Whether def gives a triclinic cell: any entry not 0 (NaN included, refused later).
+static bool has_cell(const bpx_neighbor_def *def)
+{
+    for (int a = 0; a < 3; a++)
+        for (int c = 0; c < 3; c++)
+            if (def->cell[a][c] != 0)
+                return true;
+    return false;
+}
+
+// A cell that is diagonal with finite positive entries, given with no period, as def's periods
+// into *out (its open axes 0, the cell cleared); false for any other cell.
+static bool orthorhombic_cell(const bpx_neighbor_def *def, bpx_neighbor_def *out)
+{
+    for (int a = 0; a < 3; a++) {
+        if (def->period[a] != 0 || !(def->cell[a][a] > 0 && def->cell[a][a] < INFINITY))
+            return false;
+        for (int c = 0; c < 3; c++)
+            if (c != a && def->cell[a][c] != 0)
+                return false;
+    }
+    *out = *def;
+    memset(out->cell, 0, sizeof out->cell);
+    for (int a = 0; a < 3; a++)
+        out->period[a] = def->cell_open[a] ? 0 : def->cell[a][a];
+    return true;
+}
+
 // bpx_find_neighbors; with out_count, into out as bpx_find_pairs would (open searches only).
 static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n,
                        const keeper *keep, bpx_neighbor_list *list, bpx_pair *out,
@@ -1211,6 +1239,20 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
     if (n > BPX_MAX_BOXES)
         return bpx__error(err, BPX_ERR_TOO_MANY_BOXES, UINT32_MAX, -1,
                           "%u objects exceed BPX_MAX_BOXES (%u)", n, BPX_MAX_BOXES);
+    // A triclinic cell (def->cell): diagonal with positive entries, it is the orthorhombic
+    // cell of those periods (the same pairs, shifts and bits); otherwise its own search.
+    bpx_neighbor_def diagonal;
+    if (has_cell(def)) {
+        if (keep->world || out_count)
+            return bpx__error(err, BPX_ERR_INVALID_ARGUMENT, UINT32_MAX, -1,
+                              "a triclinic cell is for bpx_find_neighbors");
+        if (!orthorhombic_cell(def, &diagonal)) {
+            bpx_status checked = check_def(def, false, err);
+            return checked != BPX_OK ? checked
+                                     : bpx__neighbors_triclinic(def, data, n, list, err);
+        }
+        def = &diagonal;
+    }
     bpx_status status = check_def(def, keep->world != NULL, err);
     if (status != BPX_OK || n == 0)
         return status;

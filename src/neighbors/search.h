@@ -146,3 +146,8 @@ bool bpx__neighbors_reserve(bpx_neighbor_list *list, size_t needed, bool want_di
 /// the list, no comparator. BPX_ERR_BAD_STATE (and nothing done) when the cell does not allow
 /// it: a periodic axis shorter than 3 cells of the cutoff.
 bpx_status bpx__neighbors_cells(const search *s, bpx_neighbor_list *list);
+
+/// The cell-list search for points in a triclinic cell (def->cell; triclinic.c): its own checks
+/// of the cell, the format, the metric and the points, then every pair in (i, j, shift) order.
+bpx_status bpx__neighbors_triclinic(const bpx_neighbor_def *def, const void *data, uint32_t n,
+                                    bpx_neighbor_list *list, bpx_error *err);

@@ -24,9 +24,11 @@ class Neighbors(NamedTuple):
     """The pairs of ``neighbor_pairs``, sorted by (i, j, shift), each once (i < j; i == j for a
     box and its own image, the shift's first non-zero component then positive).
 
-    Object i and the image of object j shifted by ``shifts @ diag(cell)`` are within the
-    cutoff. ``vectors`` (points only) is that image minus point i; ``distances`` its length
-    for points (Euclidean metric), else the metric's distance between the boxes.
+    Object i and the image of object j shifted by ``shifts @ cell`` (``shifts * lengths`` for
+    an orthorhombic cell given as lengths) are within the cutoff: for points the vector is
+    ``x[j] - x[i] + shifts @ cell``, ASE's convention. ``vectors`` (points only) is that
+    vector; ``distances`` its length for points (Euclidean metric), else the metric's distance
+    between the boxes.
     """
 
     i: np.ndarray  #: (k,) uint32
@@ -76,7 +78,8 @@ def period_of(cell: Any, pbc: Any, what: str) -> Tuple[float, float, float]:
         if np.any(lengths[~np.eye(3, dtype=bool)] != 0):
             raise InvalidArgumentError(
                 f"{what}: the cell {lengths.tolist()} is triclinic; only orthorhombic cells "
-                "(a diagonal matrix, three lengths or one) are supported"
+                "(a diagonal matrix, three lengths or one) are supported here (neighbor_pairs "
+                "takes triclinic cells for points)"
             )
         lengths = np.diag(lengths).copy()
     elif lengths.shape == ():
@@ -95,6 +98,51 @@ def period_of(cell: Any, pbc: Any, what: str) -> Tuple[float, float, float]:
                 "periodic axis needs a finite length > 0"
             )
     return (float(period[0]), float(period[1]), float(period[2]))
+
+
+def _complete_cell(cell: np.ndarray) -> np.ndarray:
+    """Zero lattice vectors made up as ASE's ``complete_cell`` does (for open axes)."""
+    cell = np.array(cell, dtype=np.float64)
+    missing = np.nonzero(~cell.any(axis=1))[0]
+    if len(missing) == 3:
+        cell.flat[::4] = 1.0
+    elif len(missing) == 2:
+        V, s, WT = np.linalg.svd(cell.T)
+        cell = (V @ np.diag([s[0], 1.0, 1.0]) @ WT).T
+        if np.sign(np.linalg.det(cell)) < 0:
+            cell[missing[0]] = -cell[missing[0]]
+    elif len(missing) == 1:
+        i = missing[0]
+        cell[i] = np.cross(cell[i - 2], cell[i - 1])
+        cell[i] /= np.linalg.norm(cell[i])
+    return cell
+
+
+def triclinic_of(cell: Any, pbc: Any, what: str) -> Any:
+    """For a 3x3 cell that is not diagonal: ``(vectors, open)`` for the C call (zero vectors
+    of open axes completed as ASE does), or ``"open"`` when no axis is periodic; None for any
+    other cell (``period_of``'s)."""
+    if cell is None:
+        return None
+    try:
+        matrix = np.asarray(cell, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    if matrix.shape != (3, 3) or not np.any(matrix[~np.eye(3, dtype=bool)] != 0):
+        return None
+    periodic = np.broadcast_to(np.asarray(pbc, dtype=bool), (3,))
+    if not periodic.any():
+        return "open"
+    zero = ~matrix.any(axis=1)
+    for axis in range(3):
+        if zero[axis] and periodic[axis]:
+            raise InvalidArgumentError(
+                f"{what}: the cell's lattice vector {'abc'[axis]} is zero on a periodic axis"
+            )
+    if zero.any():
+        matrix = _complete_cell(matrix)
+    rows = tuple(tuple(float(v) for v in row) for row in matrix)
+    return (rows[0], rows[1], rows[2], tuple(not bool(p) for p in periodic)), matrix
 
 
 def _threads(threads: Optional[int], n: int) -> int:
@@ -125,21 +173,27 @@ def neighbor_pairs(
             rounded to float32); integers up to 2^53.
         cutoff: the largest distance reported, finite and >= 0 (any size: past half the cell,
             a pair is reported once for each image within it).
-        cell: None (no periodic axis), one length (cubic), three lengths, or a diagonal 3x3
-            matrix (an orthorhombic cell). The objects need not lie inside it.
+        cell: None (no periodic axis), one length (cubic), three lengths, or a 3x3 matrix
+            whose rows are the lattice vectors a, b, c (ASE's ``atoms.cell``). A diagonal
+            matrix is the orthorhombic cell of its lengths; any other (triclinic) takes points
+            and the Euclidean metric, either handedness, and must not be singular (condition
+            number up to 2^24). The objects need not lie inside it.
         pbc: which axes are periodic, one bool or three (ASE's convention); default all, when
-            a cell is given.
+            a cell is given. With a triclinic cell, axis k is the lattice vector k; a zero
+            vector on an open axis is completed as ASE does.
         metric: "euclidean" (default for points) or "box" (default for boxes: the largest
             gap over the axes, decided exactly on the input coordinates).
         distances, vectors: also return the distances (default) and, for points, the
-            vectors from point i to the image of point j.
+            vectors from point i to the image of point j: ``x[j] - x[i] + shifts @ cell``
+            (ASE's D), in the order of operations the distances were computed in.
         backend, threads: as for find_pairs.
 
     Returns:
         Neighbors(i, j, shifts, distances, vectors), sorted by (i, j, shift).
 
     Raises:
-        InvalidArgumentError: a bad cell (zero, negative, NaN, triclinic), cutoff or shape;
+        InvalidArgumentError: a bad cell (zero, negative, NaN; triclinic with boxes, the box
+            metric, or singular), cutoff or shape;
         NotFiniteError / MinGreaterThanMaxError naming the object; TooManyBoxesError when a
         cell is so small against the objects and the cutoff that their images pass
         MAX_BOXES.
@@ -167,11 +221,24 @@ def neighbor_pairs(
         raise InvalidArgumentError(f"{what}: cutoff must be a number, got {cutoff!r}") from None
     if vectors and not points:
         raise InvalidArgumentError(f"{what}: vectors are for points, not boxes")
-    period = period_of(cell, pbc, what)
+    triclinic = triclinic_of(cell, pbc, what)
+    cell_arg = None
+    if triclinic == "open":
+        period = (0.0, 0.0, 0.0)
+    elif triclinic is not None:
+        if not points or metric != "euclidean":
+            raise InvalidArgumentError(
+                f"{what}: a triclinic cell takes points (n, 3) and the Euclidean metric; boxes "
+                "and the box metric need an orthorhombic cell (three lengths)"
+            )
+        cell_arg, matrix = triclinic
+        period = (0.0, 0.0, 0.0)
+    else:
+        period = period_of(cell, pbc, what)
     fmt = (_POINTS_F64 if f64 else _POINTS_F32) if points else (_BOXES_F64 if f64 else _BOXES_F32)
     raw, raw_distances = _bpx.find_neighbors(
         what, data, fmt, period, cutoff, _METRICS[metric], bool(distances), False, backend,
-        _threads(threads, len(data)),
+        _threads(threads, len(data)), cell_arg,
     )
     i = np.frombuffer(raw[0], dtype=np.uint32)
     j = np.frombuffer(raw[1], dtype=np.uint32)
@@ -180,7 +247,12 @@ def neighbor_pairs(
     v = None
     if vectors:
         xyz = data.astype(np.float64, copy=False)
-        v = (xyz[j] + shifts * np.asarray(period)) - xyz[i]  # as bpx computes the distances
+        if cell_arg is not None:  # S_0 a + S_1 b + S_2 c, as bpx sums it
+            s64 = shifts.astype(np.float64)
+            image = s64[:, :1] * matrix[0] + s64[:, 1:2] * matrix[1] + s64[:, 2:] * matrix[2]
+            v = (xyz[j] + image) - xyz[i]
+        else:
+            v = (xyz[j] + shifts * np.asarray(period)) - xyz[i]  # as bpx computes the distances
     return Neighbors(i, j, shifts, d, v)
 
 
