@@ -34,6 +34,20 @@ static inline void prefetch_node(const bpx_bvh *t, uint32_t index)
         __builtin_prefetch(node + line);
 }
 
+// A closest cast in a tree larger than the caches waits on each node it enters (the nearest
+// child is entered at once, so its lines are not fetched ahead like the pushed ones'): on
+// entering a node, every child node's lines start loading while its lanes are tested, so the
+// next node is on its way before the test says which one it is. Measured on long_any at 100k
+// boxes (27 nodes a ray), a quarter off a ray; in a tree that fits in the core's caches
+// (1,000 nodes), the prefetches cost 8%, hence the size.
+enum { SPECULATE_NODES = 4096 }; // 1 MiB of nodes
+static inline void prefetch_children(const bpx_bvh *t, const bpx_bvh_node *node)
+{
+    uint32_t inner = ~node->leaves & ((1u << node->lanes) - 1u);
+    for (; inner; inner &= inner - 1)
+        prefetch_node(t, node->child[__builtin_ctz(inner)]);
+}
+
 // What a walk does with a hit it found (and may see): a callback's say, or the hit stored. A
 // fixed list (the caller's memory) counts the hits past its end without storing them.
 enum { GO_ON, STOP, FAIL };
@@ -156,6 +170,7 @@ static bool cast_closest(const bpx_query_view *v, const bpx_prepared *p, bpx_hit
     if (t->node_count)
         stack[top++] = (entry){0, 0.0f};
     float enter[BPX_BVH_WIDTH];
+    const bool speculate = t->node_count > SPECULATE_NODES;
     while (top) {
         top--;
         if (stack[top].enter > best.fraction)
@@ -164,6 +179,8 @@ static bool cast_closest(const bpx_query_view *v, const bpx_prepared *p, bpx_hit
         for (;;) {
             const bpx_bvh_node *node = &t->nodes[index];
             COUNT_VISIT();
+            if (speculate)
+                prefetch_children(t, node);
             uint32_t hit = lanes_cast(node, p, best.fraction, enter);
             for (uint32_t leaves = hit & node->leaves; leaves; leaves &= leaves - 1) {
                 int k = __builtin_ctz(leaves);
@@ -211,6 +228,10 @@ bool BPX_TRAVERSE(const bpx_query_view *view, const bpx_prepared *p, bpx_hit_lis
     case BPX_QUERY_ORIENTED:
         return region(view, p, out);
     default:
+#ifdef BPX_CAST_CLOSEST_FAST
+        if (p->closest && !p->visit && p->all_moving)
+            return BPX_CAST_CLOSEST_FAST(view, p, out);
+#endif
         return p->closest && !p->visit ? cast_closest(view, p, out) : cast_all(view, p, out);
     }
 }
