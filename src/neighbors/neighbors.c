@@ -1256,7 +1256,7 @@ static bpx_status find(const bpx_neighbor_def *def, const void *data, uint32_t n
     bpx_status status = check_def(def, keep->world != NULL, err);
     if (status != BPX_OK || n == 0)
         return status;
-    search s = {.def = def, .in = {data, def->format, {{0}, {0}}}, .n = n, .err = err};
+    search s = {.def = def, .in = {.data = data, .format = def->format}, .n = n, .err = err};
     if (def->format == BPX__BOXES_SOA)
         s.in.soa = *(const bpx__soa_boxes *)data;
     for (int a = 0; a < 3; a++) {
