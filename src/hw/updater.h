@@ -31,7 +31,7 @@ typedef enum bpx_hw_update_mode {
 enum {
     /// Registers from the arriving SSRAM word to the RAM write: the operand register, the seven
     /// between the adder's steps and the add register (rtl/updater.sv's S).
-    BPX_HW_UPDATE_STAGES = 9,
+    BPX_HW_UPDATE_STAGES = 10,
 };
 
 /// One register of the updater's pipeline: a box (memory order: min x, max x, min y, max y,
