@@ -167,7 +167,7 @@ static void test_clock_counts(void)
                 rows += (n - 1 - i + lanes - 1) / lanes;
             CHECK_EQ_U64(r.collisions, 0);
             CHECK_EQ_U64(r.stall_clocks, 0);
-            // Updater: n reads, SSRAM latency, the operand register, seven adder registers and the
+            // Updater: n reads, SSRAM latency, the operand register, eight adder registers and the
             // add register (the RAM write follows the last).
             CHECK_EQ_U64(r.update_clocks, n ? n + (uint64_t)config.ssram_latency + 10 : 0);
             // Comparator: one clock per schedule row, then the RAM read, RAM output and result
