@@ -14,6 +14,8 @@
 //   stage 3: the comparison results (h_*), read by the emitter.
 // The RAMs' read and output registers take their own copies of the stall, as clock enables
 // (ram_en): one net to all of them was the longest path at 108 MHz on an ECP5 (docs/rtl.md).
+// The first box's output registers (RAM 0, port A) are kept in M copies, one next to each RAM,
+// for the units that read that RAM (f below): the same values, fewer loads per register.
 // The updater writes one box (six words) into all M RAMs of each memory through port A.
 module bpx_comparator #(
     parameter integer M = 4,
@@ -147,7 +149,14 @@ module bpx_comparator #(
 
     // ---- the six memories: M dual-port RAMs each, same data -------------------------------
     // q[(x*M + r)*2 + side]: RAM r of memory x, port A (side 0) or B (side 1).
+    // f[x*M + r]: the first box's word of memory x (RAM 0's port A) for the units that read
+    // RAM r: RAM 0's output register for r = 0, else a copy of it next to RAM r, taken from
+    // RAM 0's read register with RAM r's clock enable (the same value at the same clock). One
+    // output register driving all 2M - 1 units was the longest path at 108 MHz on an ECP5
+    // (docs/rtl.md, "What limits fmax", round 5).
     wire [31:0] q [0:6*M*2-1];
+    wire [31:0] f [0:6*M-1];
+    wire [31:0] q0 [0:5];       // RAM 0's read register (port A), per memory
     wire [31:0] wkey [0:5];
     genvar gx, gr;
     generate
@@ -179,22 +188,33 @@ module bpx_comparator #(
                 end
                 assign q[(gx*M + gr)*2 + 0] = oa;
                 assign q[(gx*M + gr)*2 + 1] = ob;
+                if (gr == 0) begin : first
+                    assign q0[gx] = qa;
+                    assign f[gx*M] = oa;
+                end else begin : copy
+                    (* keep *) reg [31:0] fo;
+                    always @(posedge clk) begin
+                        if (en_ram)
+                            fo <= q0[gx];
+                    end
+                    assign f[gx*M + gr] = fo;
+                end
             end
         end
     endgenerate
 
     // ---- stage 2 -> 3: the comparison units ------------------------------------------------
     // Unit k uses port k + 1: RAM (k + 1) / 2, side (k + 1) % 2; port 0 (RAM 0, A) is the
-    // first box. Six comparisons, ANDed; units k >= o_kept are discarded (index check).
+    // first box, its copy f next to RAM (k + 1) / 2. Six comparisons, ANDed; units k >= o_kept are discarded (index check).
     wire [L-1:0] units;
     genvar gk;
     generate
         for (gk = 0; gk < L; gk = gk + 1) begin : unit
             localparam integer R = (gk + 1) / 2;
             localparam integer S = (gk + 1) % 2;
-            wire [31:0] fmin_x = q[(0*M + 0)*2], fmax_x = q[(1*M + 0)*2];
-            wire [31:0] fmin_y = q[(2*M + 0)*2], fmax_y = q[(3*M + 0)*2];
-            wire [31:0] fmin_z = q[(4*M + 0)*2], fmax_z = q[(5*M + 0)*2];
+            wire [31:0] fmin_x = f[0*M + R], fmax_x = f[1*M + R];
+            wire [31:0] fmin_y = f[2*M + R], fmax_y = f[3*M + R];
+            wire [31:0] fmin_z = f[4*M + R], fmax_z = f[5*M + R];
             wire [31:0] omin_x = q[(0*M + R)*2 + S], omax_x = q[(1*M + R)*2 + S];
             wire [31:0] omin_y = q[(2*M + R)*2 + S], omax_y = q[(3*M + R)*2 + S];
             wire [31:0] omin_z = q[(4*M + R)*2 + S], omax_z = q[(5*M + R)*2 + S];

@@ -4,18 +4,23 @@
 // raises `overflow`. Non-finite inputs (which the host never sends): infinities add as IEEE
 // says, a NaN or inf - inf gives the quiet NaN 0x7fc00000.
 //
-// Eight combinational steps, so that the updater can put a register after each (one add is far
+// Nine combinational steps, so that the updater can put a register after each (one add is far
 // too long for one clock at the paper's 108 MHz on an ECP5: docs/rtl.md, "What limits fmax"):
-//   1 swap:   the operand of larger magnitude is x; the exponent difference d = ex - ey
-//   2 coarse: y's significand (with guard, round and sticky room) shifted right by d & ~7
-//   3 fine:   ... and by d & 7; the bits shifted out ORed into the sticky bit
-//   4 add:    the significands added or subtracted (the raw sum, 28 bits)
-//   5 zeros:  the sum's leading zeros, found from 4-bit groups (no shifting)
-//   6 clamp:  the left shift, the leading zeros but not below the smallest exponent (which
+//   1 compare: which operand has the larger magnitude (`swap`: a 31-bit compare); alongside,
+//             both exponents (subnormals: 1), both differences, both significands, the
+//             special cases
+//   2 swap:   the operand of larger magnitude is x; the exponent difference d = ex - ey (only
+//             multiplexers, selected by the registered `swap`)
+//   3 coarse: y's significand (with guard, round and sticky room) shifted right by d & ~7
+//   4 fine:   ... and by d & 7; the bits shifted out ORed into the sticky bit
+//   5 add:    the significands added or subtracted (the raw sum, 28 bits)
+//   6 zeros:  the sum's leading zeros, found from 4-bit groups (no shifting)
+//   7 clamp:  the left shift, the leading zeros but not below the smallest exponent (which
 //             makes subnormals), and the exponent after it
-//   7 shift:  normalised: right by one after a carry, else left by that shift
-//   8 round:  round to nearest even, overflow to infinity, the special cases
-// bpx_fadd is the eight in one combinational stage (the adder test's top).
+//   8 shift:  normalised: right by one after a carry, else left by that shift
+//   9 round:  round to nearest even, overflow to infinity, the special cases
+// bpx_fadd is the nine in one combinational stage (the adder test's top).
+`define BPX_FADD_P0 89  // {nan, inf, sa, sb, swap, ea[8:0], eb[8:0], dab[8:0], dba[8:0], ma[23:0], mb[23:0]}
 `define BPX_FADD_P1 71  // {nan, inf, sx, sy, sub, e[8:0], d[8:0], mx[23:0], my[23:0]}
 `define BPX_FADD_P2 97  // {nan, inf, sx, sy, sub, e[8:0], d[2:0], far, sticky, mx, w[53:0]}
 `define BPX_FADD_P3 68  // {nan, inf, sx, sy, sub, e[8:0], xa[26:0], ya[26:0]}
@@ -24,24 +29,33 @@
 `define BPX_FADD_P6 47  // {nan, inf, sx, sy, zero, e[8:0], shift[4:0], sum[27:0]}
 `define BPX_FADD_P7 42  // {nan, inf, sx, sy, zero, e[8:0], sum[27:0]}
 
-module bpx_fadd_swap (
+module bpx_fadd_compare (
     input  wire [31:0]             a,
     input  wire [31:0]             b,
-    output wire [`BPX_FADD_P1-1:0] p
+    output wire [`BPX_FADD_P0-1:0] p
 );
     wire       swap = b[30:0] > a[30:0];
     wire [8:0] ea = (a[30:23] == 8'd0) ? 9'd1 : {1'b0, a[30:23]};  // subnormals: exponent 1
     wire [8:0] eb = (b[30:23] == 8'd0) ? 9'd1 : {1'b0, b[30:23]};
-    wire [8:0] dab = ea - eb, dba = eb - ea;  // both differences at once, then pick
+    wire [8:0] dab = ea - eb, dba = eb - ea;  // both differences at once, picked in step 2
     wire [23:0] ma = {a[30:23] != 8'd0, a[22:0]}, mb = {b[30:23] != 8'd0, b[22:0]};
-    wire sx = swap ? b[31] : a[31], sy = swap ? a[31] : b[31];
     // Non-finite inputs: a NaN or inf - inf is NaN; else an infinity is x's.
     wire nan_a = a[30:23] == 8'hff && a[22:0] != 0, nan_b = b[30:23] == 8'hff && b[22:0] != 0;
     wire inf_a = a[30:23] == 8'hff, inf_b = b[30:23] == 8'hff;
     wire nan = nan_a || nan_b || (inf_a && inf_b && (a[31] ^ b[31]));
     wire inf = inf_a || inf_b;
-    assign p = {nan, inf, sx, sy, sx ^ sy, swap ? eb : ea, swap ? dba : dab,
-                swap ? mb : ma, swap ? ma : mb};
+    assign p = {nan, inf, a[31], b[31], swap, ea, eb, dab, dba, ma, mb};
+endmodule
+
+module bpx_fadd_swap (
+    input  wire [`BPX_FADD_P0-1:0] p,
+    output wire [`BPX_FADD_P1-1:0] q
+);
+    wire        nan = p[88], inf = p[87], sa = p[86], sb = p[85], swap = p[84];
+    wire [8:0]  ea = p[83:75], eb = p[74:66], dab = p[65:57], dba = p[56:48];
+    wire [23:0] ma = p[47:24], mb = p[23:0];
+    assign q = {nan, inf, swap ? sb : sa, swap ? sa : sb, sa ^ sb, swap ? eb : ea,
+                swap ? dba : dab, swap ? mb : ma, swap ? ma : mb};
 endmodule
 
 module bpx_fadd_coarse (
@@ -159,6 +173,7 @@ module bpx_fadd (
     output wire [31:0] s,
     output wire        overflow
 );
+    wire [`BPX_FADD_P0-1:0] p0;
     wire [`BPX_FADD_P1-1:0] p1;
     wire [`BPX_FADD_P2-1:0] p2;
     wire [`BPX_FADD_P3-1:0] p3;
@@ -166,7 +181,8 @@ module bpx_fadd (
     wire [`BPX_FADD_P5-1:0] p5;
     wire [`BPX_FADD_P6-1:0] p6;
     wire [`BPX_FADD_P7-1:0] p7;
-    bpx_fadd_swap   s1 (.a(a), .b(b), .p(p1));
+    bpx_fadd_compare s0 (.a(a), .b(b), .p(p0));
+    bpx_fadd_swap   s1 (.p(p0), .q(p1));
     bpx_fadd_coarse s2 (.p(p1), .q(p2));
     bpx_fadd_fine   s3 (.q(p2), .r(p3));
     bpx_fadd_add    s4 (.r(p3), .p(p4));

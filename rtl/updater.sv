@@ -2,9 +2,9 @@
 //
 // One object per clock: an address counter requests the SSRAM word at `next`; the data comes
 // back LAT clocks later through the interface's read pipeline into the operand register (with
-// the minimum from the minima RAM); seven registers between the adder's eight steps (rtl/fadd.sv)
-// follow, then the add register; the clock after, it is written at that address: S = 9
-// registers, a pass over n objects takes n + LAT + 9 clocks, in every mode (the modes without
+// the minimum from the minima RAM); eight registers between the adder's nine steps (rtl/fadd.sv)
+// follow, then the add register; the clock after, it is written at that address: S = 10
+// registers, a pass over n objects takes n + LAT + 10 clocks, in every mode (the modes without
 // adds go through as many registers). The model's updater has the same registers
 // (BPX_HW_UPDATE_STAGES in src/hw/updater.h).
 // Modes (the model's bpx_hw_update_mode):
@@ -42,11 +42,11 @@ module bpx_updater #(
     output wire            active_d    // active after this clock edge
 );
     localparam integer CW = $clog2(LAT + 2) + 1;  // reads in flight
-    localparam integer S = 9;   // registers from the arriving data to the write
+    localparam integer S = 10;  // registers from the arriving data to the write
     localparam integer RW = (DEPTH > 1) ? $clog2(DEPTH) : 1;
-    // The adder's widths between its steps (rtl/fadd.sv's BPX_FADD_P1 .. P7; fadd.sv may be
+    // The adder's widths between its steps (rtl/fadd.sv's BPX_FADD_P0 .. P7; fadd.sv may be
     // read after this file).
-    localparam integer P1 = 71, P2 = 97, P3 = 68, P4 = 41, P5 = 55, P6 = 47, P7 = 42;
+    localparam integer P0 = 89, P1 = 71, P2 = 97, P3 = 68, P4 = 41, P5 = 55, P6 = 47, P7 = 42;
 
     reg [AW-1:0]   next;
     reg [AW-1:0]   left;       // reads still to issue
@@ -93,12 +93,14 @@ module bpx_updater #(
             wire [31:0] c = op[(ga/2)*32 +: 32];
             wire [31:0] m0 = op_m[(ga/2)*32 +: 32];
             wire [31:0] m = (ga % 2) ? {~m0[31], m0[30:0]} : m0;  // max = centre - minimum
+            wire [P0-1:0] p0;
             wire [P1-1:0] p1;
             wire [P2-1:0] p2;
             wire [P3-1:0] p3;
             wire [P4-1:0] p4;
             wire [P5-1:0] p5;
             wire [P6-1:0] p6;
+            reg  [P0-1:0] r0;
             reg  [P1-1:0] r1;
             reg  [P2-1:0] r2;
             reg  [P3-1:0] r3;
@@ -107,7 +109,8 @@ module bpx_updater #(
             reg  [P6-1:0] r6;
             reg  [P7-1:0] r7;
             wire [P7-1:0] p7;
-            bpx_fadd_swap   s1 (.a(c), .b(m), .p(p1));
+            bpx_fadd_compare s0 (.a(c), .b(m), .p(p0));
+            bpx_fadd_swap   s1 (.p(r0), .q(p1));
             bpx_fadd_coarse s2 (.p(r1), .q(p2));
             bpx_fadd_fine   s3 (.q(r2), .r(p3));
             bpx_fadd_add    s4 (.r(r3), .p(p4));
@@ -116,6 +119,7 @@ module bpx_updater #(
             bpx_fadd_shift  s7 (.r(r6), .t(p7));
             bpx_fadd_round  s8 (.t(r7), .s(sums[ga*32 +: 32]), .overflow(ovf[ga]));
             always @(posedge clk) begin
+                r0 <= p0;
                 r1 <= p1;
                 r2 <= p2;
                 r3 <= p3;

@@ -167,9 +167,9 @@ static void test_clock_counts(void)
                 rows += (n - 1 - i + lanes - 1) / lanes;
             CHECK_EQ_U64(r.collisions, 0);
             CHECK_EQ_U64(r.stall_clocks, 0);
-            // Updater: n reads, SSRAM latency, the operand register, seven adder registers and the
+            // Updater: n reads, SSRAM latency, the operand register, eight adder registers and the
             // add register (the RAM write follows the last).
-            CHECK_EQ_U64(r.update_clocks, n ? n + (uint64_t)config.ssram_latency + 9 : 0);
+            CHECK_EQ_U64(r.update_clocks, n ? n + (uint64_t)config.ssram_latency + 10 : 0);
             // Comparator: one clock per schedule row, then the RAM read, RAM output and result
             // registers empty.
             CHECK_EQ_U64(r.compare_clocks, rows ? rows + 3 : 0);
@@ -366,7 +366,7 @@ static void test_centres(void)
             CHECK_STATUS(bpx_model_load_extents(model, minima, n, &r), BPX_OK);
             CHECK_STATUS(bpx_world_load_extents(truth, minima, n), BPX_OK);
             if (n <= cases[c].ram_depth) // the updater copies the minima on chip
-                CHECK_EQ_U64(r.update_clocks, n ? n + (uint64_t)config.ssram_latency + 9 : 0);
+                CHECK_EQ_U64(r.update_clocks, n ? n + (uint64_t)config.ssram_latency + 10 : 0);
             scene_rng motion;
             scene_rng_seed(&motion, seed);
             for (int cycle = 0; cycle < cycles; cycle++) {

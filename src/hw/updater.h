@@ -3,8 +3,8 @@
 // the centre from the SSRAM, adds the stored minimum to get the box's minimum and subtracts it
 // to get the maximum (the maximum is the minimum with its sign changed), and writes the box
 // into the comparator's six memories. Pipeline: SSRAM read (latency L) -> operand register ->
-// seven adder registers -> add register -> RAM write, one object per clock: a pass over n objects
-// takes n + L + BPX_HW_UPDATE_STAGES clocks. The chip's binary32 adder is eight steps with a
+// eight adder registers -> add register -> RAM write, one object per clock: a pass over n objects
+// takes n + L + BPX_HW_UPDATE_STAGES clocks. The chip's binary32 adder is nine steps with a
 // register after each but the last (rtl/fadd.sv; in one or two stages it was the chip's longest
 // path, far from 108 MHz on an ECP5), so the model computes the sum when the data arrives and
 // moves it through as many registers: the same bits at the same clock.
@@ -29,9 +29,10 @@ typedef enum bpx_hw_update_mode {
 } bpx_hw_update_mode;
 
 enum {
-    /// Registers from the arriving SSRAM word to the RAM write: the operand register, the seven
-    /// between the adder's steps and the add register (rtl/updater.sv's S).
-    BPX_HW_UPDATE_STAGES = 9,
+    /// Registers from the arriving SSRAM word to the RAM write: the operand register, the eight
+    /// between the adder's steps and the add register (rtl/updater.sv's S). Was 9 before the
+    /// adder's magnitude compare got a step of its own (issue 30, docs/rtl.md).
+    BPX_HW_UPDATE_STAGES = 10,
 };
 
 /// One register of the updater's pipeline: a box (memory order: min x, max x, min y, max y,
