@@ -9,30 +9,12 @@
 #include <math.h>
 
 #include "check.h"
-
-typedef struct ref_pair {
-    uint32_t i, j;
-    int32_t shift[3];
-    double distance;
-} ref_pair;
+#include "neighbors_util.h"
 
 typedef struct objects {
     uint32_t n;
     double lo[400][3], hi[400][3];
 } objects;
-
-static int compare_ref(const void *pa, const void *pb)
-{
-    const ref_pair *a = pa, *b = pb;
-    if (a->i != b->i)
-        return a->i < b->i ? -1 : 1;
-    if (a->j != b->j)
-        return a->j < b->j ? -1 : 1;
-    for (int x = 0; x < 3; x++)
-        if (a->shift[x] != b->shift[x])
-            return a->shift[x] < b->shift[x] ? -1 : 1;
-    return 0;
-}
 
 // Every (i <= j, shift) within the cutoff: the shifts tried on each periodic axis cover those
 // that can bring j's interval within c of i's, with one more on each side.
